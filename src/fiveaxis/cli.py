@@ -1,0 +1,61 @@
+"""The `fiveaxis` command line: one sub-command per job; bad input ends in a one-line error, never a traceback.
+
+Each sub-command lives in the module named in COMMANDS, which provides `register(subparsers)`; the module is
+imported only when its command runs, so `fiveaxis table2` never loads numba and `fiveaxis gsa` never loads SymPy.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from .errors import InputError
+
+#: sub-command -> (module, one-line help). The module's `register(parser)` adds options and sets `func`.
+COMMANDS = {
+    "derive": ("fiveaxis.commands.derive", "derive a machine's error model and write its numba kernels"),
+    "table2": ("fiveaxis.commands.derive", "print Table 2 (errors grouped by their J and K) as LaTeX or JSON"),
+}
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="fiveaxis", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version="fiveaxis " + _version())
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (module, helptext) in COMMANDS.items():
+        p = sub.add_parser(name, help=helptext, description=helptext)
+        if only is None or name == only:
+            getattr(importlib.import_module(module), f"register_{name}")(p)
+    return parser
+
+
+def _version() -> str:
+    from . import __version__
+    return __version__
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    command = next((a for a in argv if not a.startswith("-")), None)
+    parser = build_parser(command if command in COMMANDS else None)
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except InputError as exc:
+        print(f"fiveaxis: error: {exc}", file=sys.stderr)
+        return 2
+    except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+        print(f"fiveaxis: error: {exc.filename or ''}: {exc.strerror}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("fiveaxis: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

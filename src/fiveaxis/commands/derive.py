@@ -1,0 +1,81 @@
+"""`fiveaxis derive` and `fiveaxis table2`: the symbolic side, the only commands that import SymPy."""
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+from ..errors import InputError
+from ..machine import MACHINES_DIR, load_machine
+
+
+def register_derive(p):
+    p.add_argument("machine", nargs="*", help="machine names or files (default: every file in machines/)")
+    p.add_argument("--out", type=Path, default=None, help="folder to write to (default: generated/)")
+    p.add_argument("--check", action="store_true",
+                   help="write nothing; exit 1 if a generated module differs from what would be written")
+    p.set_defaults(func=run_derive)
+
+
+def register_table2(p):
+    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
+    p.add_argument("--convention", default="equations",
+                   help="'equations' (errors where Eq. 1-6 place them) or a convention of the machine file "
+                        "(li2018: 'printed', S_yz in the X->Y joint as behind the printed Table 2)")
+    fmt = p.add_mutually_exclusive_group()
+    fmt.add_argument("--latex", action="store_true", help="LaTeX tabular (default)")
+    fmt.add_argument("--json", action="store_true", help="JSON: {machine, convention, groups: [...]}")
+    fmt.add_argument("--reconcile", action="store_true",
+                     help="compare with the paper's printed Table 2, row by row (li2018)")
+    p.set_defaults(func=run_table2)
+
+
+def run_derive(args) -> int:
+    import tempfile
+
+    from fiveaxis_derive.codegen import GENERATED, generate
+    names = args.machine or sorted(str(p) for p in MACHINES_DIR.glob("*.toml"))
+    stale = []
+    for ref in names:
+        machine = load_machine(ref)
+        t0 = time.perf_counter()
+        if args.check:
+            with tempfile.TemporaryDirectory() as tmp:
+                for path, _ in generate(machine, Path(tmp)):
+                    committed = (args.out or GENERATED) / path.name
+                    if not committed.exists() or committed.read_bytes() != path.read_bytes():
+                        stale.append(committed)
+            continue
+        for path, changed in generate(machine, args.out):
+            print(f"{'wrote' if changed else 'unchanged'} {path} ({time.perf_counter() - t0:.2f} s)")
+    if stale:
+        for path in stale:
+            print(f"stale: {path} (run `make derive`)", file=sys.stderr)
+        return 1
+    return 0
+
+
+def run_table2(args) -> int:
+    from fiveaxis_derive.model import derive_model
+    from fiveaxis_derive.table2 import reconcile, to_json, to_latex
+    machine = load_machine(args.machine)
+    machine.with_convention(args.convention)
+    model = derive_model(machine, args.convention)
+    if args.json:
+        print(json.dumps(to_json(model), indent=1))
+    elif args.reconcile:
+        if machine.name != "li2018":
+            raise InputError(f"{machine.path}: the printed Table 2 belongs to li2018; nothing to reconcile")
+        rows = reconcile(model)
+        for r in rows:
+            print(f"row {r['no']:2d} {r['status']:8s} {', '.join(r['errors'])}")
+            for d in r["differences"]:
+                print(f"         {d}")
+            if r["status"] != "matches" and r["note"]:
+                print(f"         why: {r['note']}")
+        n_ok = sum(r["status"] == "matches" for r in rows)
+        print(f"{n_ok} of {len(rows)} printed rows match the derivation ({args.convention} convention)")
+    else:
+        print(to_latex(model), end="")
+    return 0
