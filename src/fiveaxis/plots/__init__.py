@@ -1,0 +1,1 @@
+"""PNG plots (matplotlib, Agg backend): one module per subject (sensitivity, residuals)."""
