@@ -110,6 +110,17 @@ class Machine:
             out[n] = self.error_values.get(n, self.angular_error if self.is_angular(n) else self.linear_error)
         return out
 
+    def random_poses(self, n: int, rng=None) -> "np.ndarray":
+        """n poses drawn uniformly within the strokes, (n, nvar) in `variables` order, mm and rad."""
+        import numpy as np
+        rng = np.random.default_rng(rng)
+        cols = []
+        for v in self.variables:
+            a = self.axis(v)
+            lo, hi = (math.radians(x) for x in a.stroke) if a.type == "rotary" else a.stroke
+            cols.append(rng.uniform(lo, hi, n))
+        return np.column_stack(cols)
+
     def with_convention(self, convention: str) -> "Machine":
         """The machine with the PIGE placement of a named convention ("equations" is the file as written)."""
         if convention in (None, "", "equations"):
