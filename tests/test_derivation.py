@@ -121,3 +121,17 @@ def test_ideal_tool_of_li2018():
     P, V = m.ideal_tool(m.poses(X, Y, Z, A, B), 200.0)
     v = np.array([-np.cos(A) * np.sin(B), np.sin(A), -np.cos(A) * np.cos(B)])
     assert np.allclose(V[0], v) and np.allclose(P[0], [X, Y, Z] + 200.0 * v)
+
+
+def test_non_axis_aligned_rotary_axis(tmp_path, monkeypatch):
+    """A nutating head (B about (0, 1, 1)/sqrt 2): derived on demand, exact and FD checks as for shipped machines."""
+    monkeypatch.setenv("FIVEAXIS_CACHE", str(tmp_path))
+    machine = load_machine(DATA / "nutating.toml")
+    m = fiveaxis.load(machine)
+    poses, Ls = poses_and_lengths(machine, 300, seed=7)
+    J, K = m.jk(poses, Ls)
+    Jfd, Kfd = htm.jk_finite_differences(machine, poses, Ls)
+    assert relative(J, Jfd) < 1e-6 and relative(K, Kfd) < 1e-6
+    E = np.random.default_rng(8).normal(0, 1e-4, 41)
+    P, _ = m.tool_errors(poses, E, Ls, exact=True)
+    assert np.abs(P - htm.tool_errors(machine, poses, Ls, E)[0]).max() < 1e-9
