@@ -1,0 +1,229 @@
+"""LSIL and GSIL (Eq. 12-16 of Li et al. 2018) over pose lists and dense workspace grids.
+
+Per pose and error i, with P_err = sum_i J_i E_i (Eq. 10) and J_i = a_i + L k_i (every J_i is affine in the
+tool length L, because the tool point is P_t = [0, 0, -L]):
+    w_i = |J_iE_i . P_err| / |P_err|                          (Eq. 12, the length of the projection)
+    W_i = int_{L0-LE}^{L0} w_i / |P_err| dL                      (Eq. 13, Gauss-Legendre of a stated order)
+    LSIL_i = mean over the poses of W_i            (normal mode 0), or of
+             int |P_err,i . N| / |P_err| dL         (normal mode 1: the projection on the surface normal N)
+    GSIL_i = G_i = mean of W_i over the grid (Eq. 14: the integral over the workspace / its volume)
+    PL_i, PG_i = the indices divided by their sum (Eq. 15-16).
+The integrand w_i/|P_err| is a ratio of polynomials in L with kinks where J_iE_i . P_err changes sign, so the
+quadrature is not exact: every run repeats the evaluation with twice the order (on a sample of the poses for
+large grids) and reports the largest change of a proportion. A quadrature node where |P_err| is tiny
+(<= rel_tiny * sum_i |J_iE_i|, the errors cancel) has no defined direction; the kernels leave it out of the
+integral (it adds 0) and count it; the count is reported as `skipped_nodes`. Indices are therefore always
+finite; a pose where P_err is zero everywhere adds nothing.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InputError
+
+#: Gauss-Legendre order used when none is given (see the convergence check in the settings of each result).
+DEFAULT_ORDER = 8
+#: Relative floor of |P_err| below which a quadrature node is left out (see the module docstring).
+REL_TINY = 1e-12
+#: Poses per chunk: bounded memory (~100 MB of pose and index arrays per chunk) whatever the grid size.
+CHUNK = 1 << 20
+#: Poses of a large grid on which the order-n vs order-2n convergence check is made.
+CHECK_SAMPLE = 4096
+
+
+def quadrature(L0: float, LE: float, order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Legendre nodes (tool lengths, mm) and weights (mm) on [L0 - LE, L0]."""
+    if not (isinstance(LE, (int, float)) and math.isfinite(LE) and LE > 0):
+        raise InputError(f"--le: the effective cutting length must be a positive number of mm, got {LE}")
+    if not (math.isfinite(L0) and L0 > 0):
+        raise InputError(f"--l0: the tool length must be a positive number of mm, got {L0}")
+    if int(order) != order or not 1 <= order <= 200:
+        raise InputError(f"--order: the Gauss-Legendre order must be an integer from 1 to 200, got {order}")
+    x, w = np.polynomial.legendre.leggauss(int(order))
+    return L0 - 0.5 * LE + 0.5 * LE * x, 0.5 * LE * w
+
+
+def kernel_w(model, poses, nodes, weights, E, rel_tiny=REL_TINY, normals=None, mode=0, each=False):
+    """The one place that calls the generated sensitivity kernels.
+
+    each=False: (sum over poses of W_i (41,), number of left-out nodes); each=True: (W (n, 41) per pose,
+    left-out nodes per pose (n,)), with normals (n, 3) or (1, 3) used in mode 1.
+    """
+    k = model.kernels
+    poses = np.ascontiguousarray(poses, dtype=float)
+    E = np.ascontiguousarray(E, dtype=float)
+    if each:
+        n = len(poses)
+        W = np.zeros((n, len(E)))
+        skipped = np.zeros(n, dtype=np.int64)
+        normals = np.zeros((1, 3)) if normals is None else np.ascontiguousarray(normals, dtype=float)
+        if n:
+            k.sensitivity_each(poses, nodes, weights, E, normals, int(mode), float(rel_tiny), W, skipped)
+        return W, skipped
+    W_sum = np.zeros(len(E))
+    if len(poses) == 0:
+        return W_sum, 0
+    skipped = k.sensitivity_sum(poses, nodes, weights, E, float(rel_tiny), W_sum)
+    return W_sum, int(skipped)
+
+
+def proportions(values: np.ndarray) -> np.ndarray:
+    """PL_i or PG_i (Eq. 15-16): the indices divided by their sum."""
+    total = float(np.sum(values))
+    if not total > 0:
+        raise InputError("all sensitivity indices are zero (are all error values zero?)")
+    return np.asarray(values) / total
+
+
+def ranking(names, values, rel_tie: float = 1e-12) -> list[str]:
+    """Names by value, largest first; values equal to rel_tie (errors with the same J) keep Table 1 order."""
+    v = np.asarray(values, dtype=float)
+    scale = float(np.max(np.abs(v))) or 1.0
+    key = np.round(v / scale / rel_tie)
+    order = sorted(range(len(v)), key=lambda i: (-key[i], i))
+    return [names[i] for i in order]
+
+
+@dataclass
+class SensitivityResult:
+    """Indices of one run: `values` are GSIL_i or LSIL_i in `names` order; settings describe the run."""
+    kind: str                      # "GSIL" or "LSIL"
+    names: tuple[str, ...]
+    values: np.ndarray
+    settings: dict = field(default_factory=dict)
+    per_pose: np.ndarray | None = None   # LSIL: the per-pose indices (n, 41)
+
+    @property
+    def proportions(self) -> np.ndarray:
+        return proportions(self.values)
+
+    @property
+    def ranking(self) -> list[str]:
+        return ranking(self.names, self.values)
+
+    def top(self, k: int) -> list[str]:
+        return self.ranking[:k]
+
+    def to_json(self) -> dict:
+        p = self.proportions
+        return {"indices": {n: float(v) for n, v in zip(self.names, p)},
+                "ranking": self.ranking, "settings": self.settings}
+
+
+def _progress(total: int, enabled, desc: str):
+    from tqdm import tqdm
+    if enabled is None:
+        enabled = sys.stderr.isatty() and total >= 4 * CHUNK
+    return tqdm(total=total, disable=not enabled, desc=desc, unit="pose", unit_scale=True, file=sys.stderr,
+                mininterval=0.5)
+
+
+def _sample(source, k: int) -> np.ndarray:
+    """Up to k poses spread evenly over a grid or pose list (for the convergence check)."""
+    n = source.size
+    if n <= k:
+        return source.poses(0, n)
+    idx = np.unique(np.linspace(0, n - 1, k).astype(np.int64))
+    return np.concatenate([source.poses(int(i), int(i) + 1) for i in idx])
+
+
+def _settings(model, L0, LE, order, rel_tiny, errors_label):
+    return {"machine": model.machine.name, "convention": model.convention, "L0_mm": L0, "LE_mm": LE,
+            "quadrature": {"rule": "Gauss-Legendre", "order": int(order)}, "rel_tiny": rel_tiny,
+            "errors": errors_label}
+
+
+def _errors(model, errors):
+    E = model.error_vector(errors)
+    if E.ndim != 1:
+        raise InputError("sensitivity indices need one value per error (41,), not per pose")
+    if errors is None:
+        label = "machine file defaults"
+    elif isinstance(errors, dict):
+        label = {n: float(v) for n, v in errors.items()}
+    else:
+        label = "given array"
+    return E, label
+
+
+def _check_order(model, poses, L0, LE, order, E, rel_tiny, normals=None, mode=0):
+    """Proportions with order n and 2n on the given poses: the largest absolute change of a proportion."""
+    out = []
+    for n in (order, 2 * order):
+        nodes, weights = quadrature(L0, LE, n)
+        if normals is None:
+            W, _ = kernel_w(model, poses, nodes, weights, E, rel_tiny)
+        else:
+            W = kernel_w(model, poses, nodes, weights, E, rel_tiny, normals, mode, each=True)[0].sum(0)
+        out.append(W / W.sum() if W.sum() > 0 else W)
+    return float(np.max(np.abs(out[0] - out[1])))
+
+
+def gsil(model, grid, errors=None, L0=None, LE=None, order=DEFAULT_ORDER, rel_tiny=REL_TINY,
+         chunk=CHUNK, progress=None, check=True) -> SensitivityResult:
+    """GSIL_i (Eq. 14): the mean of W_i over every pose of a grid or pose list, in chunks of `chunk` poses.
+
+    L0 and LE (mm) default to the machine file's tool data; errors as Model.error_vector (None = defaults).
+    progress: None = a bar on stderr for long runs when it is a terminal, True/False to force.
+    """
+    L0 = model.machine.tool_length if L0 is None else float(L0)
+    LE = model.machine.cutting_length if LE is None else float(LE)
+    nodes, weights = quadrature(L0, LE, order)
+    E, label = _errors(model, errors)
+    if grid.size == 0:
+        raise InputError("the grid has no poses")
+    t0 = time.perf_counter()
+    total = np.zeros(len(E))
+    skipped = 0
+    with _progress(grid.size, progress, "GSIL") as bar:
+        for start in range(0, grid.size, chunk):
+            stop = min(start + chunk, grid.size)
+            W, s = kernel_w(model, grid.poses(start, stop), nodes, weights, E, rel_tiny)
+            total += W
+            skipped += s
+            bar.update(stop - start)
+    values = total / grid.size
+    settings = _settings(model, L0, LE, order, rel_tiny, label)
+    settings.update(kind="GSIL", poses=grid.size, skipped_nodes=skipped, seconds=round(time.perf_counter() - t0, 3))
+    if hasattr(grid, "describe"):
+        rotary = tuple(n for n in grid.names if model.machine.axis(n).type == "rotary")
+        settings["grid"] = grid.describe(rotary)
+        settings["grid_units"] = "mm; degrees for rotary axes; [lo, hi, count]"
+    if check:
+        sample = _sample(grid, CHECK_SAMPLE)
+        settings["quadrature"].update(check_order=2 * int(order), check_poses=len(sample),
+                                      max_abs_change_of_proportion=_check_order(model, sample, L0, LE, order, E,
+                                                                                 rel_tiny))
+    return SensitivityResult("GSIL", model.errors, values, settings)
+
+
+def lsil(model, poses, errors=None, L0=None, LE=None, order=2 * DEFAULT_ORDER, mode=0, rel_tiny=REL_TINY,
+         check=True) -> SensitivityResult:
+    """LSIL_i: the mean over the poses of a PoseList of W_i (mode 0) or of its projection on the surface normal
+    (mode 1, normals required); per-pose values in `per_pose`."""
+    if mode not in (0, 1):
+        raise InputError(f"--normal-mode: expected 0 (W_i alone) or 1 (projection on the normal N), got {mode}")
+    L0 = model.machine.tool_length if L0 is None else float(L0)
+    LE = model.machine.cutting_length if LE is None else float(LE)
+    nodes, weights = quadrature(L0, LE, order)
+    E, label = _errors(model, errors)
+    normals = getattr(poses, "normals", None)
+    if mode == 1 and normals is None:
+        raise InputError("normal mode 1 needs a surface normal for every pose")
+    q = poses.poses(0, poses.size)
+    if len(q) == 0:
+        raise InputError("the pose list is empty")
+    W, skipped = kernel_w(model, q, nodes, weights, E, rel_tiny, normals, mode, each=True)
+    settings = _settings(model, L0, LE, order, rel_tiny, label)
+    settings.update(kind="LSIL", normal_mode=mode, poses=len(q), skipped_nodes=int(skipped.sum()))
+    if check:
+        settings["quadrature"].update(check_order=2 * int(order), check_poses=len(q),
+                                      max_abs_change_of_proportion=_check_order(
+                                          model, q, L0, LE, order, E, rel_tiny,
+                                          normals if normals is not None else np.zeros((1, 3)), mode))
+    return SensitivityResult("LSIL", model.errors, W.mean(axis=0), settings, per_pose=W)
