@@ -1,0 +1,323 @@
+"""Where a fitted model fails, and which effect of the vocabulary is missing.
+
+1. Fit the model (with any added effects) and take the exact-model residual r.
+2. Build the column of every candidate effect (all errors and L x all variables x degrees 1-3, ~750), project the
+   columns off the fitted design's column space with its orthonormal basis Q (one SVD, no refit per candidate):
+   g_perp = g - Q Q^T g. Adding the candidate lowers the weighted residual sum of squares by (g_perp . r)^2 / |g_perp|^2.
+3. Decide with false-alarm control across the M candidates: an extended BIC (penalty ln N + 2 ln M per added
+   coefficient, Chen & Chen 2008) AND nested K-fold cross-validation (the candidate chosen on each training fold
+   must lower the held-out error summed over the folds).
+4. Aliases: candidates whose projected columns are nearly parallel (|cos| > ALIAS_COS) cannot be told apart on this
+   data; for aliases at the top, try extra measurements (another tool length, the full stroke of an axis) and say
+   which ones would separate them.
+Units: mm for residuals; noise from the sigma column when there is one, else estimated from the residual.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import effects as fx
+from . import fit as F
+
+ALIAS_COS = 0.999
+#: A candidate whose projected column keeps less than this fraction of its norm is already in the model.
+ABSORBED = 1e-6
+K_FOLDS = 5
+FORWARD_MAX = 4
+
+
+@dataclass
+class Candidates:
+    """Projected candidate columns and their scores against one residual."""
+    effects: list              # fx.Effect
+    Gp: np.ndarray             # (N, M) weighted columns projected off the design, unit norm
+    gnorm: np.ndarray          # (M,) norm of the projected weighted column
+    ratio: np.ndarray          # (M,) |g_perp| / |g|: how much of the column the model does not already have
+    gain: np.ndarray           # (M,) drop of the weighted RSS if added
+    beta: np.ndarray           # (M,) coefficient along the unit projected column
+
+
+def candidate_matrix(prob: F.Problem, effects) -> np.ndarray:
+    """Weighted design columns (3n, M) of vocabulary effects, vectorised over the effects."""
+    n = prob.meas.n
+    index = {e: i for i, e in enumerate(prob.model.errors)}
+    G = np.empty((3 * n, len(effects)))
+    for c, eff in enumerate(effects):
+        vec = prob.tool_dir if eff.param == fx.TOOL else prob.J[:, index[eff.param], :]
+        G[:, c] = (vec * (prob.u[eff.var] ** eff.deg)[:, None]).ravel()
+    return G * prob.w[:, None]
+
+
+def project(Q: np.ndarray, G: np.ndarray, rw: np.ndarray, effects) -> Candidates:
+    """Project candidate columns off span(Q) and score them against the weighted residual rw."""
+    g0 = np.linalg.norm(G, axis=0)
+    Gp = G - Q @ (Q.T @ G)
+    Gp -= Q @ (Q.T @ Gp)                  # second pass: orthogonality to round-off
+    gn = np.linalg.norm(Gp, axis=0)
+    ratio = np.where(g0 > 0, gn / np.where(g0 > 0, g0, 1), 0.0)
+    ok = ratio > ABSORBED
+    Gp = Gp / np.where(ok, gn, 1.0)
+    Gp[:, ~ok] = 0.0
+    beta = Gp.T @ rw
+    gain = np.where(ok, beta ** 2, 0.0)
+    return Candidates(list(effects), Gp, gn, ratio, gain, beta)
+
+
+def _basis(prob: F.Problem, rows=None):
+    Aw = prob.A * prob.w[:, None]
+    if rows is not None:
+        Aw = Aw[rows]
+    return F.identify(Aw).U
+
+
+def ebic_penalty(N: int, M: int) -> float:
+    """Penalty per added coefficient: ln N (BIC) + 2 ln M (extended BIC: M candidates were searched)."""
+    return math.log(N) + 2.0 * math.log(max(M, 1))
+
+
+def ebic_delta(rss: float, gain: float, N: int, M: int, known_sigma: bool) -> float:
+    """Change of the extended BIC when the candidate is added (negative: the candidate is worth it)."""
+    pen = ebic_penalty(N, M)
+    if known_sigma:                       # weighted RSS is chi2 with unit variance
+        return -gain + pen
+    return N * math.log(max(rss - gain, 1e-300) / rss) + pen
+
+
+def _rows_of(poses_idx):
+    return np.stack([3 * poses_idx, 3 * poses_idx + 1, 3 * poses_idx + 2], axis=1).ravel()
+
+
+def cross_validate(prob: F.Problem, effects, G: np.ndarray, k: int = K_FOLDS, seed: int = 0):
+    """Nested K-fold CV of "add the best candidate": per fold, rank on the training poses, evaluate held out.
+
+    Returns (held-out weighted SSE without, with the per-fold best candidate, ids chosen per fold)."""
+    n = prob.meas.n
+    order = np.random.default_rng(seed).permutation(n)
+    folds = np.array_split(order, k)
+    Aw = prob.A * prob.w[:, None]
+    dw = prob.d * prob.w
+    sse0 = sse1 = 0.0
+    chosen = []
+    for f in range(k):
+        test = _rows_of(np.sort(folds[f]))
+        train = _rows_of(np.sort(np.concatenate([folds[j] for j in range(k) if j != f])))
+        idf = F.identify(Aw[train])
+        theta = F._solve(idf, dw[train])
+        r_tr = dw[train] - Aw[train] @ theta
+        cands = project(idf.U, G[train], r_tr, effects)
+        best = int(np.argmax(cands.gain))
+        chosen.append(effects[best].id)
+        sse0 += float(np.sum((dw[test] - Aw[test] @ theta) ** 2))
+        X = np.hstack([Aw[train], G[train][:, [best]]])
+        idf1 = F.identify(X)
+        th1 = F._solve(idf1, dw[train])
+        sse1 += float(np.sum((dw[test] - np.hstack([Aw[test], G[test][:, [best]]]) @ th1) ** 2))
+    return sse0, sse1, chosen
+
+
+@dataclass
+class Diagnosis:
+    """The answer of diagnose: residual against noise, structure, ranked candidates, decision."""
+    fit: F.FitResult
+    n: int
+    rms_mm: float
+    noise_mm: float
+    noise_source: str
+    missing_effect: bool
+    candidates: list           # dicts, best first (aliases collapsed into the best of their set)
+    decision: dict
+    structure: dict            # variable -> share of the residual a cubic in it explains, per direction
+    forward: list = field(default_factory=list)   # greedy forward selection (first order), for a preview
+    n_candidates: int = 0
+    absorbed: list = field(default_factory=list)  # candidates the model already contains on this data
+
+    def to_json(self) -> dict:
+        return {"file": str(self.fit.problem.meas.path), "n": self.n, "rms_mm": self.rms_mm,
+                "noise_mm": self.noise_mm, "noise_source": self.noise_source,
+                "missing_effect": self.missing_effect,
+                "added": [e.id if isinstance(e, fx.Effect) else e.name for e in self.fit.problem.effects],
+                "decision": self.decision, "n_candidates": self.n_candidates,
+                "candidates": self.candidates, "forward": self.forward, "structure": self.structure,
+                "already_in_model": self.absorbed}
+
+
+def residual_structure(prob: F.Problem, residual: np.ndarray) -> dict:
+    """Share of each residual direction (dx, dy, dz) that a cubic in each variable explains (R^2)."""
+    out = {}
+    R = residual.reshape(-1, 3)
+    for tok, u in prob.u.items():
+        V = np.column_stack([np.ones_like(u), u, u ** 2, u ** 3])
+        coef, *_ = np.linalg.lstsq(V, R, rcond=None)
+        ss = np.sum((R - R.mean(axis=0)) ** 2, axis=0)
+        share = 1 - np.sum((R - V @ coef) ** 2, axis=0) / np.where(ss > 0, ss, 1)
+        out[tok] = {"dx": float(share[0]), "dy": float(share[1]), "dz": float(share[2])}
+    return out
+
+
+def _separating(prob: F.Problem, group, all_effects, base_idx):
+    """Extra measurements that would tell the effects of an alias set apart: another tool length, a full stroke."""
+    meas, model = prob.meas, prob.model
+    tips = []
+    L0 = float(np.median(meas.L))
+    options = [("tool length", f"another tool length (e.g. L = {L0 + 100:g} mm besides {L0:g} mm)",
+                dict(L=np.full(meas.n, L0 + 100.0)))]
+    for i, v in enumerate(model.variables):
+        ax = model.machine.axis(v)
+        lo, hi = ax.stroke
+        vals = meas.poses[:, i]
+        to = (180 / math.pi) if ax.type == "rotary" else 1.0
+        span = (vals.max() - vals.min()) * to
+        if span < 0.9 * (hi - lo):
+            unit = "deg" if ax.type == "rotary" else "mm"
+            options.append((v, f"a wider range of {v} (this data covers {vals.min() * to:g} to {vals.max() * to:g} "
+                               f"{unit}; the stroke is {lo:g} to {hi:g} {unit})", dict(var=i, lo=lo / to, hi=hi / to)))
+    effs = [all_effects[j] for j in group]
+    rng = np.random.default_rng(1)
+    for key, text, how in options:
+        poses = meas.poses.copy()
+        L = meas.L.copy()
+        if "L" in how:
+            L = how["L"]
+        else:
+            poses[:, how["var"]] = rng.uniform(how["lo"], how["hi"], meas.n)
+        extra = meas.__class__(meas.path, meas.variables, poses, L, meas.d, meas.t, meas.sigma, None, True, [])
+        both = _concat(meas, extra)
+        p2 = F.build(model, both, prob.effects)
+        # Same time scale as the data: times of the extra poses repeat the measured ones.
+        Q = _basis(p2)
+        G = candidate_matrix(p2, effs)
+        c = project(Q, G, np.zeros(len(p2.d)), effs)
+        cos = np.abs(c.Gp.T @ c.Gp)
+        np.fill_diagonal(cos, 0)
+        if np.all(cos < ALIAS_COS) and np.all(c.ratio > ABSORBED):
+            tips.append(text)
+    return tips
+
+
+def _concat(a, b):
+    cat = (lambda x, y: None if x is None or y is None else np.concatenate([x, y]))
+    return a.__class__(a.path, a.variables, np.vstack([a.poses, b.poses]), np.concatenate([a.L, b.L]),
+                       np.vstack([a.d, b.d]), cat(a.t, b.t), cat(a.sigma, b.sigma), None, True, [])
+
+
+def diagnose(model, meas, added=(), top: int = 10, alpha_folds: int = K_FOLDS) -> Diagnosis:
+    """Fit, then rank every effect of the vocabulary by how much of the residual it explains, and decide."""
+    res = F.fit(model, meas, added)
+    prob = res.problem
+    N = len(prob.d)
+    rw = res.residual * prob.w
+    rss = float(rw @ rw)
+    present = {e.id for e in prob.effects if isinstance(e, fx.Effect)}
+    vocab = [e for e in fx.vocabulary(model.machine, model.errors, meas.t is not None) if e.id not in present]
+    M = len(vocab)
+    G = candidate_matrix(prob, vocab)
+    cands = project(res.idf.U, G, rw, vocab)
+    order = np.argsort(-cands.gain, kind="stable")
+    absorbed = [vocab[j].id for j in range(M) if cands.ratio[j] <= ABSORBED]
+    # rms (mm) after adding each candidate: r - beta * g_perp / w, evaluated for the listed ones.
+    w = prob.w
+    known = meas.sigma is not None
+    # Decision on the best candidate.
+    best = int(order[0])
+    d_ebic = ebic_delta(rss, float(cands.gain[best]), N, M, known)
+    sse0, sse1, chosen = cross_validate(prob, vocab, G)
+    cv_pass = sse1 < sse0
+    missing = bool(d_ebic < 0 and cv_pass)
+    decision = {"rule": "extended BIC (penalty ln N + 2 ln M per coefficient) and nested K-fold cross-validation",
+                "N": N, "M": M, "penalty": ebic_penalty(N, M), "delta_ebic_best": d_ebic,
+                "ebic_pass": bool(d_ebic < 0), "cv_folds": K_FOLDS, "cv_sse_without": sse0,
+                "cv_sse_with": sse1, "cv_pass": bool(cv_pass), "cv_chosen": chosen}
+    # Greedy forward selection (first order) with the same rule, for the noise estimate and a preview.
+    forward = []
+    Q = res.idf.U
+    r_cur = rw.copy()
+    Gp = cands.Gp.copy()
+    used = set()
+    for _ in range(FORWARD_MAX):
+        gain = (Gp.T @ r_cur) ** 2
+        gain[list(used)] = 0
+        j = int(np.argmax(gain))
+        rss_cur = float(r_cur @ r_cur)
+        if ebic_delta(rss_cur, float(gain[j]), N, M, known) >= 0:
+            break
+        q = Gp[:, j] / max(np.linalg.norm(Gp[:, j]), 1e-300)
+        r_cur = r_cur - q * (q @ r_cur)
+        Gp = Gp - np.outer(q, q @ Gp)
+        nrm = np.linalg.norm(Gp, axis=0)
+        Gp = Gp / np.where(nrm > ABSORBED, nrm, np.inf)
+        used.add(j)
+        forward.append({"id": vocab[j].id, "rms_mm": float(np.sqrt(np.mean((r_cur / w) ** 2)))})
+    if known:
+        noise = float(np.sqrt(np.mean(meas.sigma ** 2)))
+        source = "sigma column"
+    else:
+        dof = max(N - res.idf.rank - len(forward), 1)
+        noise = float(np.sqrt(np.sum((r_cur / w) ** 2) / dof))
+        source = ("estimated from the residual after the effects the rule accepts" if forward
+                  else "estimated from the residual of the fit")
+    # Candidates best first; aliases collapsed into the best member of their set.
+    listed, seen = [], set()
+    for j in order:
+        if len(listed) >= top or cands.gain[j] <= 0:
+            break
+        if j in seen:
+            continue
+        cos = np.abs(cands.Gp.T @ cands.Gp[:, j])
+        group = [int(i) for i in np.flatnonzero(cos > ALIAS_COS) if i != j]
+        seen.update(group)
+        seen.add(int(j))
+        r_after = (rw - cands.beta[j] * cands.Gp[:, j]) / w
+        eff = vocab[j]
+        item = {"id": eff.id, "aliases": [vocab[i].id for i in group],
+                "rms_mm": float(np.sqrt(np.mean(r_after ** 2))),
+                "explained": float(cands.gain[j] / rss) if rss > 0 else 0.0,
+                "delta_ebic": ebic_delta(rss, float(cands.gain[j]), N, M, known),
+                "description": fx.describe(model.machine, eff)}
+        item["coefficient"], item["unit"] = _coefficient(res, cands, j, eff, w)
+        if group and not listed:
+            item["separate_by"] = _separating(prob, [int(j)] + group, vocab, None)
+        listed.append(item)
+    return Diagnosis(res, meas.n, res.rms_mm, noise, source, missing, listed, decision,
+                     residual_structure(prob, res.residual), forward, M, absorbed)
+
+
+def _coefficient(res, cands, j, eff, w):
+    """Physical coefficient of a candidate when added alone (first order): beta / |g_perp| in scaled units."""
+    c = cands.beta[j] / cands.gnorm[j] if cands.gnorm[j] > 0 else 0.0
+    return fx.physical(res.problem.model.machine, eff, float(c), res.problem.scales)
+
+
+def report(dg: Diagnosis) -> str:
+    """Readable diagnosis: residual vs noise, structure, decision, ranked candidates."""
+    j = dg.to_json()
+    ratio = dg.rms_mm / dg.noise_mm if dg.noise_mm > 0 else math.inf
+    lines = [f"[[Diagnosis]] {j['file']}: {dg.n} poses"
+             + (f", model + {', '.join(j['added'])}" if j["added"] else ""),
+             f"    residual RMS {dg.rms_mm * 1000:.4g} um against noise {dg.noise_mm * 1000:.4g} um "
+             f"({dg.noise_source}): ratio {ratio:.3g}"]
+    strong = [(tok, max(v.values())) for tok, v in dg.structure.items()]
+    strong = [s for s in sorted(strong, key=lambda s: -s[1]) if s[1] > 0.05]
+    if strong:
+        lines.append("    residual structure (share explained by a cubic in the variable): "
+                     + ", ".join(f"{tok} {share:.0%}" for tok, share in strong))
+    d = j["decision"]
+    verdict = "MISSING EFFECT" if dg.missing_effect else "no missing effect found"
+    lines.append(f"    decision: {verdict} (best candidate: delta EBIC {d['delta_ebic_best']:.1f} with penalty "
+                 f"{d['penalty']:.1f} for {d['M']} candidates; {d['cv_folds']}-fold CV held-out SSE "
+                 f"{d['cv_sse_without']:.4g} -> {d['cv_sse_with']:.4g})")
+    lines.append("[[Candidates]] best first: RMS after adding it, share of the residual it explains")
+    for k, c in enumerate(j["candidates"], 1):
+        lines.append(f"    {k:2d}. {c['id']:10s} -> {c['rms_mm'] * 1000:.4g} um ({c['explained']:.1%}) "
+                     f"coef {c['coefficient']:.3g} {c['unit']}: {c['description']}")
+        if c["aliases"]:
+            lines.append(f"        aliases on this data: {', '.join(c['aliases'])}")
+        if c.get("separate_by"):
+            lines.append(f"        to separate them, measure with {'; or '.join(c['separate_by'])}")
+        elif c["aliases"] and "separate_by" in c:
+            lines.append("        no extra tool length or axis range would separate them")
+    if dg.missing_effect and j["candidates"]:
+        lines.append(f"    next: fiveaxis diagnose FILE --add {j['candidates'][0]['id']}")
+    return "\n".join(lines)
