@@ -18,6 +18,10 @@ COMMANDS = {
     "gsa": ("fiveaxis.commands.sensitivity", "global sensitivity (GSIL, PG_i) over a workspace grid; Fig. 14, 16"),
     "lsa": ("fiveaxis.commands.sensitivity", "local sensitivity (LSIL, PL_i) at the cone positions; Fig. 10-13"),
     "sobol": ("fiveaxis.commands.sensitivity", "Sobol' total indices (SALib) compared with the GSIL ranking"),
+    "fit": ("fiveaxis.commands.measure", "fit the model's errors (and added effects) to measurements; identifiability"),
+    "diagnose": ("fiveaxis.commands.measure", "where the fitted model fails and which effect is missing, ranked"),
+    "simulate": ("fiveaxis.commands.measure", "simulated measurements from the exact model with hidden effects"),
+    "model": ("fiveaxis.commands.measure", "model add EFFECT: write effects into a copy of a machine file"),
 }
 
 

@@ -24,11 +24,14 @@ CANONICAL_ORDER = ("X", "Y", "Z", "A", "B", "C")
 MACHINES_DIR = Path(__file__).resolve().parents[2] / "machines"
 
 _TOP_KEYS = {"name", "title", "description", "tool", "tool_chain", "workpiece_chain", "errors",
-             "conventions", "effects"}
+             "conventions", "effects", "model"}
 _AXIS_KEYS = {"axis", "type", "direction", "stroke", "errors", "pige", "description"}
 _TOOL_KEYS = {"length", "cutting_length", "direction"}
 _ERROR_KEYS = {"linear", "angular", "values"}
 _CONVENTION_KEYS = {"description", "move"}
+_MODEL_KEYS = {"effects"}
+_EFFECT_KEYS = {"error", "expr", "description"}
+_EFFECT_ID_RE = re.compile(r"^(?P<param>[A-Za-z_][A-Za-z0-9_]*):(?P<var>[A-Za-z][A-Za-z0-9]*?)(?P<deg>[1-3])$")
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9]*$")
 
 
@@ -64,6 +67,7 @@ class Machine:
     conventions: dict = field(default_factory=dict)   # name -> {"description", "move": {pige: axis}}
     effects: dict = field(default_factory=dict)       # custom effects: name -> {"error", "expr", ...}
     pige_order: tuple = ()                            # PIGE names as first declared: stable across conventions
+    added_effects: tuple = ()                         # effects the model includes: ids (ex_x:x1) or custom names
 
     @property
     def axes(self) -> tuple[Axis, ...]:
@@ -142,7 +146,7 @@ class Machine:
         return Machine(self.name, self.path, self.title, moved(self.tool_chain), moved(self.workpiece_chain),
                        self.tool_length, self.cutting_length, self.tool_direction, self.linear_error,
                        self.angular_error, self.error_values, self.conventions, self.effects,
-                       self.pige_names)
+                       self.pige_names, self.added_effects)
 
 
 def module_name(machine_name: str, convention: str = "equations") -> str:
@@ -310,9 +314,38 @@ def parse_machine(data: dict, path: Path) -> Machine:
     effects = data.get("effects", {})
     if not isinstance(effects, dict):
         _fail(path, "effects", "expected a table of custom effects")
+    for ename, eff in effects.items():
+        where = f"effects.{ename}"
+        if not isinstance(eff, dict):
+            _fail(path, where, "expected a table with error = \"<error name>\" and expr = \"<expression>\"")
+        _unknown(path, where + ".", eff, _EFFECT_KEYS)
+        if not re.match(r"^[A-Za-z_][A-Za-z0-9_]*$", ename) or ename in seen_errors:
+            _fail(path, where, "expected an identifier that is not an error name")
+        if eff.get("error") not in seen_errors | {"L"}:
+            _fail(path, where + ".error", f"expected an error name of this machine or L, got {eff.get('error')!r}")
+        if not isinstance(eff.get("expr"), str) or not eff["expr"].strip():
+            _fail(path, where + ".expr", "expected an expression such as \"p1*sin(2*pi*x/10)\"")
+    model = data.get("model", {})
+    if not isinstance(model, dict):
+        _fail(path, "model", "expected a table such as [model] effects = [\"ex_x:x1\"]")
+    _unknown(path, "model.", model, _MODEL_KEYS)
+    added = model.get("effects", [])
+    if not isinstance(added, list):
+        _fail(path, "model.effects", f"expected a list of effect ids such as [\"ex_x:x1\"], got {added!r}")
+    tokens = {a.name.lower() if a.type == "linear" else a.name for c in chains.values() for a in c} | {"t"}
+    for i, ident in enumerate(added):
+        m = _EFFECT_ID_RE.match(ident) if isinstance(ident, str) else None
+        if isinstance(ident, str) and ident in effects:
+            continue
+        if not m or m["param"] not in seen_errors | {"L"} or m["var"] not in tokens:
+            _fail(path, f"model.effects[{i}]", f"expected an effect id <error or L>:<{'|'.join(sorted(tokens))}><1-3> "
+                                               f"or a custom effect name, got {ident!r}")
+    if len(set(added)) != len(added):
+        _fail(path, "model.effects", "an effect is listed twice")
     return Machine(name=name, path=Path(path), title=str(data.get("title", name)),
                    tool_chain=chains["tool_chain"], workpiece_chain=chains["workpiece_chain"],
                    tool_length=length, cutting_length=cutting, tool_direction=tdir,
                    linear_error=lin, angular_error=ang, error_values={k: float(v) for k, v in values.items()},
                    conventions=conventions, effects=dict(effects),
-                   pige_order=tuple(n for c in chains.values() for a in c for n in a.pige))
+                   pige_order=tuple(n for c in chains.values() for a in c for n in a.pige),
+                   added_effects=tuple(added))
