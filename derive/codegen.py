@@ -66,6 +66,21 @@ def _trig_symbols(model: Model) -> dict:
     return sub
 
 
+def _group_context(model: Model, group_list) -> dict:
+    """For the fast kernels (templates/fast.py.j2): per Table 2 group, CSE'd code of its J at L = 0
+    (`ga<g>_<d>`) and K (`gk<g>_<d>`), and which components are not identically zero."""
+    targets, exprs, out = [], [], []
+    for gi, g in enumerate(group_list):
+        n = g.errors[0]
+        a_nz = [d for d in range(3) if model.a[n][d] != 0]
+        k_nz = [d for d in range(3) if model.k[n][d] != 0]
+        targets += [f"ga{gi}_{d}" for d in a_nz] + [f"gk{gi}_{d}" for d in k_nz]
+        exprs += [model.a[n][d] for d in a_nz] + [model.k[n][d] for d in k_nz]
+        out.append({"index": gi, "a": a_nz, "k": k_nz})
+    trig = [{"name": name, "c": str(c), "s": str(s)} for name, (c, s) in model.chain.trig.items()]
+    return {"groups": out, "body": _assignments(targets, exprs, "u", indent="        "), "trig": trig}
+
+
 def render(model: Model, source_text: bytes, source_label: str) -> str:
     """The text of the generated module for a derived model."""
     names = model.error_names
@@ -97,11 +112,13 @@ def render(model: Model, source_text: bytes, source_label: str) -> str:
         b"\0".join([source_text, model.convention.encode(), GENERATOR_VERSION.encode(), sp.__version__.encode()]
                    + [p.read_bytes() for p in sorted(TEMPLATES.glob("*.j2"))])).hexdigest()
     name_index = {n: i for i, n in enumerate(names)}
+    group_list = groups(model)
     text = template.render(
         banner=BANNER, machine=model.machine.name, source=source_label, convention=model.convention,
         source_sha256=source_sha, model_hash=model_hash, generator_version=GENERATOR_VERSION,
         sympy_version=sp.__version__, variables=list(model.variables), errors=list(names),
-        groups=[tuple(name_index[n] for n in g.errors) for g in groups(model)],
+        groups=[tuple(name_index[n] for n in g.errors) for g in group_list],
+        fast=_group_context(model, group_list),
         tool_direction=[float(x) for x in model.chain.tool_direction],
         pose_unpack=_pose_unpack(model), ak_body=ak_body, ideal_body=ideal_body, factors=factors,
         error_unpack=error_unpack)
