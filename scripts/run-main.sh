@@ -10,6 +10,14 @@ say "Table 2 of the paper's machine (equations convention, S_yz where Eq. 4 puts
 # --- end section: derive
 
 # --- section: sensitivity (issue 3)
+say "GSA of the paper's workspace (Sect. 4.2, Fig. 14), printed-table convention; Fig. 16 at the nine points"
+"$BIN/fiveaxis" gsa --machine li2018 --convention printed --compensate
+for cone in 1 2; do
+  say "LSA of the 1/4 cone at machining position $cone (Sect. 4.1, Tables 3-4, Fig. 10); Fig. 11"
+  "$BIN/fiveaxis" lsa --machine li2018 --convention printed --cone "$cone" --compensate
+done
+say "Sobol' total indices over the same workspace, against the GSIL ranking"
+"$BIN/fiveaxis" sobol --machine li2018 --convention printed --top 8
 # --- end section: sensitivity
 
 # --- section: measurements (issue 4)
