@@ -66,6 +66,22 @@ def project(Q: np.ndarray, G: np.ndarray, rw: np.ndarray, effects) -> Candidates
     return Candidates(list(effects), Gp, gn, ratio, gain, beta)
 
 
+def block_gains(Q: np.ndarray, blocks, rw: np.ndarray):
+    """Gains of multi-column candidates (custom effects): |Qb^T r|^2 with Qb an orthonormal basis of the
+    block's columns projected off span(Q). Returns (gains, number of independent columns, bases)."""
+    gains, ks, bases = [], [], []
+    for Gb in blocks:
+        Gp = Gb - Q @ (Q.T @ Gb)
+        Gp -= Q @ (Q.T @ Gp)
+        Qb, R = np.linalg.qr(Gp)
+        keep = np.abs(np.diag(R)) > ABSORBED * np.maximum(np.linalg.norm(Gb, axis=0), 1e-300)
+        Qb = Qb[:, keep]
+        gains.append(float(np.sum((Qb.T @ rw) ** 2)))
+        ks.append(int(keep.sum()))
+        bases.append(Qb)
+    return np.array(gains), ks, bases
+
+
 def _basis(prob: F.Problem, rows=None):
     Aw = prob.A * prob.w[:, None]
     if rows is not None:
@@ -78,9 +94,9 @@ def ebic_penalty(N: int, M: int) -> float:
     return math.log(N) + 2.0 * math.log(max(M, 1))
 
 
-def ebic_delta(rss: float, gain: float, N: int, M: int, known_sigma: bool) -> float:
-    """Change of the extended BIC when the candidate is added (negative: the candidate is worth it)."""
-    pen = ebic_penalty(N, M)
+def ebic_delta(rss: float, gain: float, N: int, M: int, known_sigma: bool, k: int = 1) -> float:
+    """Change of the extended BIC when a candidate of k coefficients is added (negative: it is worth it)."""
+    pen = k * ebic_penalty(N, M)
     if known_sigma:                       # weighted RSS is chi2 with unit variance
         return -gain + pen
     return N * math.log(max(rss - gain, 1e-300) / rss) + pen
@@ -90,10 +106,11 @@ def _rows_of(poses_idx):
     return np.stack([3 * poses_idx, 3 * poses_idx + 1, 3 * poses_idx + 2], axis=1).ravel()
 
 
-def cross_validate(prob: F.Problem, effects, G: np.ndarray, k: int = K_FOLDS, seed: int = 0):
-    """Nested K-fold CV of "add the best candidate": per fold, rank on the training poses, evaluate held out.
-
-    Returns (held-out weighted SSE without, with the per-fold best candidate, ids chosen per fold)."""
+def cross_validate(prob: F.Problem, effects, G: np.ndarray, k: int = K_FOLDS, seed: int = 0, customs=(),
+                   blocks=(), M=None):
+    """Nested K-fold CV of "add the best candidate": per fold, rank on the training poses (by extended BIC, as
+    on the whole data), evaluate held out. Returns (held-out weighted SSE without, with the per-fold best
+    candidate, ids chosen per fold)."""
     n = prob.meas.n
     order = np.random.default_rng(seed).permutation(n)
     folds = np.array_split(order, k)
@@ -109,12 +126,22 @@ def cross_validate(prob: F.Problem, effects, G: np.ndarray, k: int = K_FOLDS, se
         r_tr = dw[train] - Aw[train] @ theta
         cands = project(idf.U, G[train], r_tr, effects)
         best = int(np.argmax(cands.gain))
-        chosen.append(effects[best].id)
+        cols, name = G[:, [best]], effects[best].id
+        if blocks:
+            rss = float(r_tr @ r_tr)
+            cg, ks, _ = block_gains(idf.U, [b[train] for b in blocks], r_tr)
+            dv = ebic_delta(rss, float(cands.gain[best]), len(train), M or len(effects), prob.meas.sigma is not None)
+            for j in range(len(blocks)):
+                dj = ebic_delta(rss, float(cg[j]), len(train), M or len(effects), prob.meas.sigma is not None,
+                                max(ks[j], 1))
+                if dj < dv:
+                    dv, cols, name = dj, blocks[j], customs[j].name
+        chosen.append(name)
         sse0 += float(np.sum((dw[test] - Aw[test] @ theta) ** 2))
-        X = np.hstack([Aw[train], G[train][:, [best]]])
+        X = np.hstack([Aw[train], cols[train]])
         idf1 = F.identify(X)
         th1 = F._solve(idf1, dw[train])
-        sse1 += float(np.sum((dw[test] - np.hstack([Aw[test], G[test][:, [best]]]) @ th1) ** 2))
+        sse1 += float(np.sum((dw[test] - np.hstack([Aw[test], cols[test]]) @ th1) ** 2))
     return sse0, sse1, chosen
 
 
@@ -212,18 +239,27 @@ def diagnose(model, meas, added=(), top: int = 10, alpha_folds: int = K_FOLDS) -
     rss = float(rw @ rw)
     present = {e.id for e in prob.effects if isinstance(e, fx.Effect)}
     vocab = [e for e in fx.vocabulary(model.machine, model.errors, meas.t is not None) if e.id not in present]
-    M = len(vocab)
+    present_custom = {e.name for e in prob.effects if not isinstance(e, fx.Effect)}
+    customs = []
+    if model.machine.effects:
+        from .custom_effects import load_custom
+        customs = [load_custom(model.machine, nm) for nm in model.machine.effects if nm not in present_custom]
+    M = len(vocab) + len(customs)
     G = candidate_matrix(prob, vocab)
     cands = project(res.idf.U, G, rw, vocab)
+    blocks = [ce.columns(prob, None) * prob.w[:, None] for ce in customs]
+    cgain, cks, cbases = block_gains(res.idf.U, blocks, rw) if blocks else (np.zeros(0), [], [])
     order = np.argsort(-cands.gain, kind="stable")
-    absorbed = [vocab[j].id for j in range(M) if cands.ratio[j] <= ABSORBED]
+    absorbed = [vocab[j].id for j in range(len(vocab)) if cands.ratio[j] <= ABSORBED]
     # rms (mm) after adding each candidate: r - beta * g_perp / w, evaluated for the listed ones.
     w = prob.w
     known = meas.sigma is not None
     # Decision on the best candidate.
     best = int(order[0])
     d_ebic = ebic_delta(rss, float(cands.gain[best]), N, M, known)
-    sse0, sse1, chosen = cross_validate(prob, vocab, G)
+    for j in range(len(customs)):
+        d_ebic = min(d_ebic, ebic_delta(rss, float(cgain[j]), N, M, known, max(cks[j], 1)))
+    sse0, sse1, chosen = cross_validate(prob, vocab, G, customs=customs, blocks=blocks, M=M)
     cv_pass = sse1 < sse0
     missing = bool(d_ebic < 0 and cv_pass)
     decision = {"rule": "extended BIC (penalty ln N + 2 ln M per coefficient) and nested K-fold cross-validation",
@@ -235,26 +271,41 @@ def diagnose(model, meas, added=(), top: int = 10, alpha_folds: int = K_FOLDS) -
     Q = res.idf.U
     r_cur = rw.copy()
     Gp = cands.Gp.copy()
-    used = set()
+    used, used_custom, n_coef = set(), set(), 0
     for _ in range(FORWARD_MAX):
         gain = (Gp.T @ r_cur) ** 2
         gain[list(used)] = 0
         j = int(np.argmax(gain))
         rss_cur = float(r_cur @ r_cur)
-        if ebic_delta(rss_cur, float(gain[j]), N, M, known) >= 0:
+        dv, pick = ebic_delta(rss_cur, float(gain[j]), N, M, known), None
+        if blocks:
+            cg, ks, bases = block_gains(Q, blocks, r_cur)
+            for b in range(len(blocks)):
+                db = ebic_delta(rss_cur, float(cg[b]), N, M, known, max(ks[b], 1))
+                if b not in used_custom and db < dv:
+                    dv, pick = db, b
+        if dv >= 0:
             break
-        q = Gp[:, j] / max(np.linalg.norm(Gp[:, j]), 1e-300)
-        r_cur = r_cur - q * (q @ r_cur)
-        Gp = Gp - np.outer(q, q @ Gp)
+        if pick is None:
+            qs = (Gp[:, j] / max(np.linalg.norm(Gp[:, j]), 1e-300))[:, None]
+            used.add(j)
+            name = vocab[j].id
+        else:
+            qs = bases[pick]
+            used_custom.add(pick)
+            name = customs[pick].name
+        Q = np.hstack([Q, qs])
+        n_coef += qs.shape[1]
+        r_cur = r_cur - qs @ (qs.T @ r_cur)
+        Gp = Gp - qs @ (qs.T @ Gp)
         nrm = np.linalg.norm(Gp, axis=0)
         Gp = Gp / np.where(nrm > ABSORBED, nrm, np.inf)
-        used.add(j)
-        forward.append({"id": vocab[j].id, "rms_mm": float(np.sqrt(np.mean((r_cur / w) ** 2)))})
+        forward.append({"id": name, "rms_mm": float(np.sqrt(np.mean((r_cur / w) ** 2)))})
     if known:
         noise = float(np.sqrt(np.mean(meas.sigma ** 2)))
         source = "sigma column"
     else:
-        dof = max(N - res.idf.rank - len(forward), 1)
+        dof = max(N - res.idf.rank - n_coef, 1)
         noise = float(np.sqrt(np.sum((r_cur / w) ** 2) / dof))
         source = ("estimated from the residual after the effects the rule accepts" if forward
                   else "estimated from the residual of the fit")
@@ -279,7 +330,19 @@ def diagnose(model, meas, added=(), top: int = 10, alpha_folds: int = K_FOLDS) -
         item["coefficient"], item["unit"] = _coefficient(res, cands, j, eff, w)
         if group and not listed:
             item["separate_by"] = _separating(prob, [int(j)] + group, vocab, None)
+        item["_gain"] = float(cands.gain[j])
         listed.append(item)
+    for j, ce in enumerate(customs):
+        Qb = cbases[j]
+        r_after = (rw - Qb @ (Qb.T @ rw)) / w
+        listed.append({"id": ce.name, "aliases": [], "rms_mm": float(np.sqrt(np.mean(r_after ** 2))),
+                       "explained": float(cgain[j] / rss) if rss > 0 else 0.0,
+                       "delta_ebic": ebic_delta(rss, float(cgain[j]), N, M, known, max(cks[j], 1)),
+                       "description": ce.description, "coefficient": None, "unit": "", "_gain": float(cgain[j])})
+    listed.sort(key=lambda c: c["delta_ebic"])
+    listed = listed[:top]
+    for c in listed:
+        del c["_gain"]
     return Diagnosis(res, meas.n, res.rms_mm, noise, source, missing, listed, decision,
                      residual_structure(prob, res.residual), forward, M, absorbed)
 
@@ -310,8 +373,9 @@ def report(dg: Diagnosis) -> str:
                  f"{d['cv_sse_without']:.4g} -> {d['cv_sse_with']:.4g})")
     lines.append("[[Candidates]] best first: RMS after adding it, share of the residual it explains")
     for k, c in enumerate(j["candidates"], 1):
+        coef = "" if c["coefficient"] is None else f"coef {c['coefficient']:.3g} {c['unit']}: "
         lines.append(f"    {k:2d}. {c['id']:10s} -> {c['rms_mm'] * 1000:.4g} um ({c['explained']:.1%}) "
-                     f"coef {c['coefficient']:.3g} {c['unit']}: {c['description']}")
+                     f"{coef}{c['description']}")
         if c["aliases"]:
             lines.append(f"        aliases on this data: {', '.join(c['aliases'])}")
         if c.get("separate_by"):
