@@ -28,7 +28,8 @@ def test_gsa_json(capsys):
     s = out["settings"]
     assert s["kind"] == "GSIL" and s["convention"] == "printed" and s["LE_mm"] == 30 and s["L0_mm"] == 200
     assert s["grid"]["X"] == [-2500, 2500, 5] and s["grid"]["A"] == [-30, 30, 5] and s["poses"] == 5 * 9 * 5 * 25
-    assert s["skipped_nodes"] == 0 and "max_abs_change_of_proportion" in s["quadrature"]
+    assert s["quadrature"]["order"] == "exact" and s["skipped_poses"] == 0
+    assert s["quadrature"]["max_abs_change_of_proportion"] < 1e-4       # exact vs Gauss-Legendre 16
 
 
 @pytest.mark.parametrize("cone,k", [(1, 6), (2, 7)])
@@ -77,6 +78,8 @@ def test_errors_file(capsys, tmp_path):
     (["gsa", "--le", "0"], "--le"),
     (["lsa", "--le", "-3"], "--le"),
     (["lsa", "--order", "0"], "--order"),
+    (["gsa", "--order", "eight"], "--order"),
+    (["lsa", "--order", "exact", "--normal-mode", "1"], "normal mode 0"),
     (["lsa", "--convention", "nope"], "unknown convention"),
     (["sobol", "--samples", "100"], "power of 2"),
 ])

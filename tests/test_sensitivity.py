@@ -70,6 +70,39 @@ def test_gsil_kernel_equals_numpy_reference_and_chunks_do_not_matter(model):
     assert q["order"] == 8 and q["check_order"] == 16 and q["max_abs_change_of_proportion"] < 1e-3
 
 
+def exact_reference_W(model, poses, E, lo, hi):
+    """Eq. 13 without quadrature error: scipy.integrate.quad with the kinks (roots of J_iE_i . P_err in L) as
+    break points; J = a + L k from two jk evaluations (J is affine in L)."""
+    from scipy.integrate import quad
+    a = model.jk(poses, 0.0)[0] * E[None, :, None]
+    k = model.jk(poses, 1.0)[0] * E[None, :, None] - a
+    A, B = a.sum(axis=1), k.sum(axis=1)
+    W = np.zeros((len(poses), len(E)))
+    for n in range(len(poses)):
+        for i in range(len(E)):
+            c = [k[n, i] @ B[n], a[n, i] @ B[n] + k[n, i] @ A[n], a[n, i] @ A[n]]     # q(L) = c0 L^2 + c1 L + c2
+            if not any(c):
+                continue
+            roots = [r.real for r in np.roots(c) if abs(r.imag) < 1e-12 and lo < r.real < hi]
+
+            def f(L):
+                P = A[n] + L * B[n]
+                return abs(np.polyval(c, L)) / (P @ P)
+            W[n, i] = quad(f, lo, hi, points=roots or None, epsabs=0, epsrel=1e-13, limit=200)[0]
+    return W
+
+
+def test_exact_rule_equals_numpy_reference(model):
+    q = random_poses(6, 5)
+    E = np.random.default_rng(7).uniform(-1e-4, 1e-4, 41)
+    ref = exact_reference_W(model, q, E, 170.0, 200.0)
+    res = lsil(model, PoseList(q), E, L0=200.0, LE=30.0, order="exact", check=False)
+    np.testing.assert_allclose(res.per_pose, ref, rtol=1e-9, atol=1e-12 * ref.max())
+    g = gsil(model, PoseList(q), E, L0=200.0, LE=30.0, order="exact", progress=False, check=False)
+    np.testing.assert_allclose(g.values, ref.mean(axis=0), rtol=1e-9, atol=1e-12 * ref.max())
+    assert g.settings["quadrature"]["order"] == "exact" and g.settings["skipped_poses"] == 0
+
+
 def test_every_J_is_affine_in_L(model):
     q = random_poses(20, 3)
     J1, J2, J3 = (model.jk(q, L)[0] for L in (100.0, 150.0, 200.0))
@@ -101,6 +134,9 @@ def test_zero_position_error_gives_finite_indices_and_a_count(model):
     assert np.all(np.isfinite(res.proportions))
     g = gsil(model, PoseList(q), E, order=5, progress=False)
     assert g.settings["skipped_nodes"] == 5 and np.all(np.isfinite(g.values))
+    ge = gsil(model, PoseList(q), E, order="exact", progress=False)
+    assert ge.settings["skipped_poses"] == 1 and np.all(np.isfinite(ge.values))
+    assert ge.values[model.errors.index("ez_x")] == pytest.approx(model.machine.cutting_length / 2, rel=1e-12)
     # mode 0, second pose: W(ez_x) = int |JE . JE| / |JE|^2 dL = LE; the first pose adds 0, so the mean is LE / 2
     assert g.values[model.errors.index("ez_x")] == pytest.approx(model.machine.cutting_length / 2, rel=1e-12)
 

@@ -14,6 +14,10 @@ large grids) and reports the largest change of a proportion. A quadrature node w
 (<= rel_tiny * sum_i |J_iE_i|, the errors cancel) has no defined direction; the kernels leave it out of the
 integral (it adds 0) and count it; the count is reported as `skipped_nodes`. Indices are therefore always
 finite; a pose where P_err is zero everywhere adds nothing.
+Exact rule (order "exact", the default of `gsil` when the generated module has `gsil_sum`): the integral over L in
+closed form, once per Table 2 group (the performance kernels); a pose where |P_err| comes within the same floor
+anywhere on [L0-LE, L0] is left out whole and counted as `skipped_poses`. Its check compares it with
+Gauss-Legendre of order 16 on the sample.
 """
 from __future__ import annotations
 
@@ -48,15 +52,36 @@ def quadrature(L0: float, LE: float, order: int) -> tuple[np.ndarray, np.ndarray
     return L0 - 0.5 * LE + 0.5 * LE * x, 0.5 * LE * w
 
 
-def kernel_w(model, poses, nodes, weights, E, rel_tiny=REL_TINY, normals=None, mode=0, each=False):
+def has_exact(model) -> bool:
+    """True when the generated module has the exact-in-L GSIL kernels (gsil_sum, gsil_each)."""
+    return hasattr(model.kernels, "gsil_sum") and hasattr(model.kernels, "gsil_each")
+
+
+def kernel_w(model, poses, E, L0, LE, order, rel_tiny=REL_TINY, normals=None, mode=0, each=False):
     """The one place that calls the generated sensitivity kernels.
 
-    each=False: (sum over poses of W_i (41,), number of left-out nodes); each=True: (W (n, 41) per pose,
-    left-out nodes per pose (n,)), with normals (n, 3) or (1, 3) used in mode 1.
+    order "exact": the closed-form integral over L (gsil_sum / gsil_each; mode 0 only; left-out counts are
+    poses); an int: Gauss-Legendre of that order (sensitivity_sum / sensitivity_each; left-out counts are nodes).
+    each=False: (sum over poses of W_i (41,), left-out count); each=True: (W (n, 41) per pose, left-out counts
+    per pose (n,)), with normals (n, 3) or (1, 3) used in mode 1.
     """
     k = model.kernels
     poses = np.ascontiguousarray(poses, dtype=float)
     E = np.ascontiguousarray(E, dtype=float)
+    if order == "exact":
+        if mode != 0:
+            raise InputError("the exact integral over L is for W_i alone (normal mode 0); give --order N")
+        lo, hi = float(L0 - LE), float(L0)
+        if each:
+            W = np.zeros((len(poses), len(E)))
+            skipped = np.zeros(len(poses), dtype=np.int64)
+            if len(poses):
+                k.gsil_each(poses, lo, hi, E, float(rel_tiny), W, skipped)
+            return W, skipped
+        W_sum = np.zeros(len(E))
+        skipped = k.gsil_sum(poses, lo, hi, E, float(rel_tiny), W_sum) if len(poses) else 0
+        return W_sum, int(skipped)
+    nodes, weights = quadrature(L0, LE, order)
     if each:
         n = len(poses)
         W = np.zeros((n, len(E)))
@@ -133,9 +158,10 @@ def _sample(source, k: int) -> np.ndarray:
 
 
 def _settings(model, L0, LE, order, rel_tiny, errors_label):
+    rule = ({"rule": "exact (closed form in L, per Table 2 group)", "order": "exact"} if order == "exact" else
+            {"rule": "Gauss-Legendre", "order": int(order)})
     return {"machine": model.machine.name, "convention": model.convention, "L0_mm": L0, "LE_mm": LE,
-            "quadrature": {"rule": "Gauss-Legendre", "order": int(order)}, "rel_tiny": rel_tiny,
-            "errors": errors_label}
+            "quadrature": rule, "rel_tiny": rel_tiny, "errors": errors_label}
 
 
 def _errors(model, errors):
@@ -151,29 +177,44 @@ def _errors(model, errors):
     return E, label
 
 
-def _check_order(model, poses, L0, LE, order, E, rel_tiny, normals=None, mode=0):
-    """Proportions with order n and 2n on the given poses: the largest absolute change of a proportion."""
+def check_order(order) -> int:
+    """The order of the rule a run is checked against: 2n for Gauss-Legendre of order n, 16 for the exact rule."""
+    return 2 * DEFAULT_ORDER if order == "exact" else 2 * int(order)
+
+
+def _check(model, poses, L0, LE, order, E, rel_tiny, normals=None, mode=0):
+    """Proportions with the rule and with its check rule (check_order) on the given poses: the largest absolute
+    change of a proportion."""
     out = []
-    for n in (order, 2 * order):
-        nodes, weights = quadrature(L0, LE, n)
+    for n in (order, check_order(order)):
         if normals is None:
-            W, _ = kernel_w(model, poses, nodes, weights, E, rel_tiny)
+            W, _ = kernel_w(model, poses, E, L0, LE, n, rel_tiny)
         else:
-            W = kernel_w(model, poses, nodes, weights, E, rel_tiny, normals, mode, each=True)[0].sum(0)
+            W = kernel_w(model, poses, E, L0, LE, n, rel_tiny, normals, mode, each=True)[0].sum(0)
         out.append(W / W.sum() if W.sum() > 0 else W)
     return float(np.max(np.abs(out[0] - out[1])))
 
 
-def gsil(model, grid, errors=None, L0=None, LE=None, order=DEFAULT_ORDER, rel_tiny=REL_TINY,
+def _validate(L0, LE, order):
+    if order == "exact":
+        quadrature(L0, LE, 1)          # checks L0 and LE
+        return
+    quadrature(L0, LE, order)
+
+
+def gsil(model, grid, errors=None, L0=None, LE=None, order=None, rel_tiny=REL_TINY,
          chunk=CHUNK, progress=None, check=True) -> SensitivityResult:
     """GSIL_i (Eq. 14): the mean of W_i over every pose of a grid or pose list, in chunks of `chunk` poses.
 
     L0 and LE (mm) default to the machine file's tool data; errors as Model.error_vector (None = defaults).
+    order: "exact" or a Gauss-Legendre order; None = exact when the kernels have it, else DEFAULT_ORDER.
     progress: None = a bar on stderr for long runs when it is a terminal, True/False to force.
     """
     L0 = model.machine.tool_length if L0 is None else float(L0)
     LE = model.machine.cutting_length if LE is None else float(LE)
-    nodes, weights = quadrature(L0, LE, order)
+    if order is None:
+        order = "exact" if has_exact(model) else DEFAULT_ORDER
+    _validate(L0, LE, order)
     E, label = _errors(model, errors)
     if grid.size == 0:
         raise InputError("the grid has no poses")
@@ -183,22 +224,23 @@ def gsil(model, grid, errors=None, L0=None, LE=None, order=DEFAULT_ORDER, rel_ti
     with _progress(grid.size, progress, "GSIL") as bar:
         for start in range(0, grid.size, chunk):
             stop = min(start + chunk, grid.size)
-            W, s = kernel_w(model, grid.poses(start, stop), nodes, weights, E, rel_tiny)
+            W, s = kernel_w(model, grid.poses(start, stop), E, L0, LE, order, rel_tiny)
             total += W
             skipped += s
             bar.update(stop - start)
     values = total / grid.size
     settings = _settings(model, L0, LE, order, rel_tiny, label)
-    settings.update(kind="GSIL", poses=grid.size, skipped_nodes=skipped, seconds=round(time.perf_counter() - t0, 3))
+    settings.update(kind="GSIL", poses=grid.size, seconds=round(time.perf_counter() - t0, 3))
+    settings["skipped_poses" if order == "exact" else "skipped_nodes"] = skipped
     if hasattr(grid, "describe"):
         rotary = tuple(n for n in grid.names if model.machine.axis(n).type == "rotary")
         settings["grid"] = grid.describe(rotary)
         settings["grid_units"] = "mm; degrees for rotary axes; [lo, hi, count]"
     if check:
         sample = _sample(grid, CHECK_SAMPLE)
-        settings["quadrature"].update(check_order=2 * int(order), check_poses=len(sample),
-                                      max_abs_change_of_proportion=_check_order(model, sample, L0, LE, order, E,
-                                                                                 rel_tiny))
+        settings["quadrature"].update(check_order=check_order(order), check_poses=len(sample),
+                                      max_abs_change_of_proportion=_check(model, sample, L0, LE, order, E,
+                                                                          rel_tiny))
     return SensitivityResult("GSIL", model.errors, values, settings)
 
 
@@ -210,7 +252,9 @@ def lsil(model, poses, errors=None, L0=None, LE=None, order=2 * DEFAULT_ORDER, m
         raise InputError(f"--normal-mode: expected 0 (W_i alone) or 1 (projection on the normal N), got {mode}")
     L0 = model.machine.tool_length if L0 is None else float(L0)
     LE = model.machine.cutting_length if LE is None else float(LE)
-    nodes, weights = quadrature(L0, LE, order)
+    _validate(L0, LE, order)
+    if order == "exact" and mode != 0:
+        raise InputError("the exact integral over L is for W_i alone (normal mode 0); give --order N")
     E, label = _errors(model, errors)
     normals = getattr(poses, "normals", None)
     if mode == 1 and normals is None:
@@ -218,12 +262,13 @@ def lsil(model, poses, errors=None, L0=None, LE=None, order=2 * DEFAULT_ORDER, m
     q = poses.poses(0, poses.size)
     if len(q) == 0:
         raise InputError("the pose list is empty")
-    W, skipped = kernel_w(model, q, nodes, weights, E, rel_tiny, normals, mode, each=True)
+    W, skipped = kernel_w(model, q, E, L0, LE, order, rel_tiny, normals, mode, each=True)
     settings = _settings(model, L0, LE, order, rel_tiny, label)
-    settings.update(kind="LSIL", normal_mode=mode, poses=len(q), skipped_nodes=int(skipped.sum()))
+    settings.update(kind="LSIL", normal_mode=mode, poses=len(q))
+    settings["skipped_poses" if order == "exact" else "skipped_nodes"] = int(skipped.sum())
     if check:
-        settings["quadrature"].update(check_order=2 * int(order), check_poses=len(q),
-                                      max_abs_change_of_proportion=_check_order(
+        settings["quadrature"].update(check_order=check_order(order), check_poses=len(q),
+                                      max_abs_change_of_proportion=_check(
                                           model, q, L0, LE, order, E, rel_tiny,
                                           normals if normals is not None else np.zeros((1, 3)), mode))
     return SensitivityResult("LSIL", model.errors, W.mean(axis=0), settings, per_pose=W)

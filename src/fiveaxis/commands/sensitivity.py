@@ -17,7 +17,17 @@ from ..errors import InputError
 
 
 # -- shared options ----------------------------------------------------------------------------------------------
-def _common(p, le_default: str):
+def _order(text):
+    """--order: an integer (Gauss-Legendre) or 'exact'; range checks happen in sensitivity.quadrature."""
+    if text is None or text == "exact":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise InputError(f"--order: expected an integer or 'exact', got {text!r}") from None
+
+
+def _common(p, le_default: str, order_default: str):
     p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
     p.add_argument("--convention", default="equations",
                    help="'equations' (errors where Eq. 1-6 place them) or a convention of the machine file "
@@ -26,7 +36,9 @@ def _common(p, le_default: str):
     p.add_argument("--plot", type=Path, metavar="DIR", help="write PNG plots into DIR")
     p.add_argument("--l0", type=float, default=None, help="tool length L0, mm (default: 200, the paper's)")
     p.add_argument("--le", type=float, default=None, help=f"effective cutting length LE, mm (default: {le_default})")
-    p.add_argument("--order", type=int, default=None, help="Gauss-Legendre order over [L0-LE, L0]")
+    p.add_argument("--order", default=None, metavar="N|exact",
+                   help="integral over [L0-LE, L0]: Gauss-Legendre of order N, or 'exact' (closed form; W_i only) "
+                        f"(default: {order_default})")
     p.add_argument("--errors", action="append", default=[], metavar="FILE|NAME=VALUE",
                    help="error values (mm, rad): NAME=VALUE, or a file of NAME=VALUE lines or a JSON object; "
                         "repeatable; errors not named keep 1e-4 (the paper's value)")
@@ -103,11 +115,14 @@ def _print_ranking(result, top: int, title: str):
 
 def _print_settings(s):
     q = s["quadrature"]
+    rule = "exact integral over L" if q["order"] == "exact" else f"Gauss-Legendre order {q['order']}"
     line = (f"settings: {s['machine']} ({s['convention']} convention), L0 {s['L0_mm']:g} mm, LE {s['LE_mm']:.4g} mm, "
-            f"Gauss-Legendre order {q['order']}")
+            f"{rule}")
     if "max_abs_change_of_proportion" in q:
-        line += f" (order {q['check_order']}: largest change of a proportion {q['max_abs_change_of_proportion']:.1e})"
-    line += f", {s['poses']} poses, {s['skipped_nodes']} nodes left out (|P_err| ~ 0)"
+        line += (f" (vs Gauss-Legendre order {q['check_order']}: largest change of a proportion "
+                 f"{q['max_abs_change_of_proportion']:.1e})")
+    left = (f"{s['skipped_poses']} poses" if "skipped_poses" in s else f"{s['skipped_nodes']} nodes")
+    line += f", {s['poses']} poses, {left} left out (|P_err| ~ 0)"
     print(line)
 
 
@@ -127,7 +142,7 @@ def _rows_json(rows):
 
 # -- gsa -----------------------------------------------------------------------------------------------------------
 def register_gsa(p):
-    _common(p, "30, Sect. 4.2")
+    _common(p, "30, Sect. 4.2", "exact when the kernels have it, else 8")
     p.add_argument("--axis", action="append", default=[], metavar="NAME=LO:HI:COUNT",
                    help="grid of one axis (mm; degrees for rotary axes), or NAME=VALUE to fix it; repeatable. "
                         "Default: Sect. 4.2's workspace, X 21, Y 9, Z 5, A 13, B 13 points")
@@ -147,12 +162,11 @@ def register_gsa(p):
 def run_gsa(args) -> int:
     from .. import presets
     from ..grid import grid_from_specs
-    from ..sensitivity import CHUNK, DEFAULT_ORDER, gsil
+    from ..sensitivity import CHUNK, gsil
     model = _model(args)
     errors = parse_errors(model, args.errors)
     L0 = presets.WORKSPACE_L0 if args.l0 is None else args.l0
     LE = presets.WORKSPACE_LE if args.le is None else args.le
-    order = DEFAULT_ORDER if args.order is None else args.order
     rotary = tuple(n for n in model.variables if model.machine.axis(n).type == "rotary")
     if tuple(model.variables) == ("X", "Y", "Z", "A", "B"):
         base = presets.workspace_grid(model)
@@ -163,7 +177,7 @@ def run_gsa(args) -> int:
     chunk = CHUNK if args.chunk is None else args.chunk
     if chunk < 1:
         raise InputError(f"--chunk: expected a positive number of poses, got {chunk}")
-    res = gsil(model, grid, errors, L0, LE, order, chunk=chunk, progress=args.progress)
+    res = gsil(model, grid, errors, L0, LE, _order(args.order), chunk=chunk, progress=args.progress)
     out = res.to_json()
     comp = None
     if args.compensate:
@@ -205,7 +219,7 @@ def run_gsa(args) -> int:
 
 # -- lsa -----------------------------------------------------------------------------------------------------------
 def register_lsa(p):
-    _common(p, "34.6, Sect. 4.1")
+    _common(p, "34.6, Sect. 4.1", "16")
     p.add_argument("--cone", type=int, default=1, choices=(1, 2), help="machining position of the 1/4 cone")
     p.add_argument("--positions", type=int, default=5, help="tool positions on the cone (default 5, Tables 3-4)")
     p.add_argument("--normal-mode", type=int, default=0, choices=(0, 1),
@@ -224,7 +238,7 @@ def run_lsa(args) -> int:
     errors = parse_errors(model, args.errors)
     L0 = presets.CONE_L0 if args.l0 is None else args.l0
     LE = presets.CONE_LE if args.le is None else args.le
-    order = 2 * DEFAULT_ORDER if args.order is None else args.order
+    order = 2 * DEFAULT_ORDER if args.order is None else _order(args.order)
     if args.positions < 1:
         raise InputError(f"--positions: expected at least 1, got {args.positions}")
     poses = presets.cone_poses(model, args.cone, args.positions)
@@ -267,7 +281,7 @@ def run_lsa(args) -> int:
 
 # -- sobol ---------------------------------------------------------------------------------------------------------
 def register_sobol(p):
-    _common(p, "30, Sect. 4.2")
+    _common(p, "30, Sect. 4.2", "exact when the kernels have it, else 8")
     p.add_argument("--samples", type=int, default=512, help="SALib base sample, a power of 2 (default 512)")
     p.add_argument("--bound", type=float, default=1e-4, help="errors uniform in [-bound, bound] (mm, rad)")
     p.add_argument("--seed", type=int, default=0)
@@ -276,7 +290,7 @@ def register_sobol(p):
 
 def run_sobol(args) -> int:
     from .. import presets
-    from ..sensitivity import DEFAULT_ORDER, gsil
+    from ..sensitivity import gsil
     from ..sobol import compare, sobol_total
     model = _model(args)
     errors = parse_errors(model, args.errors)
@@ -284,7 +298,7 @@ def run_sobol(args) -> int:
     LE = presets.WORKSPACE_LE if args.le is None else args.le
     grid = presets.workspace_grid(model)
     s = sobol_total(model, grid, L0, LE, args.bound, args.samples, args.seed)
-    g = gsil(model, grid, errors, L0, LE, DEFAULT_ORDER if args.order is None else args.order, progress=False)
+    g = gsil(model, grid, errors, L0, LE, _order(args.order), progress=False)
     cmp = compare(model.errors, g.values, s["ST"])
     out = {"indices": {n: float(v) for n, v in zip(s["names"], s["ST"])},
            "ranking": __import__("fiveaxis.sensitivity", fromlist=["ranking"]).ranking(s["names"], s["ST"]),
