@@ -84,3 +84,16 @@ def test_pose_list():
         PoseList([[0, 0, 0, 0, 0]], normals=[[0, 0, 0]])
     with pytest.raises(InputError, match="normals"):
         PoseList([[0, 0, 0, 0, 0]], normals=[[0, 0, 1], [0, 0, 1]])
+
+
+def test_random_slices_match_unravel_index():
+    shape = (7, 1, 5, 3, 11)
+    g = Grid(tuple(GridAxis(n, 0.0, 0.0, 1) if c == 1 else GridAxis(n, -1.0, 2.0, c) for n, c in zip("XYZAB", shape)))
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        start = int(rng.integers(0, g.size))
+        stop = start + int(rng.integers(1, 200))
+        stop = min(stop, g.size)
+        idx = np.unravel_index(np.arange(start, stop), shape)
+        ref = np.stack([a.values()[i] for a, i in zip(g.axes, idx)], axis=1)
+        np.testing.assert_array_equal(g.poses(start, stop), ref)

@@ -69,10 +69,22 @@ class Grid:
         start, stop = max(0, int(start)), min(int(stop), self.size)
         if stop <= start:
             return np.empty((0, len(self.axes)))
-        idx = np.unravel_index(np.arange(start, stop, dtype=np.int64), self.shape)
         out = np.empty((stop - start, len(self.axes)))
-        for j, (a, i) in enumerate(zip(self.axes, idx)):
-            out[:, j] = a.values()[i]
+        stride = 1
+        for j in range(len(self.axes) - 1, -1, -1):
+            # along a C-order slice, axis j holds each value for runs of `stride` poses: build it by np.repeat
+            a = self.axes[j]
+            first, last = start // stride, (stop - 1) // stride
+            vals = a.values()[np.arange(first, last + 1, dtype=np.int64) % a.count]
+            if stride == 1:
+                out[:, j] = vals
+            else:
+                runs = np.full(last - first + 1, stride, dtype=np.int64)
+                runs[0] = min(stop, (first + 1) * stride) - start
+                if last > first:
+                    runs[-1] = stop - last * stride
+                out[:, j] = np.repeat(vals, runs)
+            stride *= int(a.count)
         return out
 
     def axis(self, name: str) -> GridAxis:
