@@ -217,10 +217,12 @@ def _separating(prob: F.Problem, group, all_effects, base_idx):
         Q = _basis(p2)
         G = candidate_matrix(p2, effs)
         c = project(Q, G, np.zeros(len(p2.d)), effs)
+        from scipy.sparse.csgraph import connected_components
         cos = np.abs(c.Gp.T @ c.Gp)
-        np.fill_diagonal(cos, 0)
-        if np.all(cos < ALIAS_COS) and np.all(c.ratio > ABSORBED):
-            tips.append(text)
+        k, label = connected_components(cos > ALIAS_COS, directed=False)
+        if k > 1:
+            tips.append({"measure": text, "separates": [[effs[i].id for i in range(len(effs)) if label[i] == g]
+                                                        for g in range(k)]})
     return tips
 
 
@@ -378,10 +380,11 @@ def report(dg: Diagnosis) -> str:
                      f"{coef}{c['description']}")
         if c["aliases"]:
             lines.append(f"        aliases on this data: {', '.join(c['aliases'])}")
-        if c.get("separate_by"):
-            lines.append(f"        to separate them, measure with {'; or '.join(c['separate_by'])}")
-        elif c["aliases"] and "separate_by" in c:
-            lines.append("        no extra tool length or axis range would separate them")
+        for tip in c.get("separate_by", []):
+            groups = " | ".join(", ".join(g) for g in tip["separates"])
+            lines.append(f"        measuring with {tip['measure']} would separate: {groups}")
+        if c["aliases"] and "separate_by" in c and not c["separate_by"]:
+            lines.append("        no extra tool length or axis range would separate them (same columns everywhere)")
     if dg.missing_effect and j["candidates"]:
         lines.append(f"    next: fiveaxis diagnose FILE --add {j['candidates'][0]['id']}")
     return "\n".join(lines)

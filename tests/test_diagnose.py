@@ -1,0 +1,99 @@
+"""Diagnose on simulated data with hidden effects: the hidden effect (or one of its listed aliases) ranks first,
+adding it brings the residual to the noise, and with nothing hidden the rule raises no false alarm."""
+import numpy as np
+import pytest
+
+import fiveaxis
+from fiveaxis import diagnose as D
+from fiveaxis.simulate import simulate
+
+NOISE = 1e-3
+
+
+@pytest.fixture(scope="module")
+def model():
+    return fiveaxis.load("li2018")
+
+
+def _round(model, meas, added, hidden):
+    """One round: the hidden effect (one of `hidden`) is found first; returns the id to add."""
+    dg = D.diagnose(model, meas, added)
+    assert dg.missing_effect
+    top = dg.candidates[0]
+    assert {top["id"], *top["aliases"]} & set(hidden), (top, hidden)
+    assert dg.rms_mm > 1.25 * NOISE                            # the effect mattered
+    return top
+
+
+@pytest.mark.parametrize("spec", [
+    "ex_x:x1=2e-5",      # linear axis: roll changing along X (twisted guideway)
+    "ez_y:y1=3e-5",      # linear axis: yaw of Y changing along Y
+    "ey_B:B1=1e-4",      # rotary axis: angular positioning error of B growing with B
+    "dy_A:A2=0.01",      # rotary axis: radial motion of A, quadratic in A
+    "dz_x:x2=0.01",      # quadratic (bowed) vertical straightness of X
+    "L:t1=0.01",         # thermal drift: tool growing with time
+    "dz_z:t1=0.005",     # thermal drift of Z
+])
+def test_hidden_effect_found_and_error_falls_to_noise(model, spec):
+    hidden = spec.split("=")[0]
+    meas = simulate(model, [spec], n=1500, noise=NOISE, seed=21).meas
+    top = _round(model, meas, [], [hidden])
+    after = D.diagnose(model, meas, [top["id"]])
+    assert after.rms_mm <= 1.25 * NOISE
+    assert top["rms_mm"] == pytest.approx(after.rms_mm, rel=0.02)   # the QR shortcut predicts the refit
+    assert not after.missing_effect
+
+
+def test_two_effects_found_in_two_rounds(model):
+    meas = simulate(model, ["ex_x:x1=2e-5", "L:t1=0.008"], n=1500, noise=NOISE, seed=22).meas
+    first = _round(model, meas, [], ["ex_x:x1", "L:t1"])
+    second = _round(model, meas, [first["id"]], ["ex_x:x1", "L:t1"])
+    assert {first["id"], *first["aliases"]} != {second["id"], *second["aliases"]}
+    final = D.diagnose(model, meas, [first["id"], second["id"]])
+    assert final.rms_mm <= 1.25 * NOISE and not final.missing_effect
+
+
+@pytest.mark.parametrize("seed,sigma", [(31, False), (32, False), (33, False), (34, True)])
+def test_no_false_alarm_without_hidden_effect(model, seed, sigma):
+    dg = D.diagnose(model, simulate(model, [], n=1500, noise=NOISE, seed=seed, with_sigma=sigma).meas)
+    assert not dg.missing_effect
+    assert dg.noise_mm == pytest.approx(NOISE, rel=0.1)
+    assert dg.rms_mm == pytest.approx(NOISE, rel=0.1)
+
+
+def test_aliases_and_the_measurement_that_separates_them(model):
+    meas = simulate(model, ["ey_A:x1=5e-5"], n=1500, noise=NOISE, seed=23).meas
+    top = D.diagnose(model, meas).candidates[0]
+    group = {top["id"], *top["aliases"]}
+    assert {"ey_A:x1", "dx_B:x1", "ey_B:x1"} <= group
+    tips = top["separate_by"]
+    assert len(tips) == 1 and "tool length" in tips[0]["measure"]
+    parts = [set(g) for g in tips[0]["separates"]]
+    assert any("ey_A:x1" in g and "dx_B:x1" not in g for g in parts)
+
+
+def test_json_shape(model):
+    dg = D.diagnose(model, simulate(model, ["dz_x:x2=0.01"], n=500, noise=NOISE, seed=24).meas, top=5)
+    j = dg.to_json()
+    assert j["n"] == 500 and j["missing_effect"] is True and len(j["candidates"]) == 5
+    assert j["n_candidates"] == 42 * 6 * 3
+    c = j["candidates"][0]
+    assert set(c) >= {"id", "aliases", "rms_mm", "description"} and c["rms_mm"] < j["rms_mm"]
+    rms = [c["rms_mm"] for c in j["candidates"]]
+    assert rms == sorted(rms)
+    assert j["structure"]["x"]["dz"] > 0.3          # the residual is structured along X
+
+
+def test_candidate_columns_match_finite_differences(model):
+    """The design column of an effect is the change of the exact model's deviation per unit coefficient."""
+    from fiveaxis import effects as fx
+    from fiveaxis import fit as F
+    meas = simulate(model, [], n=50, noise=0.0, seed=25).meas
+    prob = F.build(model, meas, ["ex_y:z2", "L:t1", "dy_A:B3"])
+    h = 1e-4
+    for k, eff in enumerate(prob.effects):
+        theta = np.zeros(len(prob.names))
+        theta[41 + k] = h
+        fd = (prob.predict(theta) - prob.predict(-theta)) / (2 * h)
+        assert np.allclose(fd, prob.A[:, 41 + k], rtol=1e-5, atol=1e-7 * np.abs(prob.A[:, 41 + k]).max())
+        assert isinstance(eff, fx.Effect)
