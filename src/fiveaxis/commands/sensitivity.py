@@ -194,13 +194,16 @@ def run_gsa(args) -> int:
         plots.pie(res.names, res.proportions, args.plot / "gsa_pie.png",
                   f"PG_i, {model.machine.name} ({model.convention})")
         if args.compensate:
-            for tag, sc in (("none", "none"), ("vital", "vital halved")):
-                r = presets.nine_point_errors(model, presets.scenario_errors(errors, presets.PAPER_VITAL["workspace"],
-                                                                             sc), args.rot_count, args.points, L0)
-                plots.ab_contour(r["A_deg"], r["B_deg"], r["position_map"], args.plot / f"gsa_position_{tag}.png",
-                                 f"average position error, {sc}", "mm")
-                plots.ab_contour(r["A_deg"], r["B_deg"], r["posture_map"], args.plot / f"gsa_posture_{tag}.png",
-                                 f"average posture error, {sc}", "rad")
+            maps = {tag: presets.nine_point_errors(model, presets.scenario_errors(
+                        errors, presets.PAPER_VITAL["workspace"], sc), args.rot_count, args.points, L0)
+                    for tag, sc in (("none", "none"), ("vital", "vital halved"))}
+            for key, name, unit in (("position_map", "position", "mm"), ("posture_map", "posture", "rad")):
+                both = np.concatenate([m[key].ravel() for m in maps.values()])
+                levels = np.linspace(both.min(), both.max(), 15)      # one scale for a and b, as Fig. 17-18
+                for tag, r in maps.items():
+                    plots.ab_contour(r["A_deg"], r["B_deg"], r[key], args.plot / f"gsa_{name}_{tag}.png",
+                                     f"average {name} error, {'none' if tag == 'none' else 'vital halved'}", unit,
+                                     levels)
             plots.bars(comp["position_mm"], args.plot / "gsa_compensation_position.png", "Fig. 16a", "mm")
             plots.bars(comp["posture_rad"], args.plot / "gsa_compensation_posture.png", "Fig. 16b", "rad")
     if args.json:
