@@ -34,14 +34,16 @@ def _common(p, le_default: str, order_default: str):
                         "(li2018: 'printed', the placement behind the printed Table 2 and the paper's results)")
     p.add_argument("--json", action="store_true", help="print {indices, ranking, settings} as JSON")
     p.add_argument("--plot", type=Path, metavar="DIR", help="write PNG plots into DIR")
-    p.add_argument("--l0", type=float, default=None, help="tool length L0, mm (default: 200, the paper's)")
+    p.add_argument("--l0", type=float, default=None,
+                   help="tool length L0, mm (default: the machine file's; li2018: 200, the paper's)")
     p.add_argument("--le", type=float, default=None, help=f"effective cutting length LE, mm (default: {le_default})")
     p.add_argument("--order", default=None, metavar="N|exact",
                    help="integral over [L0-LE, L0]: Gauss-Legendre of order N, or 'exact' (closed form; W_i only) "
                         f"(default: {order_default})")
     p.add_argument("--errors", action="append", default=[], metavar="FILE|NAME=VALUE",
                    help="error values (mm, rad): NAME=VALUE, or a file of NAME=VALUE lines or a JSON object; "
-                        "repeatable; errors not named keep 1e-4 (the paper's value)")
+                        "repeatable; errors not named keep the machine file's values (li2018: all 1e-4, the "
+                        "value behind the paper's rankings)")
     p.add_argument("--top", type=int, default=10, help="rows of the printed ranking (default 10)")
 
 
@@ -51,9 +53,9 @@ def _model(args):
 
 
 def parse_errors(model, specs) -> dict[str, float]:
-    """The paper's 1e-4 for every error, overridden by --errors NAME=VALUE or files of such lines / JSON."""
-    from ..presets import paper_errors
-    values = paper_errors(model)
+    """The machine file's error values, overridden by --errors NAME=VALUE or files of such lines / JSON."""
+    defaults = model.machine.default_errors()
+    values = {n: float(defaults[n]) for n in model.errors}
     known = set(model.errors)
 
     def put(name, raw, where):
@@ -142,7 +144,7 @@ def _rows_json(rows):
 
 # -- gsa -----------------------------------------------------------------------------------------------------------
 def register_gsa(p):
-    _common(p, "30, Sect. 4.2", "exact when the kernels have it, else 8")
+    _common(p, "the machine file's; li2018: 30, Sect. 4.2", "exact when the kernels have it, else 8")
     p.add_argument("--axis", action="append", default=[], metavar="NAME=LO:HI:COUNT",
                    help="grid of one axis (mm; degrees for rotary axes), or NAME=VALUE to fix it; repeatable. "
                         "Default: Sect. 4.2's workspace, X 21, Y 9, Z 5, A 13, B 13 points")
@@ -165,8 +167,8 @@ def run_gsa(args) -> int:
     from ..sensitivity import CHUNK, gsil
     model = _model(args)
     errors = parse_errors(model, args.errors)
-    L0 = presets.WORKSPACE_L0 if args.l0 is None else args.l0
-    LE = presets.WORKSPACE_LE if args.le is None else args.le
+    L0 = model.machine.tool_length if args.l0 is None else args.l0
+    LE = model.machine.cutting_length if args.le is None else args.le
     rotary = tuple(n for n in model.variables if model.machine.axis(n).type == "rotary")
     if tuple(model.variables) == ("X", "Y", "Z", "A", "B"):
         base = presets.workspace_grid(model)
@@ -284,7 +286,7 @@ def run_lsa(args) -> int:
 
 # -- sobol ---------------------------------------------------------------------------------------------------------
 def register_sobol(p):
-    _common(p, "30, Sect. 4.2", "exact when the kernels have it, else 8")
+    _common(p, "the machine file's; li2018: 30, Sect. 4.2", "exact when the kernels have it, else 8")
     p.add_argument("--samples", type=int, default=512, help="SALib base sample, a power of 2 (default 512)")
     p.add_argument("--bound", type=float, default=1e-4, help="errors uniform in [-bound, bound] (mm, rad)")
     p.add_argument("--seed", type=int, default=0)
@@ -297,8 +299,8 @@ def run_sobol(args) -> int:
     from ..sobol import compare, sobol_total
     model = _model(args)
     errors = parse_errors(model, args.errors)
-    L0 = presets.WORKSPACE_L0 if args.l0 is None else args.l0
-    LE = presets.WORKSPACE_LE if args.le is None else args.le
+    L0 = model.machine.tool_length if args.l0 is None else args.l0
+    LE = model.machine.cutting_length if args.le is None else args.le
     grid = presets.workspace_grid(model)
     s = sobol_total(model, grid, L0, LE, args.bound, args.samples, args.seed)
     g = gsil(model, grid, errors, L0, LE, _order(args.order), progress=False)
