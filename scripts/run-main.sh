@@ -21,4 +21,24 @@ say "Sobol' total indices over the same workspace, against the GSIL ranking"
 # --- end section: sensitivity
 
 # --- section: measurements (issue 4)
+# Confront the model with measurements: diagnose, add the top candidate, diagnose again, until nothing is missing.
+MEAS=examples/li2018_measurements.csv
+say "Measurements ($MEAS: 1500 simulated poses with two hidden effects): fit of the 41 errors, identifiability"
+"$BIN/fiveaxis" fit "$MEAS" | sed '/Not determined/,$d'
+ADD=()
+FOUND=()
+TRAIL=""
+for round in 1 2 3 4; do
+    say "diagnose, round $round: fiveaxis diagnose $MEAS ${ADD[*]}"
+    OUT=$("$BIN/fiveaxis" diagnose "$MEAS" "${ADD[@]}" --top 3)
+    echo "$OUT"
+    RMS=$(echo "$OUT" | sed -n 's/.*residual RMS \([0-9.e+-]*\) um against noise \([0-9.e+-]*\) um.*/\1/p')
+    NOISE=$(echo "$OUT" | sed -n 's/.*residual RMS \([0-9.e+-]*\) um against noise \([0-9.e+-]*\) um.*/\2/p')
+    TRAIL="$TRAIL${TRAIL:+ -> }$RMS um"
+    NEXT=$(echo "$OUT" | sed -n 's/.*next: fiveaxis diagnose FILE --add \(.*\)$/\1/p')
+    [ -n "$NEXT" ] || break
+    ADD+=(--add "$NEXT")
+    FOUND+=("$NEXT")
+done
+say "The error fell: residual RMS $TRAIL against noise $NOISE um; effects found: ${FOUND[*]:-none}"
 # --- end section: measurements

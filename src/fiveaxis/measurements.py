@@ -200,6 +200,14 @@ def frame(meas: Measurements, machine):
     return pd.DataFrame(cols)
 
 
+def file_mode() -> int:
+    """Permissions of a new file under the current umask (mkstemp would leave 0600)."""
+    import os
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
 def write(df, path, force: bool = False) -> Path:
     """Write a DataFrame as CSV or Parquet (by suffix) through a temporary file and a rename.
 
@@ -220,6 +228,7 @@ def write(df, path, force: bool = False) -> Path:
             df.to_csv(tmp, index=False, float_format="%.10g")
         else:
             df.to_parquet(tmp, index=False)
+        os.chmod(tmp, file_mode())
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

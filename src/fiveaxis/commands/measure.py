@@ -204,6 +204,8 @@ def _write_text(path: Path, text: str) -> None:
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
+        from ..measurements import file_mode
+        os.chmod(tmp, os.stat(path).st_mode & 0o777 if path.exists() else file_mode())
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
