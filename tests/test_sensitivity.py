@@ -151,3 +151,9 @@ def test_all_zero_errors_is_an_input_error(model):
 def test_ranking_keeps_table_order_for_ties():
     assert ranking(["a", "b", "c"], [1.0, 3.0, 3.0 * (1 + 1e-15)]) == ["b", "c", "a"]
     assert ranking(["a", "b", "c"], [1.0, 2.0, 3.0]) == ["c", "b", "a"]
+
+
+def test_ranking_ties_are_robust_to_rounding():
+    base = 0.123456789
+    vals = [base * (1 - 3e-16), 0.5, base * (1 + 3e-16), base]      # three equal up to rounding
+    assert ranking(["a", "b", "c", "d"], vals) == ["b", "a", "c", "d"]

@@ -108,10 +108,15 @@ def proportions(values: np.ndarray) -> np.ndarray:
 def ranking(names, values, rel_tie: float = 1e-12) -> list[str]:
     """Names by value, largest first; values equal to rel_tie (errors with the same J) keep Table 1 order."""
     v = np.asarray(values, dtype=float)
-    scale = float(np.max(np.abs(v))) or 1.0
-    key = np.round(v / scale / rel_tie)
-    order = sorted(range(len(v)), key=lambda i: (-key[i], i))
-    return [names[i] for i in order]
+    tol = rel_tie * (float(np.max(np.abs(v))) if len(v) else 0.0)
+    by_value = sorted(range(len(v)), key=lambda i: (-v[i], i))
+    order, tied = [], []
+    for i in by_value:                       # runs of values within tol of their neighbour are one tie
+        if tied and v[tied[-1]] - v[i] > tol:
+            order += sorted(tied)
+            tied = []
+        tied.append(i)
+    return [names[i] for i in order + sorted(tied)]
 
 
 @dataclass
