@@ -184,7 +184,7 @@ def residual_structure(prob: F.Problem, residual: np.ndarray) -> dict:
     return out
 
 
-def _separating(prob: F.Problem, group, all_effects, base_idx):
+def _separating(prob: F.Problem, group, all_effects):
     """Extra measurements that would tell the effects of an alias set apart: another tool length, a full stroke."""
     meas, model = prob.meas, prob.model
     tips = []
@@ -232,7 +232,7 @@ def _concat(a, b):
                        np.vstack([a.d, b.d]), cat(a.t, b.t), cat(a.sigma, b.sigma), None, True, [])
 
 
-def diagnose(model, meas, added=(), top: int = 10, alpha_folds: int = K_FOLDS) -> Diagnosis:
+def diagnose(model, meas, added=(), top: int = 10) -> Diagnosis:
     """Fit, then rank every effect of the vocabulary by how much of the residual it explains, and decide."""
     res = F.fit(model, meas, added)
     prob = res.problem
@@ -331,7 +331,7 @@ def diagnose(model, meas, added=(), top: int = 10, alpha_folds: int = K_FOLDS) -
                 "description": fx.describe(model.machine, eff)}
         item["coefficient"], item["unit"] = _coefficient(res, cands, j, eff, w)
         if group and not listed:
-            item["separate_by"] = _separating(prob, [int(j)] + group, vocab, None)
+            item["separate_by"] = _separating(prob, [int(j)] + group, vocab)
         item["_gain"] = float(cands.gain[j])
         listed.append(item)
     for j, ce in enumerate(customs):

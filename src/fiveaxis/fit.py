@@ -81,7 +81,8 @@ def resolve_effects(model, ids, where="--add"):
     out, seen = [], set()
     for ident in ids:
         if ident in seen:
-            raise InputError(f"{where}: effect '{ident}' given twice")
+            raise InputError(f"{where}: effect '{ident}' given twice (or already in the machine file's "
+                             f"[model] effects)")
         seen.add(ident)
         if ident in model.machine.effects:
             from .custom_effects import load_custom
@@ -98,9 +99,8 @@ def machine_effects(model) -> list[str]:
 
 def build(model, meas, added=()) -> Problem:
     """The design of a model with added effects (ids or Effect records) at the measured poses."""
-    effects = [e if not isinstance(e, str) else None for e in added]
-    if any(e is None for e in effects):
-        effects = resolve_effects(model, [e if isinstance(e, str) else e.id for e in added])
+    resolved = iter(resolve_effects(model, [e for e in added if isinstance(e, str)]))
+    effects = [next(resolved) if isinstance(e, str) else e for e in added]
     J, _ = model.jk(meas.poses, meas.L)
     _, tool_dir = model.ideal_tool(meas.poses, meas.L)
     sc = fx.scales(model.machine, meas.t)
@@ -306,7 +306,7 @@ def identifiable_count(model, n_poses: int = 64, seed: int = 0) -> int:
 
 
 # -- reports ---------------------------------------------------------------------------------------------------
-def _unit(model, name: str, prob: Problem) -> str:
+def _unit(model, name: str) -> str:
     if name in model.errors:
         return "rad" if model.machine.is_angular(name) else "mm"
     return ""
@@ -326,9 +326,9 @@ def parameters(res: FitResult) -> dict:
             else:
                 forms = [c.formula for c in res.combinations if name in c.terms]
                 note = "not determined alone by this data" + (f"; see {'; '.join(forms)}" if forms else "")
-            out[name] = {"value": None, "std": None, "unit": _unit(model, name, prob), "note": note}
+            out[name] = {"value": None, "std": None, "unit": _unit(model, name), "note": note}
         else:
-            out[name] = {"value": float(res.theta[i]), "std": float(std[i]), "unit": _unit(model, name, prob)}
+            out[name] = {"value": float(res.theta[i]), "std": float(std[i]), "unit": _unit(model, name)}
     k = prob.n_errors
     for eff in prob.effects:
         if isinstance(eff, fx.Effect):
@@ -355,7 +355,10 @@ def to_json(res: FitResult) -> dict:
         "effects": [e.id if isinstance(e, fx.Effect) else e.name for e in res.problem.effects],
         "parameters": parameters(res),
         "unidentifiable": res.groups,
-        "combinations": [{"formula": c.formula, "terms": c.terms, "value": c.value, "std": c.std}
+        "combinations": [dict({"formula": c.formula, "terms": c.terms, "value": c.value, "std": c.std},
+                              **({"note": "effect coefficients in this combination are their change at the end of "
+                                          "the scaled range (u = 1), in the parameter's unit"}
+                                 if set(c.terms) - set(res.problem.model.errors) else {}))
                          for c in res.combinations],
         "correlations": [{"a": a, "b": b, "r": r} for a, b, r in res.correlations],
         "iterations": res.iterations,
