@@ -363,8 +363,12 @@ def report(dg: Diagnosis) -> str:
              + (f", model + {', '.join(j['added'])}" if j["added"] else ""),
              f"    residual RMS {dg.rms_mm * 1000:.4g} um against noise {dg.noise_mm * 1000:.4g} um "
              f"({dg.noise_source}): ratio {ratio:.3g}"]
+    from scipy.stats import f as f_dist
     strong = [(tok, max(v.values())) for tok, v in dg.structure.items()]
-    strong = [s for s in sorted(strong, key=lambda s: -s[1]) if s[1] > 0.05]
+    # Listed when a cubic explains more than chance would (F test, 3 and n-4 dof, p < 1e-3 per direction).
+    crit = f_dist.isf(1e-3, 3, max(dg.n - 4, 1))
+    strong = [s for s in sorted(strong, key=lambda s: -s[1])
+              if s[1] < 1 and (s[1] / 3) / ((1 - s[1]) / max(dg.n - 4, 1)) > crit]
     if strong:
         lines.append("    residual structure (share explained by a cubic in the variable): "
                      + ", ".join(f"{tok} {share:.0%}" for tok, share in strong))
