@@ -78,7 +78,10 @@ def _group_context(model: Model, group_list) -> dict:
         exprs += [model.a[n][d] for d in a_nz] + [model.k[n][d] for d in k_nz]
         out.append({"index": gi, "a": a_nz, "k": k_nz})
     trig = [{"name": name, "c": str(c), "s": str(s)} for name, (c, s) in model.chain.trig.items()]
-    return {"groups": out, "body": _assignments(targets, exprs, "u", indent="        "), "trig": trig}
+    free = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
+    used = [v for v in model.variables
+            if model.chain.pose[v] in free or (v in model.chain.trig and set(model.chain.trig[v]) & free)]
+    return {"groups": out, "body": _assignments(targets, exprs, "u", indent="        "), "trig": trig, "used": used}
 
 
 def render(model: Model, source_text: bytes, source_label: str) -> str:

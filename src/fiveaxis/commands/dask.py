@@ -1,0 +1,81 @@
+"""`fiveaxis dask`: GSIL of a workspace grid on Dask, on local worker processes or on a cluster (--scheduler)."""
+from __future__ import annotations
+
+import json
+import os
+import sys
+
+from ..errors import InputError
+
+
+def register_dask(p):
+    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
+    p.add_argument("--convention", default="equations", help="'equations' or a convention of the machine file")
+    p.add_argument("--axis", action="append", default=[], metavar="NAME=LO:HI:COUNT",
+                   help="grid of one axis (mm; degrees for rotary axes), or NAME=VALUE to fix it; repeatable "
+                        "(default: as `fiveaxis gsa`)")
+    p.add_argument("--l0", type=float, default=None, help="tool length L0, mm (default: the machine file's)")
+    p.add_argument("--le", type=float, default=None, help="effective cutting length LE, mm (default: the file's)")
+    p.add_argument("--errors", action="append", default=[], metavar="FILE|NAME=VALUE",
+                   help="error values (mm, rad), as for `fiveaxis gsa`")
+    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:8786",
+                   help="address of a running dask scheduler; default: a local cluster of --workers processes")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                   help="local worker processes, one thread each (default: the number of CPUs)")
+    p.add_argument("--chunk", type=int, default=None, help="poses per task (default 2**22)")
+    p.add_argument("--worker-kernel", default="serial", choices=("serial", "parallel"),
+                   help="serial nogil kernel (safe with threaded workers; default) or the parallel kernel "
+                        "(only for workers with one thread each)")
+    p.add_argument("--no-reduce", dest="reduce", action="store_false",
+                   help="evaluate every grid pose, also along axes that appear in no J (X for li2018)")
+    bar = p.add_mutually_exclusive_group()
+    bar.add_argument("--progress", action="store_true", default=None, help="always show the progress bar")
+    bar.add_argument("--no-progress", dest="progress", action="store_false", help="never show the progress bar")
+    p.add_argument("--json", action="store_true", help="print {indices, ranking, settings} as JSON")
+    p.add_argument("--top", type=int, default=10, help="rows of the printed ranking (default 10)")
+    p.set_defaults(func=run_dask)
+
+
+def run_dask(args) -> int:
+    from .. import distributed, presets
+    from ..grid import Grid, grid_from_specs
+    from ..kernels import load
+    from .sensitivity import _print_ranking, _print_settings, parse_errors
+    model = load(args.machine, args.convention)
+    errors = parse_errors(model, args.errors)
+    rotary = tuple(n for n in model.variables if model.machine.axis(n).type == "rotary")
+    if tuple(model.variables) == ("X", "Y", "Z", "A", "B"):
+        base = presets.workspace_grid(model)
+    else:
+        base = Grid.from_strokes(model.machine, {n: 5 for n in model.variables})
+    grid = grid_from_specs(base, args.axis, rotary)
+    if args.workers < 1:
+        raise InputError(f"--workers: expected a positive number of worker processes, got {args.workers}")
+    distributed.warm(model)          # compile or load the cache here, before any local worker starts
+    cluster = None
+    if args.scheduler:
+        from dask.distributed import Client
+        try:
+            client = Client(args.scheduler, timeout="20s")
+        except (OSError, TimeoutError) as exc:
+            raise InputError(f"--scheduler {args.scheduler}: cannot connect ({exc})") from None
+    else:
+        cluster, client = distributed.local_cluster(args.workers, 1)
+    try:
+        res = distributed.gsil(model, grid, client, errors, args.l0, args.le,
+                               chunk=args.chunk or distributed.CHUNK, reduce=args.reduce,
+                               worker_kernel=args.worker_kernel, progress=args.progress)
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    if args.json:
+        print(json.dumps(res.to_json(), indent=1))
+        return 0
+    _print_ranking(res, args.top, "GSIL proportions PG_i (Eq. 14, 16), largest first")
+    _print_settings(res.settings)
+    d = res.settings["dask"]
+    print(f"dask: {d['workers']} workers, {d['threads']} threads, {d['tasks']} tasks of {d['chunk']} poses, "
+          f"{res.settings['evaluated_poses']} poses evaluated (x{res.settings['reduced_factor']}), "
+          f"{res.settings['seconds']} s", file=sys.stdout)
+    return 0

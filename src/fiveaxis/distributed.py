@@ -1,0 +1,147 @@
+"""GSIL beyond one machine: chunks of a grid dispatched to Dask workers, each running the numba kernel, summed.
+
+Each task asks the grid for its slice of poses (`grid.poses(start, stop)`, never the whole grid), runs the exact
+GSIL kernel on it and returns 41 sums and a left-out count, so memory is bounded by the chunk size on every
+worker and by the number of tasks in flight on the client. Workers load the model by machine file and
+convention (`fiveaxis.load`), so each needs the package and the machine file.
+Threads: numba's default threading layer aborts when a parallel kernel is entered from several threads at once,
+which a threaded Dask worker does. So workers run the serial `nogil` kernel (`gsil_range`) by default; the
+parallel kernel (`gsil_sum`) is for workers with one thread each (`worker_kernel="parallel"`).
+Grid axes that appear in no J_i (X for li2018) are reduced first: W_i does not depend on them, so the sum over
+the grid is the sum over the reduced grid times the number of points on those axes (exact).
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .grid import Grid, GridAxis
+
+#: Poses per task: 2**22 poses are 160 MB of poses (li2018) and about 0.2 s of kernel time on one core.
+CHUNK = 1 << 22
+
+
+def reduce_grid(model, grid):
+    """(grid without the axes that appear in no J_i, how many grid poses each reduced pose stands for).
+
+    Only for a `Grid` (a pose list has no axes) and kernels that say which variables they use (JK_VARIABLES).
+    """
+    used = getattr(model.kernels, "JK_VARIABLES", None)
+    if not isinstance(grid, Grid) or used is None:
+        return grid, 1
+    factor = 1
+    axes = []
+    for a in grid.axes:
+        if a.name not in used and a.count > 1:
+            factor *= int(a.count)
+            axes.append(GridAxis(a.name, a.lo, a.lo, 1))
+        else:
+            axes.append(a)
+    return Grid(tuple(axes)), factor
+
+
+def _chunk_sum(machine_path, convention, grid, start, stop, lo, hi, E, rel_tiny, worker_kernel):
+    """One task: (sum over poses start..stop-1 of W_i (41,), left-out poses), on a worker."""
+    from .kernels import load
+    model = load(machine_path, convention, derive=False)
+    q = np.ascontiguousarray(grid.poses(start, stop))
+    W = np.zeros(len(E))
+    kernel = model.kernels.gsil_sum if worker_kernel == "parallel" else model.kernels.gsil_range
+    skipped = kernel(q, lo, hi, E, rel_tiny, W) if len(q) else 0
+    return W, int(skipped)
+
+
+def warm(model) -> float:
+    """Compile (or load from NUMBA_CACHE_DIR) the kernels the workers use, in this process; seconds taken.
+
+    Call before starting local worker processes: many processes compiling one cache at once can crash.
+    """
+    t = time.perf_counter()
+    k = model.kernels
+    q = np.zeros((1, len(model.variables)))
+    E = np.full(len(model.errors), 1e-4)
+    for kernel in (k.gsil_range, k.gsil_sum):
+        kernel(q, 170.0, 200.0, E, 1e-12, np.zeros(len(E)))
+    return time.perf_counter() - t
+
+
+def local_cluster(workers: int = 2, threads_per_worker: int = 1, **kw):
+    """A dask.distributed LocalCluster of worker processes (no dashboard) and its Client."""
+    from dask.distributed import Client, LocalCluster
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=threads_per_worker, processes=True,
+                           dashboard_address=None, **kw)
+    return cluster, Client(cluster)
+
+
+def gsil(model, grid, client, errors=None, L0=None, LE=None, rel_tiny=1e-12, chunk=CHUNK, reduce=True,
+         worker_kernel="serial", progress=None, max_in_flight=None):
+    """GSIL_i (Eq. 14, exact in L) of a grid on a Dask client: a `fiveaxis.sensitivity.SensitivityResult`.
+
+    Same values as `fiveaxis.sensitivity.gsil(..., order="exact")`, summed in a different order. `reduce` drops
+    the axes that appear in no J_i first (exact). `max_in_flight` bounds the tasks submitted at a time
+    (default 4 per worker thread), so the client's memory stays bounded whatever the grid size.
+    """
+    from dask.distributed import as_completed
+    from tqdm import tqdm
+
+    from .sensitivity import SensitivityResult, _errors
+    if worker_kernel not in ("serial", "parallel"):
+        raise InputError(f"--worker-kernel: expected 'serial' or 'parallel', got {worker_kernel!r}")
+    if int(chunk) != chunk or chunk < 1:
+        raise InputError(f"--chunk: expected a positive number of poses, got {chunk}")
+    L0 = model.machine.tool_length if L0 is None else float(L0)
+    LE = model.machine.cutting_length if LE is None else float(LE)
+    if not (math.isfinite(L0) and math.isfinite(LE) and LE > 0 and L0 > 0):
+        raise InputError(f"--l0/--le: expected positive tool and cutting lengths in mm, got {L0} and {LE}")
+    E, label = _errors(model, errors)
+    if grid.size == 0:
+        raise InputError("the grid has no poses")
+    t0 = time.perf_counter()
+    work, factor = reduce_grid(model, grid) if reduce else (grid, 1)
+    path = str(Path(model.machine.path).resolve())
+    starts = range(0, work.size, int(chunk))
+    slots = max_in_flight or 4 * max(1, sum(client.nthreads().values()))
+    total = np.zeros(len(E))
+    skipped = 0
+
+    sizes = {}
+
+    def submit(s):
+        stop = min(s + int(chunk), work.size)
+        fut = client.submit(_chunk_sum, path, model.convention, work, s, stop, L0 - LE, L0, E, rel_tiny,
+                            worker_kernel, pure=False)
+        sizes[fut.key] = stop - s
+        return fut
+
+    it = iter(starts)
+    pending = as_completed([submit(s) for _, s in zip(range(slots), it)])   # range first: no start lost
+    if progress is None:
+        progress = sys.stderr.isatty()
+    with tqdm(total=grid.size, disable=not progress, desc="GSIL (dask)", unit="pose", unit_scale=True,
+              mininterval=0.5) as bar:
+        for fut in pending:
+            W, s = fut.result()
+            total += W
+            skipped += s
+            bar.update(factor * sizes.pop(fut.key))
+            fut.release()
+            nxt = next(it, None)
+            if nxt is not None:
+                pending.add(submit(nxt))
+    values = total * factor / grid.size
+    settings = {"machine": model.machine.name, "convention": model.convention, "L0_mm": L0, "LE_mm": LE,
+                "quadrature": {"rule": "exact integral over L", "order": "exact"}, "rel_tiny": rel_tiny,
+                "errors": label, "kind": "GSIL",
+                "poses": grid.size, "evaluated_poses": work.size, "reduced_factor": factor,
+                "skipped_poses": skipped * factor, "seconds": round(time.perf_counter() - t0, 3),
+                "dask": {"workers": len(client.nthreads()), "threads": sum(client.nthreads().values()),
+                         "chunk": int(chunk), "tasks": len(starts), "worker_kernel": worker_kernel}}
+    if hasattr(grid, "describe"):
+        rotary = tuple(n for n in grid.names if model.machine.axis(n).type == "rotary")
+        settings["grid"] = grid.describe(rotary)
+    return SensitivityResult("GSIL", model.errors, values, settings)
