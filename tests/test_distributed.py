@@ -57,3 +57,21 @@ def test_bad_options_are_one_line_errors(model):
         distributed.gsil(model, _grid(), client=None, chunk=0)
     with pytest.raises(InputError, match="--worker-kernel"):
         distributed.gsil(model, _grid(), client=None, worker_kernel="threads")
+
+
+def test_cli_on_local_workers_matches_gsa(model, capsys):
+    """`fiveaxis dask` (2 local worker processes) prints the same indices as `fiveaxis gsa --order exact`."""
+    import json
+
+    from fiveaxis.cli import main
+    axes = ["--axis", "X=-2500:2500:3", "--axis", "Y=-1000:1000:5", "--axis", "A=-30:30:5", "--axis", "B=-30:30:5"]
+    assert main(["gsa", *axes, "--order", "exact", "--json"]) == 0
+    ref = json.loads(capsys.readouterr().out)
+    assert main(["dask", *axes, "--workers", "2", "--chunk", "100", "--json", "--no-progress"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert got["ranking"] == ref["ranking"]
+    for name, value in ref["indices"].items():
+        assert got["indices"][name] == pytest.approx(value, rel=1e-12)
+    assert got["settings"]["reduced_factor"] == 3 and got["settings"]["poses"] == ref["settings"]["poses"]
+    assert main(["dask", "--chunk", "0"]) == 2
+    assert "--chunk" in capsys.readouterr().err

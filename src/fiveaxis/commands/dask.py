@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 
 from ..errors import InputError
 
@@ -22,7 +21,7 @@ def register_dask(p):
                    help="address of a running dask scheduler; default: a local cluster of --workers processes")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help="local worker processes, one thread each (default: the number of CPUs)")
-    p.add_argument("--chunk", type=int, default=None, help="poses per task (default 2**22)")
+    p.add_argument("--chunk", type=int, default=None, help="poses per task (default 2**20)")
     p.add_argument("--worker-kernel", default="serial", choices=("serial", "parallel"),
                    help="serial nogil kernel (safe with threaded workers; default) or the parallel kernel "
                         "(only for workers with one thread each)")
@@ -49,6 +48,8 @@ def run_dask(args) -> int:
     else:
         base = Grid.from_strokes(model.machine, {n: 5 for n in model.variables})
     grid = grid_from_specs(base, args.axis, rotary)
+    if args.chunk is not None and args.chunk < 1:
+        raise InputError(f"--chunk: expected a positive number of poses, got {args.chunk}")
     if args.workers < 1:
         raise InputError(f"--workers: expected a positive number of worker processes, got {args.workers}")
     distributed.warm(model)          # compile or load the cache here, before any local worker starts
@@ -63,7 +64,7 @@ def run_dask(args) -> int:
         cluster, client = distributed.local_cluster(args.workers, 1)
     try:
         res = distributed.gsil(model, grid, client, errors, args.l0, args.le,
-                               chunk=args.chunk or distributed.CHUNK, reduce=args.reduce,
+                               chunk=distributed.CHUNK if args.chunk is None else args.chunk, reduce=args.reduce,
                                worker_kernel=args.worker_kernel, progress=args.progress)
     finally:
         client.close()
@@ -77,5 +78,5 @@ def run_dask(args) -> int:
     d = res.settings["dask"]
     print(f"dask: {d['workers']} workers, {d['threads']} threads, {d['tasks']} tasks of {d['chunk']} poses, "
           f"{res.settings['evaluated_poses']} poses evaluated (x{res.settings['reduced_factor']}), "
-          f"{res.settings['seconds']} s", file=sys.stdout)
+          f"{res.settings['seconds']} s; peak memory of the workers {d['worker_peak_rss_mb']} MB")
     return 0
