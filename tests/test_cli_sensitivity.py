@@ -101,3 +101,12 @@ def test_sobol_command(capsys):
     out = run_json(capsys, ["sobol", "--convention", "printed", "--samples", "32"])
     assert len(out["indices"]) == 41 and out["settings"]["evaluations"] == 32 * 43
     assert "spearman" in out["comparison"]
+
+
+def test_progress_bar_on_request_and_off_otherwise(capsys):
+    argv = ["gsa", "--convention", "printed", "--axis", "X=0", "--axis", "B=-30:30:3", "--chunk", "500"]
+    assert main(argv + ["--progress"]) == 0
+    err = capsys.readouterr().err
+    assert "GSIL" in err and "100%" in err
+    assert main(argv) == 0                       # stderr is not a terminal under pytest: no bar
+    assert capsys.readouterr().err == ""
