@@ -294,14 +294,7 @@ def fit(model, meas, added=(), refine: bool = True, max_iter: int = 6) -> FitRes
 
 def identifiable_count(model, n_poses: int = 64, seed: int = 0) -> int:
     """Rank of the model's error design on generic poses inside the strokes: the parameters it can identify."""
-    rng = np.random.default_rng(seed)
-    cols = []
-    for v in model.variables:
-        ax = model.machine.axis(v)
-        lo, hi = ax.stroke
-        vals = rng.uniform(lo, hi, n_poses)
-        cols.append(np.radians(vals) if ax.type == "rotary" else vals)
-    J, _ = model.jk(np.column_stack(cols), model.machine.tool_length)
+    J, _ = model.jk(model.machine.random_poses(n_poses, seed), model.machine.tool_length)
     return identify(J.transpose(0, 2, 1).reshape(3 * n_poses, -1)).rank
 
 

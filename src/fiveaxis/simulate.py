@@ -66,12 +66,7 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
     rng = np.random.default_rng(seed)
     machine = model.machine
     parsed = [parse_effect(e, model) if isinstance(e, str) else e for e in effects]
-    cols = []
-    for v in model.variables:
-        lo, hi = machine.axis(v).stroke
-        vals = rng.uniform(lo, hi, n)
-        cols.append(np.radians(vals) if machine.axis(v).type == "rotary" else vals)
-    poses = np.column_stack(cols)
+    poses = machine.random_poses(n, rng)
     if tool_lengths is None:
         L = np.full(n, machine.tool_length)
     else:
