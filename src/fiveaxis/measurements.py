@@ -99,19 +99,23 @@ def _duplicates(path, names):
 
 
 def _numbers(path, name, cells, is_csv, keep):
-    out = np.empty(len(keep))
-    for j, r in enumerate(keep):
-        v = cells[r]
+    """The cells of one column (rows `keep`) as floats; the first bad cell is an InputError."""
+    import pandas as pd
+    col = pd.Series(cells, dtype=object).iloc[keep]
+    text = col.map(lambda v: v.strip() if isinstance(v, str) else v)
+    arr = pd.to_numeric(text, errors="coerce").to_numpy(dtype=float)
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if len(bad):
+        r, v = keep[bad[0]], cells[keep[bad[0]]]
+        where = f"{_where(path, r + 1, is_csv)}, column {name}"
+        if v is None or (isinstance(v, str) and not v.strip()):
+            raise InputError(f"{where}: empty cell (expected a number)")
         try:
-            x = float(v.strip()) if isinstance(v, str) else (math.nan if v is None else float(v))
+            float(v.strip() if isinstance(v, str) else v)
         except (TypeError, ValueError):
-            raise InputError(f"{_where(path, r + 1, is_csv)}, column {name}: expected a number, got {v!r}") from None
-        if isinstance(v, str) and not v.strip():
-            raise InputError(f"{_where(path, r + 1, is_csv)}, column {name}: empty cell (expected a number)")
-        if not math.isfinite(x):
-            raise InputError(f"{_where(path, r + 1, is_csv)}, column {name}: expected a finite number, got {v!r}")
-        out[j] = x
-    return out
+            raise InputError(f"{where}: expected a number, got {v!r}") from None
+        raise InputError(f"{where}: expected a finite number, got {v!r}")
+    return arr
 
 
 def read(path, machine, min_rows: int = 1) -> Measurements:
