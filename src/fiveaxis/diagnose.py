@@ -41,14 +41,8 @@ class Candidates:
 
 
 def candidate_matrix(prob: F.Problem, effects) -> np.ndarray:
-    """Weighted design columns (3n, M) of vocabulary effects, vectorised over the effects."""
-    n = prob.meas.n
-    index = {e: i for i, e in enumerate(prob.model.errors)}
-    G = np.empty((3 * n, len(effects)))
-    for c, eff in enumerate(effects):
-        vec = prob.tool_dir if eff.param == fx.TOOL else prob.J[:, index[eff.param], :]
-        G[:, c] = (vec * (prob.u[eff.var] ** eff.deg)[:, None]).ravel()
-    return G * prob.w[:, None]
+    """Weighted design columns (3n, M) of vocabulary effects."""
+    return fx.columns(effects, prob.J, prob.tool_dir, prob.u, prob.model.errors) * prob.w[:, None]
 
 
 def project(Q: np.ndarray, G: np.ndarray, rw: np.ndarray, effects) -> Candidates:
@@ -82,11 +76,9 @@ def block_gains(Q: np.ndarray, blocks, rw: np.ndarray):
     return np.array(gains), ks, bases
 
 
-def _basis(prob: F.Problem, rows=None):
-    Aw = prob.A * prob.w[:, None]
-    if rows is not None:
-        Aw = Aw[rows]
-    return F.identify(Aw).U
+def _basis(prob: F.Problem):
+    """Orthonormal basis of the column space of a problem's weighted design."""
+    return F.identify(prob.A * prob.w[:, None]).U
 
 
 def ebic_penalty(N: int, M: int) -> float:
