@@ -31,13 +31,36 @@ FORWARD_MAX = 4
 
 @dataclass
 class Candidates:
-    """Projected candidate columns and their scores against one residual."""
+    """Candidate columns scored against one residual, without forming the projected columns.
+
+    With Q orthonormal and r orthogonal to span(Q): g_perp . r = g . r and |g_perp|^2 = |g|^2 - |Q^T g|^2, so one
+    product Q^T G (rank x M) and one G^T r score every candidate; memory stays that of G itself."""
     effects: list              # fx.Effect
-    Gp: np.ndarray             # (N, M) weighted columns projected off the design, unit norm
-    gnorm: np.ndarray          # (M,) norm of the projected weighted column
+    G: np.ndarray              # (N, M) weighted candidate columns (not copied)
+    Q: np.ndarray              # (N, r) orthonormal basis of the design's column space
+    QtG: np.ndarray            # (r, M)
+    gnorm: np.ndarray          # (M,) |g_perp|
     ratio: np.ndarray          # (M,) |g_perp| / |g|: how much of the column the model does not already have
     gain: np.ndarray           # (M,) drop of the weighted RSS if added
     beta: np.ndarray           # (M,) coefficient along the unit projected column
+
+    @property
+    def ok(self) -> np.ndarray:
+        return self.ratio > ABSORBED
+
+    def perp(self, j: int) -> np.ndarray:
+        """Unit projected column of candidate j (zeros if the model already has it)."""
+        if not self.ok[j]:
+            return np.zeros(self.G.shape[0])
+        g = self.G[:, j] - self.Q @ self.QtG[:, j]
+        g -= self.Q @ (self.Q.T @ g)
+        return g / np.linalg.norm(g)
+
+    def cos_with(self, j: int) -> np.ndarray:
+        """|cos| between the projected column of j and those of every candidate."""
+        num = self.G.T @ self.G[:, j] - self.QtG.T @ self.QtG[:, j]
+        den = self.gnorm * self.gnorm[j]
+        return np.where(self.ok & self.ok[j], np.abs(num) / np.where(den > 0, den, 1.0), 0.0)
 
 
 def candidate_matrix(prob: F.Problem, effects) -> np.ndarray:
@@ -45,19 +68,20 @@ def candidate_matrix(prob: F.Problem, effects) -> np.ndarray:
     return fx.columns(effects, prob.J, prob.tool_dir, prob.u, prob.model.errors) * prob.w[:, None]
 
 
-def project(Q: np.ndarray, G: np.ndarray, rw: np.ndarray, effects) -> Candidates:
-    """Project candidate columns off span(Q) and score them against the weighted residual rw."""
-    g0 = np.linalg.norm(G, axis=0)
-    Gp = G - Q @ (Q.T @ G)
-    Gp -= Q @ (Q.T @ Gp)                  # second pass: orthogonality to round-off
-    gn = np.linalg.norm(Gp, axis=0)
-    ratio = np.where(g0 > 0, gn / np.where(g0 > 0, g0, 1), 0.0)
+def project(Q: np.ndarray, G: np.ndarray, rw: np.ndarray, effects, g2=None) -> Candidates:
+    """Score candidate columns G against the weighted residual rw after projecting both off span(Q).
+
+    g2: squared column norms of G when known (the CV passes those of its training rows)."""
+    rw = rw - Q @ (Q.T @ rw)
+    QtG = Q.T @ G
+    if g2 is None:
+        g2 = np.einsum("ij,ij->j", G, G)
+    p2 = np.clip(g2 - np.einsum("ij,ij->j", QtG, QtG), 0.0, None)
+    gn = np.sqrt(p2)
+    ratio = np.where(g2 > 0, gn / np.sqrt(np.where(g2 > 0, g2, 1.0)), 0.0)
     ok = ratio > ABSORBED
-    Gp = Gp / np.where(ok, gn, 1.0)
-    Gp[:, ~ok] = 0.0
-    beta = Gp.T @ rw
-    gain = np.where(ok, beta ** 2, 0.0)
-    return Candidates(list(effects), Gp, gn, ratio, gain, beta)
+    beta = np.where(ok, (G.T @ rw) / np.where(ok, gn, 1.0), 0.0)
+    return Candidates(list(effects), G, Q, QtG, gn, ratio, beta ** 2, beta)
 
 
 def block_gains(Q: np.ndarray, blocks, rw: np.ndarray):
@@ -110,13 +134,20 @@ def cross_validate(prob: F.Problem, effects, G: np.ndarray, k: int = K_FOLDS, se
     dw = prob.d * prob.w
     sse0 = sse1 = 0.0
     chosen = []
+    g2_all = np.einsum("ij,ij->j", G, G)
     for f in range(k):
         test = _rows_of(np.sort(folds[f]))
         train = _rows_of(np.sort(np.concatenate([folds[j] for j in range(k) if j != f])))
         idf = F.identify(Aw[train])
         theta = F._solve(idf, dw[train])
         r_tr = dw[train] - Aw[train] @ theta
-        cands = project(idf.U, G[train], r_tr, effects)
+        # Training rows only, without copying G: zero the held-out rows of Q and r instead.
+        Qpad = np.zeros((len(dw), idf.rank))
+        Qpad[train] = idf.U
+        rpad = np.zeros(len(dw))
+        rpad[train] = r_tr
+        Gtest = G[test]
+        cands = project(Qpad, G, rpad, effects, g2=g2_all - np.einsum("ij,ij->j", Gtest, Gtest))
         best = int(np.argmax(cands.gain))
         cols, name = G[:, [best]], effects[best].id
         if blocks:
@@ -210,7 +241,7 @@ def _separating(prob: F.Problem, group, all_effects):
         G = candidate_matrix(p2, effs)
         c = project(Q, G, np.zeros(len(p2.d)), effs)
         from scipy.sparse.csgraph import connected_components
-        cos = np.abs(c.Gp.T @ c.Gp)
+        cos = np.array([c.cos_with(i) for i in range(len(effs))])
         k, label = connected_components(cos > ALIAS_COS, directed=False)
         if k > 1:
             tips.append({"measure": text, "separates": [[effs[i].id for i in range(len(effs)) if label[i] == g]
@@ -263,11 +294,14 @@ def diagnose(model, meas, added=(), top: int = 10) -> Diagnosis:
     # Greedy forward selection (first order) with the same rule, for the noise estimate and a preview.
     forward = []
     Q = res.idf.U
-    r_cur = rw.copy()
-    Gp = cands.Gp.copy()
+    r_cur = rw - Q @ (Q.T @ rw)
+    QtG = cands.QtG.copy()
+    g2 = cands.gnorm ** 2 + np.einsum("ij,ij->j", QtG, QtG)     # |g|^2
     used, used_custom, n_coef = set(), set(), 0
     for _ in range(FORWARD_MAX):
-        gain = (Gp.T @ r_cur) ** 2
+        p2 = g2 - np.einsum("ij,ij->j", QtG, QtG)
+        alive = p2 > (ABSORBED ** 2) * g2
+        gain = np.where(alive, (G.T @ r_cur) ** 2 / np.where(alive, p2, 1.0), 0.0)
         gain[list(used)] = 0
         j = int(np.argmax(gain))
         rss_cur = float(r_cur @ r_cur)
@@ -281,7 +315,9 @@ def diagnose(model, meas, added=(), top: int = 10) -> Diagnosis:
         if dv >= 0:
             break
         if pick is None:
-            qs = (Gp[:, j] / max(np.linalg.norm(Gp[:, j]), 1e-300))[:, None]
+            g = G[:, j] - Q @ (Q.T @ G[:, j])
+            g -= Q @ (Q.T @ g)
+            qs = (g / np.linalg.norm(g))[:, None]
             used.add(j)
             name = vocab[j].id
         else:
@@ -289,11 +325,9 @@ def diagnose(model, meas, added=(), top: int = 10) -> Diagnosis:
             used_custom.add(pick)
             name = customs[pick].name
         Q = np.hstack([Q, qs])
+        QtG = np.vstack([QtG, qs.T @ G])
         n_coef += qs.shape[1]
         r_cur = r_cur - qs @ (qs.T @ r_cur)
-        Gp = Gp - qs @ (qs.T @ Gp)
-        nrm = np.linalg.norm(Gp, axis=0)
-        Gp = Gp / np.where(nrm > ABSORBED, nrm, np.inf)
         forward.append({"id": name, "rms_mm": float(np.sqrt(np.mean((r_cur / w) ** 2)))})
     if known:
         noise = float(np.sqrt(np.mean(meas.sigma ** 2)))
@@ -310,11 +344,11 @@ def diagnose(model, meas, added=(), top: int = 10) -> Diagnosis:
             break
         if j in seen:
             continue
-        cos = np.abs(cands.Gp.T @ cands.Gp[:, j])
+        cos = cands.cos_with(int(j))
         group = [int(i) for i in np.flatnonzero(cos > ALIAS_COS) if i != j]
         seen.update(group)
         seen.add(int(j))
-        r_after = (rw - cands.beta[j] * cands.Gp[:, j]) / w
+        r_after = (rw - cands.beta[j] * cands.perp(int(j))) / w
         eff = vocab[j]
         item = {"id": eff.id, "aliases": [vocab[i].id for i in group],
                 "rms_mm": float(np.sqrt(np.mean(r_after ** 2))),

@@ -136,7 +136,13 @@ def identify(Aw: np.ndarray) -> Identifiability:
     """SVD of the design with unit-norm columns (zero columns stay zero): rank, condition, null space."""
     norms = np.linalg.norm(Aw, axis=0)
     safe = np.where(norms > 0, norms, 1.0)
-    U, s, Vt = np.linalg.svd(Aw / safe, full_matrices=Aw.shape[0] < Aw.shape[1])
+    X = Aw / safe
+    if X.shape[0] > 2 * X.shape[1]:       # tall: QR first, then the SVD of the small triangle (same result)
+        Qx, R = np.linalg.qr(X)
+        Us, s, Vt = np.linalg.svd(R)
+        U = Qx @ Us
+    else:
+        U, s, Vt = np.linalg.svd(X, full_matrices=X.shape[0] < X.shape[1])
     r = int(np.sum(s > RANK_RTOL * s[0])) if s.size and s[0] > 0 else 0
     null = Vt[r:].T                       # includes the unit vectors of zero columns
     determined = np.linalg.norm(null, axis=1) < NULL_TOL if null.size else np.ones(len(norms), bool)
