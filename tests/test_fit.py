@@ -88,3 +88,23 @@ def test_identifiable_count_and_bad_effects(model):
         F.resolve_effects(model, ["ex_x:C1"])
     with pytest.raises(fiveaxis.InputError, match="not an effect id"):
         F.resolve_effects(model, ["ex_x:x4"])
+
+
+@pytest.mark.parametrize("table,expect", [
+    ('[effects.s]\nerror = "dx_x"\nexpr = "p1*sin(x/p2)"\n', "not linear in its parameters"),
+    ('[effects.s]\nerror = "dx_x"\nexpr = "q*x"\n', "unknown name(s) q"),
+    ('[effects.s]\nerror = "dx_x"\nexpr = "x**2"\n', "no parameters"),
+    ('[effects.s]\nerror = "dx_x"\nexpr = "p1*(x"\n', "not a valid expression"),
+    ('[effects.s]\nerror = "dx_q"\nexpr = "p1*x"\n', "effects.s.error: expected an error name"),
+    ('[model]\neffects = ["ex_x:x7"]\n', "model.effects[0]: expected an effect id"),
+    ('[model]\neffects = "ex_x:x1"\n', "model.effects: expected a list"),
+])
+def test_custom_effect_definitions_are_checked(tmp_path, table, expect):
+    from fiveaxis.custom_effects import load_custom
+    from fiveaxis.machine import MACHINES_DIR, load_machine
+    path = tmp_path / "m.toml"
+    path.write_text((MACHINES_DIR / "li2018.toml").read_text() + "\n" + table)
+    with pytest.raises(fiveaxis.InputError) as exc:
+        machine = load_machine(path)
+        load_custom(machine, "s")
+    assert expect in str(exc.value) and "\n" not in str(exc.value) and str(path) in str(exc.value)
