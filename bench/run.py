@@ -200,7 +200,8 @@ def main(argv=None):
           f"({100 * record['share_of_peak_avx512']:.1f}% of AVX-512)")
     if "compile" in record:
         c = record["compile"]
-        print(f"compile gsil_sum: cold {c['cold_s']} s, cached {c['cached_s']} s; derive li2018 {c['derive_li2018_s']} s")
+        print(f"compile gsil_sum: cold {c['cold_s']} s, cached {c['cached_s']} s; "
+              f"derive li2018 {c['derive_li2018_s']} s")
     print(f"load average at the end: {record['load_average_at_end']}")
     return 0
 
