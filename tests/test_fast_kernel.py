@@ -157,3 +157,16 @@ def test_vectorisable_sincos_matches_libm(model):
     got = np.array([sincos(v) for v in x])
     assert np.max(np.abs(got[:, 0] - np.sin(x))) < 4e-16 * max(1.0, 1.0)
     assert np.max(np.abs(got[:, 1] - np.cos(x))) < 4e-16
+
+
+def test_angles_beyond_the_polynomial_range_use_libm(model):
+    """Rotary values beyond _TRIG_MAX (libm instead of the polynomial) still equal the NumPy reference."""
+    q = _poses(40, seed=13)
+    q[::2, 3] += 2 * math.pi * np.round(3 * model.kernels._TRIG_MAX / (2 * math.pi))
+    q[1::4, 4] -= 2 * math.pi * np.round(2 * model.kernels._TRIG_MAX / (2 * math.pi))
+    E = np.full(41, 1e-4)
+    W = np.zeros((len(q), 41))
+    model.kernels.gsil_each(q, LO, HI, E, 1e-12, W, np.zeros(len(q), dtype=np.int64))
+    a, k = model.jk(q, 0.0)
+    ref = np.array([_reference_w(a[i], k[i], E, LO, HI) for i in range(len(q))])
+    assert np.max(np.abs(W - ref) / np.abs(ref).max(axis=1, keepdims=True)) < 1e-9
