@@ -330,8 +330,12 @@ def diagnose(model, meas, added=(), top: int = 10) -> Diagnosis:
         r_cur = r_cur - qs @ (qs.T @ r_cur)
         forward.append({"id": name, "rms_mm": float(np.sqrt(np.mean((r_cur / w) ** 2)))})
     if known:
+        from scipy.stats import chi2
         noise = float(np.sqrt(np.mean(meas.sigma ** 2)))
         source = "sigma column"
+        decision["chi2"] = rss
+        decision["chi2_dof"] = N - res.idf.rank
+        decision["chi2_p"] = float(chi2.sf(rss, max(N - res.idf.rank, 1)))
     else:
         dof = max(N - res.idf.rank - n_coef, 1)
         noise = float(np.sqrt(np.sum((r_cur / w) ** 2) / dof))
@@ -388,7 +392,9 @@ def report(dg: Diagnosis) -> str:
     lines = [f"[[Diagnosis]] {j['file']}: {dg.n} poses"
              + (f", model + {', '.join(j['added'])}" if j["added"] else ""),
              f"    residual RMS {dg.rms_mm * 1000:.4g} um against noise {dg.noise_mm * 1000:.4g} um "
-             f"({dg.noise_source}): ratio {ratio:.3g}"]
+             f"({dg.noise_source}): ratio {ratio:.3g}"
+             + (f"; chi2 {j['decision']['chi2']:.5g} for {j['decision']['chi2_dof']} dof, "
+                f"p = {j['decision']['chi2_p']:.2g}" if "chi2" in j["decision"] else "")]
     from scipy.stats import f as f_dist
     strong = [(tok, max(v.values())) for tok, v in dg.structure.items()]
     # Listed when a cubic explains more than chance would (F test, 3 and n-4 dof, p < 1e-3 per direction).
