@@ -2,7 +2,8 @@
 measured in the same run and extrapolated to all candidates:
   - refit per candidate, first order: a least-squares solve of [design, candidate] for each candidate;
   - refit per candidate, as a user would with `--add`: `fit` (first order + exact refinement) per candidate.
-diagnose instead projects every candidate column off the fitted design's column space at once (one SVD).
+diagnose instead scores every candidate against the fitted design's column space at once (one SVD, Q^T G, G^T r).
+All on one BLAS thread, as diagnose runs (several BLAS threads slow badly on busy cores).
 Target: diagnose under 5 s on 2 cores. Run: .venv/bin/python bench/bench_diagnose.py
 """
 from __future__ import annotations
@@ -48,7 +49,8 @@ def main(n: int = 1500, subset_first: int = 60, subset_exact: int = 6) -> dict:
             rss.append(float(np.sum((dw - X @ coef) ** 2)))
         return rss
 
-    t_first, _ = _best(first_order, repeat=1)
+    with F.one_blas_thread():                                 # same BLAS setting as diagnose
+        t_first, _ = _best(first_order, repeat=1)
     t_first_all = t_first / subset_first * M
 
     def exact():

@@ -257,6 +257,11 @@ def _concat(a, b):
 
 def diagnose(model, meas, added=(), top: int = 10) -> Diagnosis:
     """Fit, then rank every effect of the vocabulary by how much of the residual it explains, and decide."""
+    with F.one_blas_thread():
+        return _diagnose(model, meas, added, top)
+
+
+def _diagnose(model, meas, added, top) -> Diagnosis:
     res = F.fit(model, meas, added)
     prob = res.problem
     N = len(prob.d)

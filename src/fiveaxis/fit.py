@@ -261,8 +261,20 @@ def _groups_and_combinations(idf, theta, cov, names):
     return groups, combos
 
 
+def one_blas_thread():
+    """Context: BLAS on one thread. The designs here are small; several BLAS threads spin and slow down badly when
+    the cores are busy (diagnose on 2 loaded cores: 0.2 s on one thread, 4.7 s on two; bench/bench_diagnose.py)."""
+    from threadpoolctl import threadpool_limits
+    return threadpool_limits(limits=1, user_api="blas")
+
+
 def fit(model, meas, added=(), refine: bool = True, max_iter: int = 6) -> FitResult:
     """Fit the errors of a model and the added effects to measurements; first order, then exact."""
+    with one_blas_thread():
+        return _fit(model, meas, added, refine, max_iter)
+
+
+def _fit(model, meas, added, refine, max_iter) -> FitResult:
     prob = added if isinstance(added, Problem) else build(model, meas, added)
     Aw = prob.A * prob.w[:, None]
     dw = prob.d * prob.w
