@@ -114,3 +114,14 @@ def test_write_refuses_to_overwrite(tmp_path):
         write(df, p)
     write(pd.DataFrame({"a": [2]}), p, force=True)
     assert p.read_text().splitlines()[1] == "2"
+
+
+def test_ragged_rows_and_wrong_separator(tmp_path, machine):
+    assert "data row 2 (line 3): 9 fields, the header has 8" in _error(
+        _csv(tmp_path, f"{HEADER}\n{ROW}\n{ROW},1\n"), machine)
+    assert "separated by ';'" in _error(_csv(tmp_path, "X;Y;Z;A;B;dx;dy;dz\n1;2;3;4;5;6;7;8\n", "s.csv"), machine)
+
+
+def test_lines_follow_quoted_line_breaks(tmp_path, machine):
+    msg = _error(_csv(tmp_path, f'{HEADER}\n100,-50,"10\n",5,-10,0,0,0\n100,-50,10,5,-10,0,0,x\n'), machine)
+    assert "data row 2 (line 4)" in msg

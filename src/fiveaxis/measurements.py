@@ -50,12 +50,13 @@ class Measurements:
                             pick(self.t), pick(self.sigma), pick(self.dv), self.has_L, [])
 
 
-def _where(path, row, is_csv):
-    return f"{path}: data row {row} (line {row + 1})" if is_csv else f"{path}: data row {row}"
+def _where(path, row, lines):
+    """'file: data row 3 (line 4)' for CSV (lines: the file line of each data row), 'file: data row 3' otherwise."""
+    return f"{path}: data row {row} (line {lines[row - 1]})" if lines else f"{path}: data row {row}"
 
 
 def _read_table(path: Path):
-    """Header names and a dict column -> list of raw cells (str or number), plus whether it is CSV."""
+    """Header names, a dict column -> list of raw cells (str or number), and for CSV the line of each data row."""
     suffix = path.suffix.lower()
     if not path.exists():
         raise InputError(f"{path}: measurement file not found")
@@ -67,27 +68,36 @@ def _read_table(path: Path):
             raise InputError(f"{path}: not a readable Parquet file ({str(exc).splitlines()[0]})") from None
         names = list(table.column_names)
         _duplicates(path, names)
-        return names, {n: table.column(n).to_pylist() for n in names}, False
+        return names, {n: table.column(n).to_pylist() for n in names}, None
     if suffix not in (".csv", ".txt"):
         raise InputError(f"{path}: unknown file type '{suffix}' (expected .csv or .parquet)")
-    import pandas as pd
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
-            header = next(csv.reader(fh), None)
+            reader = csv.reader(fh)
+            header = next(reader, None)
+            if not header or all(not h.strip() for h in header):
+                raise InputError(f"{path}: empty file (expected a header line such as X,Y,Z,A,B,dx,dy,dz)")
+            names = [h.strip() for h in header]
+            _duplicates(path, names)
+            rows, lines = [], []
+            for row in reader:
+                if not row or all(not c.strip() for c in row):
+                    rows.append([""] * len(names))       # blank line: skipped later, numbering kept
+                elif len(row) != len(names):
+                    raise InputError(f"{path}: data row {len(rows) + 1} (line {reader.line_num}): {len(row)} "
+                                     f"fields, the header has {len(names)}")
+                else:
+                    rows.append(row)
+                lines.append(reader.line_num)
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a UTF-8 text file") from None
-    if not header or all(not h.strip() for h in header):
-        raise InputError(f"{path}: empty file (expected a header line such as X,Y,Z,A,B,dx,dy,dz)")
-    names = [h.strip() for h in header]
-    _duplicates(path, names)
-    try:
-        frame = pd.read_csv(path, dtype=str, keep_default_na=False, skip_blank_lines=False, header=None,
-                            skiprows=1, names=names, encoding="utf-8-sig", index_col=False)
-    except pd.errors.ParserError as exc:
-        raise InputError(f"{path}: not a valid CSV file ({str(exc).splitlines()[0]})") from None
-    except pd.errors.EmptyDataError:
-        frame = pd.DataFrame(columns=names)
-    return names, {n: frame[n].tolist() for n in names}, True
+    except csv.Error as exc:
+        raise InputError(f"{path}: not a valid CSV file ({exc})") from None
+    if len(names) == 1 and any(sep in names[0] for sep in ";\t"):
+        raise InputError(f"{path}: header: one column '{names[0][:40]}' (expected comma-separated columns; "
+                         f"is the file separated by ';' or tabs?)")
+    cols = {n: [r[i] for r in rows] for i, n in enumerate(names)}
+    return names, cols, lines
 
 
 def _duplicates(path, names):
@@ -98,7 +108,7 @@ def _duplicates(path, names):
         seen.add(n)
 
 
-def _numbers(path, name, cells, is_csv, keep):
+def _numbers(path, name, cells, lines, keep):
     """The cells of one column (rows `keep`) as floats; the first bad cell is an InputError."""
     import pandas as pd
     col = pd.Series(cells, dtype=object).iloc[keep]
@@ -107,7 +117,7 @@ def _numbers(path, name, cells, is_csv, keep):
     bad = np.flatnonzero(~np.isfinite(arr))
     if len(bad):
         r, v = keep[bad[0]], cells[keep[bad[0]]]
-        where = f"{_where(path, r + 1, is_csv)}, column {name}"
+        where = f"{_where(path, r + 1, lines)}, column {name}"
         if v is None or (isinstance(v, str) and not v.strip()):
             raise InputError(f"{where}: empty cell (expected a number)")
         try:
@@ -121,7 +131,7 @@ def _numbers(path, name, cells, is_csv, keep):
 def read(path, machine, min_rows: int = 1) -> Measurements:
     """Read and check a measurement file for a machine; min_rows: parameters the model can identify."""
     path = Path(path)
-    names, cols, is_csv = _read_table(path)
+    names, cols, lines = _read_table(path)
     variables = tuple(machine.variables)
     required = (*variables, *DEVIATIONS)
     missing = [c for c in required if c not in cols]
@@ -134,16 +144,16 @@ def read(path, machine, min_rows: int = 1) -> Measurements:
             if any(not (c[r] is None or (isinstance(c[r], str) and not c[r].strip())) for c in cols.values())]
     if not keep:
         raise InputError(f"{path}: no data rows (expected one row per measured pose under the header)")
-    data = {c: _numbers(path, c, cols[c], is_csv, keep) for c in (*required, *OPTIONAL) if c in cols}
+    data = {c: _numbers(path, c, cols[c], lines, keep) for c in (*required, *OPTIONAL) if c in cols}
     if "sigma" in data:
         bad = np.flatnonzero(data["sigma"] <= 0)
         if len(bad):
-            raise InputError(f"{_where(path, keep[bad[0]] + 1, is_csv)}, column sigma: expected a positive "
+            raise InputError(f"{_where(path, keep[bad[0]] + 1, lines)}, column sigma: expected a positive "
                              f"standard deviation in mm, got {data['sigma'][bad[0]]}")
     if "L" in data:
         bad = np.flatnonzero(data["L"] < 0)
         if len(bad):
-            raise InputError(f"{_where(path, keep[bad[0]] + 1, is_csv)}, column L: expected a tool length >= 0 mm, "
+            raise InputError(f"{_where(path, keep[bad[0]] + 1, lines)}, column L: expected a tool length >= 0 mm, "
                              f"got {data['L'][bad[0]]}")
     n = len(keep)
     if n < min_rows:
