@@ -94,7 +94,7 @@ def resolve_effects(model, ids, where="--add"):
 
 def machine_effects(model) -> list[str]:
     """Effects the machine file itself adds (`[model] effects = [...]`)."""
-    return list(getattr(model.machine, "added_effects", ()) or ())
+    return list(model.machine.added_effects)
 
 
 def build(model, meas, added=()) -> Problem:
