@@ -425,7 +425,8 @@ def report(dg: Diagnosis) -> str:
             groups = " | ".join(", ".join(g) for g in tip["separates"])
             lines.append(f"        measuring with {tip['measure']} would separate: {groups}")
         if c["aliases"] and "separate_by" in c and not c["separate_by"]:
-            lines.append("        no extra tool length or axis range would separate them (same columns everywhere)")
+            lines.append("        neither another tool length nor wider axis ranges would separate them (their columns stay "
+                         "parallel)")
     if dg.missing_effect and j["candidates"]:
         lines.append(f"    next: fiveaxis diagnose FILE --add {j['candidates'][0]['id']}")
     return "\n".join(lines)
