@@ -168,7 +168,8 @@ def main(argv=None):
     info = flops.cpu()
     fpp = flops.flops_per_pose(k)
     gflops = fpp * results["numba"]["poses_per_s"] / 1e9
-    record = {"poses": n, "results": results, "threads": threads, "cpu": info,
+    record = {"poses": n, "results": results, "threads": threads, "threading_layer": numba.threading_layer(),
+              "cpu": info,
               "flops_per_pose": fpp, "gflops": gflops,
               "share_of_peak_avx2": gflops / info["peak_gflops_avx2"],
               "share_of_peak_avx512": gflops / info["peak_gflops_avx512"],
@@ -181,7 +182,8 @@ def main(argv=None):
         return 0
     order = ["lambdify_numpy", "numpy_htm_fd", "symengine_llvm", "numba_gl8_sensitivity_sum", "numba_1thread",
              "numba"]
-    print(f"GSIL of li2018, 41 errors, {n} random poses; L0 {L0} mm, LE {LE} mm; {threads} threads; "
+    print(f"GSIL of li2018, 41 errors, {n} random poses; L0 {L0} mm, LE {LE} mm; {threads} threads "
+          f"({record['threading_layer']}); "
           f"CPU {info['model']} ({info['cores']} cores, {info['ghz']:.2f} GHz)")
     print(f"{'method':28s} {'poses':>9s} {'poses/s':>12s} {'x lambdify':>11s} {'vs numba GL8':>13s} "
           f"{'vs exact':>9s}")
