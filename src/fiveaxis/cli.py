@@ -26,8 +26,15 @@ COMMANDS = {
 }
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line usage errors (`fiveaxis: error: ...`), like every other input error."""
+
+    def error(self, message):
+        self.exit(2, f"fiveaxis: error: {self.prog}: {message} (see `{self.prog} --help`)\n")
+
+
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="fiveaxis", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="fiveaxis", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version="fiveaxis " + _version())
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, (module, helptext) in COMMANDS.items():
