@@ -69,6 +69,8 @@ def _trig_symbols(model: Model) -> dict:
 def _group_context(model: Model, group_list) -> dict:
     """For the fast kernels (templates/fast.py.j2): per Table 2 group, CSE'd code of its J at L = 0
     (`ga<g>_<d>`) and K (`gk<g>_<d>`), and which components are not identically zero."""
+    if len(group_list) > 52:   # the kernel keeps a bit per group in a float64 mask
+        raise ValueError(f"{model.machine.name}: {len(group_list)} groups of errors; the fast kernels handle 52")
     targets, exprs, out = [], [], []
     for gi, g in enumerate(group_list):
         n = g.errors[0]
