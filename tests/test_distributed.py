@@ -5,7 +5,7 @@ import pytest
 import fiveaxis
 from fiveaxis import distributed
 from fiveaxis.errors import InputError
-from fiveaxis.grid import Grid, GridAxis
+from fiveaxis.grid import Grid, GridAxis, PoseList
 from fiveaxis.sensitivity import gsil
 
 
@@ -33,6 +33,8 @@ def test_reduce_grid_drops_axes_absent_from_J_exactly(model):
     assert factor == 5 and small.axis("X").count == 1 and small.size * 5 == grid.size
     assert "X" not in model.kernels.JK_VARIABLES
     np.testing.assert_allclose(_kernel_mean(model, small), _kernel_mean(model, grid), rtol=1e-12)
+    poses = PoseList(grid.poses(0, 10))          # an explicit list has no axes to reduce
+    assert distributed.reduce_grid(model, poses) == (poses, 1)
 
 
 def test_local_cluster_equals_single_process(model):
