@@ -3,10 +3,12 @@
 Each task asks the grid for its slice of poses (`grid.poses(start, stop)`, never the whole grid), runs the exact
 GSIL kernel on it and returns 41 sums and a left-out count, so memory is bounded by the chunk size on every
 worker and by the number of tasks in flight on the client. Workers load the model by machine file and
-convention (`fiveaxis.load`), so each needs the package and the machine file.
-Threads: numba's default threading layer aborts when a parallel kernel is entered from several threads at once,
-which a threaded Dask worker does. So workers run the serial `nogil` kernel (`gsil_range`) by default; the
-parallel kernel (`gsil_sum`) is for workers with one thread each (`worker_kernel="parallel"`).
+convention (`fiveaxis.load(..., derive=False)`), so each needs the package, the machine file at the same path, and
+its generated module (shipped machines: in the package; others: `fiveaxis derive FILE` on the node first).
+Threads: numba's workqueue threading layer (its fallback without OpenMP or TBB) aborts when a parallel kernel is
+entered from several threads at once, which a threaded Dask worker does. So workers run the serial `nogil`
+kernel (`gsil_range`) by default; the parallel kernel (`gsil_sum`) is for workers with one thread each
+(`worker_kernel="parallel"`).
 Grid axes that appear in no J_i (X for li2018) are reduced first: W_i does not depend on them, so the sum over
 the grid is the sum over the reduced grid times the number of points on those axes (exact).
 """
