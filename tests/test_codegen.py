@@ -84,3 +84,10 @@ def test_derive_imports_only_the_machine_reader_of_the_runtime():
                for p in (ROOT / "src" / "fiveaxis").glob("*.py")} | {"fiveaxis.commands", "fiveaxis.plots"}
     missing = sorted(runtime - allowed - set(contract["forbidden_modules"]))
     assert not missing, f"add to the derivation contract in pyproject.toml: {missing}"
+
+
+def test_derivation_loads_no_runtime_module_but_the_reader():
+    code = ("import sys, fiveaxis_derive.codegen, fiveaxis_derive.table2;"
+            "mods = sorted(k for k in sys.modules if k.startswith('fiveaxis.'));"
+            "assert mods == ['fiveaxis.errors', 'fiveaxis.machine'], mods")
+    subprocess.run([sys.executable, "-c", code], check=True, capture_output=True)
