@@ -33,6 +33,7 @@ derive: install
 bench: install
 	$(BIN)/python -m pip install --quiet -e ".[bench]" || echo "bench: optional baselines did not install"
 	$(BIN)/python bench/run.py
+	$(BIN)/python bench/bench_diagnose.py
 
 lint: install
 	$(BIN)/lint-imports
