@@ -102,7 +102,7 @@ def main(argv=None):
     ap.add_argument("--slow-poses", type=int, default=100_000, help="poses for lambdify and SymEngine")
     ap.add_argument("--fd-poses", type=int, default=10_000, help="poses for the NumPy transform chains")
     ap.add_argument("--threads", type=int, default=None, help="numba threads for the 'numba' row (default all)")
-    ap.add_argument("--repeat", type=int, default=3, help="timed repeats of the numba rows (best is kept)")
+    ap.add_argument("--repeat", type=int, default=7, help="timed repeats of the numba rows (best is kept)")
     ap.add_argument("--json", action="store_true", help="print one JSON record instead of the table")
     ap.add_argument("--no-compile", action="store_true", help="skip the compile-time measurements")
     ap.add_argument("--seed", type=int, default=0)
