@@ -5,7 +5,6 @@ import sys
 
 import pytest
 
-from fiveaxis.machine import load_machine
 from fiveaxis_derive import codegen
 
 from conftest import ROOT, SHIPPED

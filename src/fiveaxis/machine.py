@@ -114,7 +114,7 @@ class Machine:
             out[n] = self.error_values.get(n, self.angular_error if self.is_angular(n) else self.linear_error)
         return out
 
-    def random_poses(self, n: int, rng=None) -> "np.ndarray":
+    def random_poses(self, n: int, rng=None):
         """n poses drawn uniformly within the strokes, (n, nvar) in `variables` order, mm and rad."""
         import numpy as np
         rng = np.random.default_rng(rng)

@@ -36,18 +36,12 @@ def register_dask(p):
 
 
 def run_dask(args) -> int:
-    from .. import distributed, presets
-    from ..grid import Grid, grid_from_specs
+    from .. import distributed
     from ..kernels import load
-    from .sensitivity import _print_ranking, _print_settings, parse_errors
+    from .sensitivity import _print_ranking, _print_settings, parse_errors, workspace_grid
     model = load(args.machine, args.convention)
     errors = parse_errors(model, args.errors)
-    rotary = tuple(n for n in model.variables if model.machine.axis(n).type == "rotary")
-    if tuple(model.variables) == ("X", "Y", "Z", "A", "B"):
-        base = presets.workspace_grid(model)
-    else:
-        base = Grid.from_strokes(model.machine, {n: 5 for n in model.variables})
-    grid = grid_from_specs(base, args.axis, rotary)
+    grid = workspace_grid(model, args.axis)
     if args.chunk is not None and args.chunk < 1:
         raise InputError(f"--chunk: expected a positive number of poses, got {args.chunk}")
     if args.workers < 1:

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -102,6 +101,19 @@ def parse_errors(model, specs) -> dict[str, float]:
     return values
 
 
+def workspace_grid(model, specs):
+    """The GSA grid of `gsa` and `dask`: the paper's workspace for X Y Z A B machines, else 5 points per
+    stroke, changed by the --axis specs (mm; degrees for rotary axes)."""
+    from .. import presets
+    from ..grid import Grid, grid_from_specs
+    rotary = tuple(n for n in model.variables if model.machine.axis(n).type == "rotary")
+    if tuple(model.variables) == ("X", "Y", "Z", "A", "B"):
+        base = presets.workspace_grid(model)
+    else:
+        base = Grid.from_strokes(model.machine, {n: 5 for n in model.variables})
+    return grid_from_specs(base, specs, rotary)
+
+
 def _print_ranking(result, top: int, title: str):
     p = result.proportions
     idx = {n: i for i, n in enumerate(result.names)}
@@ -163,19 +175,12 @@ def register_gsa(p):
 
 def run_gsa(args) -> int:
     from .. import presets
-    from ..grid import grid_from_specs
     from ..sensitivity import CHUNK, gsil
     model = _model(args)
     errors = parse_errors(model, args.errors)
     L0 = model.machine.tool_length if args.l0 is None else args.l0
     LE = model.machine.cutting_length if args.le is None else args.le
-    rotary = tuple(n for n in model.variables if model.machine.axis(n).type == "rotary")
-    if tuple(model.variables) == ("X", "Y", "Z", "A", "B"):
-        base = presets.workspace_grid(model)
-    else:
-        from ..grid import Grid
-        base = Grid.from_strokes(model.machine, {n: 5 for n in model.variables})
-    grid = grid_from_specs(base, args.axis, rotary)
+    grid = workspace_grid(model, args.axis)
     chunk = CHUNK if args.chunk is None else args.chunk
     if chunk < 1:
         raise InputError(f"--chunk: expected a positive number of poses, got {chunk}")
