@@ -157,3 +157,14 @@ def test_ranking_ties_are_robust_to_rounding():
     base = 0.123456789
     vals = [base * (1 - 3e-16), 0.5, base * (1 + 3e-16), base]      # three equal up to rounding
     assert ranking(["a", "b", "c", "d"], vals) == ["b", "a", "c", "d"]
+
+
+def test_grid_reduction_over_axes_absent_from_J_is_exact(model):
+    """X appears in no J_i of li2018: gsil evaluates one X and weights it by the count; same indices."""
+    grid = Grid((GridAxis("X", -2500, 2500, 7), GridAxis("Y", -1000, 1000, 3), GridAxis("Z", -250, 250, 3),
+                 GridAxis("A", -0.5, 0.5, 5), GridAxis("B", -0.5, 0.5, 4)))
+    full = gsil(model, grid, reduce=False, check=False, progress=False)
+    fast = gsil(model, grid, check=False, progress=False)
+    assert fast.settings["evaluated_poses"] == grid.size // 7 and fast.settings["reduced_factor"] == 7
+    assert full.settings["evaluated_poses"] == grid.size
+    assert np.allclose(fast.values, full.values, rtol=1e-12, atol=0)

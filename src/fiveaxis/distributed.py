@@ -22,30 +22,11 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .grid import Grid, GridAxis
+from .sensitivity import error_values, reduce_grid  # noqa: F401  (reduce_grid is part of this API)
 
 #: Poses per task: 2**20 poses are 40 MB of poses (li2018; ~130 MB while the grid builds them) and about
 #: 0.1 s of kernel time on one core.
 CHUNK = 1 << 20
-
-
-def reduce_grid(model, grid):
-    """(grid without the axes that appear in no J_i, how many grid poses each reduced pose stands for).
-
-    Only for a `Grid` (a pose list has no axes) and kernels that say which variables they use (JK_VARIABLES).
-    """
-    used = getattr(model.kernels, "JK_VARIABLES", None)
-    if not isinstance(grid, Grid) or used is None:
-        return grid, 1
-    factor = 1
-    axes = []
-    for a in grid.axes:
-        if a.name not in used and a.count > 1:
-            factor *= int(a.count)
-            axes.append(GridAxis(a.name, a.lo, a.lo, 1))
-        else:
-            axes.append(a)
-    return Grid(tuple(axes)), factor
 
 
 def _chunk_sum(machine_path, convention, grid, start, stop, lo, hi, E, rel_tiny, worker_kernel):
@@ -98,7 +79,7 @@ def gsil(model, grid, client, errors=None, L0=None, LE=None, rel_tiny=1e-12, chu
     from dask.distributed import as_completed
     from tqdm import tqdm
 
-    from .sensitivity import SensitivityResult, _errors
+    from .sensitivity import SensitivityResult
     if worker_kernel not in ("serial", "parallel"):
         raise InputError(f"--worker-kernel: expected 'serial' or 'parallel', got {worker_kernel!r}")
     if int(chunk) != chunk or chunk < 1:
@@ -107,7 +88,7 @@ def gsil(model, grid, client, errors=None, L0=None, LE=None, rel_tiny=1e-12, chu
     LE = model.machine.cutting_length if LE is None else float(LE)
     if not (math.isfinite(L0) and math.isfinite(LE) and LE > 0 and L0 > 0):
         raise InputError(f"--l0/--le: expected positive tool and cutting lengths in mm, got {L0} and {LE}")
-    E, label = _errors(model, errors)
+    E, label = error_values(model, errors)
     if grid.size == 0:
         raise InputError("the grid has no poses")
     t0 = time.perf_counter()

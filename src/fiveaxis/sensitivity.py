@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import InputError
+from .grid import Grid, GridAxis
 
 #: Gauss-Legendre order used when none is given (see the convergence check in the settings of each result).
 DEFAULT_ORDER = 8
@@ -169,7 +170,8 @@ def _settings(model, L0, LE, order, rel_tiny, errors_label):
             "quadrature": rule, "rel_tiny": rel_tiny, "errors": errors_label}
 
 
-def _errors(model, errors):
+def error_values(model, errors):
+    """Error values (41,) in kernel order and a label for the settings; one value per error, not per pose."""
     E = model.error_vector(errors)
     if E.ndim != 1:
         raise InputError("sensitivity indices need one value per error (41,), not per pose")
@@ -180,6 +182,25 @@ def _errors(model, errors):
     else:
         label = "given array"
     return E, label
+
+
+def reduce_grid(model, grid):
+    """(grid without the axes that appear in no J_i, how many grid poses each reduced pose stands for).
+
+    Only for a `Grid` (a pose list has no axes) and kernels that say which variables they use (JK_VARIABLES).
+    """
+    used = getattr(model.kernels, "JK_VARIABLES", None)
+    if not isinstance(grid, Grid) or used is None:
+        return grid, 1
+    factor = 1
+    axes = []
+    for a in grid.axes:
+        if a.name not in used and a.count > 1:
+            factor *= int(a.count)
+            axes.append(GridAxis(a.name, a.lo, a.lo, 1))
+        else:
+            axes.append(a)
+    return Grid(tuple(axes)), factor
 
 
 def check_order(order) -> int:
@@ -208,8 +229,11 @@ def _validate(L0, LE, order):
 
 
 def gsil(model, grid, errors=None, L0=None, LE=None, order=None, rel_tiny=REL_TINY,
-         chunk=CHUNK, progress=None, check=True) -> SensitivityResult:
+         chunk=CHUNK, progress=None, check=True, reduce=True) -> SensitivityResult:
     """GSIL_i (Eq. 14): the mean of W_i over every pose of a grid or pose list, in chunks of `chunk` poses.
+
+    reduce: a grid axis that appears in no J_i (X for li2018) changes no W_i, so the grid is evaluated at one
+    point of that axis and weighted by its count (exact; see reduce_grid).
 
     L0 and LE (mm) default to the machine file's tool data; errors as Model.error_vector (None = defaults).
     order: "exact" or a Gauss-Legendre order; None = exact when the kernels have it, else DEFAULT_ORDER.
@@ -220,23 +244,25 @@ def gsil(model, grid, errors=None, L0=None, LE=None, order=None, rel_tiny=REL_TI
     if order is None:
         order = "exact" if has_exact(model) else DEFAULT_ORDER
     _validate(L0, LE, order)
-    E, label = _errors(model, errors)
+    E, label = error_values(model, errors)
     if grid.size == 0:
         raise InputError("the grid has no poses")
     t0 = time.perf_counter()
+    work, factor = reduce_grid(model, grid) if reduce else (grid, 1)
     total = np.zeros(len(E))
     skipped = 0
-    with _progress(grid.size, progress, "GSIL") as bar:
-        for start in range(0, grid.size, chunk):
-            stop = min(start + chunk, grid.size)
-            W, s = kernel_w(model, grid.poses(start, stop), E, L0, LE, order, rel_tiny)
+    with _progress(work.size, progress, "GSIL") as bar:
+        for start in range(0, work.size, chunk):
+            stop = min(start + chunk, work.size)
+            W, s = kernel_w(model, work.poses(start, stop), E, L0, LE, order, rel_tiny)
             total += W
             skipped += s
             bar.update(stop - start)
-    values = total / grid.size
+    values = total * factor / grid.size
     settings = _settings(model, L0, LE, order, rel_tiny, label)
-    settings.update(kind="GSIL", poses=grid.size, seconds=round(time.perf_counter() - t0, 3))
-    settings["skipped_poses" if order == "exact" else "skipped_nodes"] = skipped
+    settings.update(kind="GSIL", poses=grid.size, evaluated_poses=work.size, reduced_factor=factor,
+                    seconds=round(time.perf_counter() - t0, 3))
+    settings["skipped_poses" if order == "exact" else "skipped_nodes"] = skipped * factor
     if hasattr(grid, "describe"):
         rotary = tuple(n for n in grid.names if model.machine.axis(n).type == "rotary")
         settings["grid"] = grid.describe(rotary)
@@ -260,7 +286,7 @@ def lsil(model, poses, errors=None, L0=None, LE=None, order=2 * DEFAULT_ORDER, m
     _validate(L0, LE, order)
     if order == "exact" and mode != 0:
         raise InputError("the exact integral over L is for W_i alone (normal mode 0); give --order N")
-    E, label = _errors(model, errors)
+    E, label = error_values(model, errors)
     normals = getattr(poses, "normals", None)
     if mode == 1 and normals is None:
         raise InputError("normal mode 1 needs a surface normal for every pose")

@@ -170,6 +170,9 @@ def register_gsa(p):
     p.add_argument("--points", default="quarter", choices=("quarter", "corner"),
                    help="the nine points: quarter marks of the body diagonals (default) or the corners")
     p.add_argument("--rot-count", type=int, default=13, help="points per rotary axis for --compensate (default 13)")
+    p.add_argument("--no-reduce", dest="reduce", action="store_false",
+                   help="evaluate every grid pose, also along axes that appear in no J (X for li2018); "
+                        "by default such an axis is evaluated once and weighted by its count (exact)")
     p.set_defaults(func=run_gsa)
 
 
@@ -184,7 +187,8 @@ def run_gsa(args) -> int:
     chunk = CHUNK if args.chunk is None else args.chunk
     if chunk < 1:
         raise InputError(f"--chunk: expected a positive number of poses, got {chunk}")
-    res = gsil(model, grid, errors, L0, LE, _order(args.order), chunk=chunk, progress=args.progress)
+    res = gsil(model, grid, errors, L0, LE, _order(args.order), chunk=chunk, progress=args.progress,
+               reduce=args.reduce)
     out = res.to_json()
     comp = None
     if args.compensate:
