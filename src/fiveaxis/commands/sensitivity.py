@@ -51,6 +51,16 @@ def _model(args):
     return load(args.machine, args.convention)
 
 
+def _setup(args, L0_default=None, LE_default=None):
+    """(model, error values, L0, LE) of a sensitivity command: L0 and LE (mm) from the options, else the given
+    defaults, else the machine file's tool data."""
+    model = _model(args)
+    errors = parse_errors(model, args.errors)
+    L0 = args.l0 if args.l0 is not None else (L0_default if L0_default is not None else model.machine.tool_length)
+    LE = args.le if args.le is not None else (LE_default if LE_default is not None else model.machine.cutting_length)
+    return model, errors, L0, LE
+
+
 def parse_errors(model, specs) -> dict[str, float]:
     """The machine file's error values, overridden by --errors NAME=VALUE or files of such lines / JSON."""
     defaults = model.machine.default_errors()
@@ -179,10 +189,7 @@ def register_gsa(p):
 def run_gsa(args) -> int:
     from .. import presets
     from ..sensitivity import CHUNK, gsil
-    model = _model(args)
-    errors = parse_errors(model, args.errors)
-    L0 = model.machine.tool_length if args.l0 is None else args.l0
-    LE = model.machine.cutting_length if args.le is None else args.le
+    model, errors, L0, LE = _setup(args)
     grid = workspace_grid(model, args.axis)
     chunk = CHUNK if args.chunk is None else args.chunk
     if chunk < 1:
@@ -248,10 +255,7 @@ def register_lsa(p):
 def run_lsa(args) -> int:
     from .. import presets
     from ..sensitivity import DEFAULT_ORDER, lsil
-    model = _model(args)
-    errors = parse_errors(model, args.errors)
-    L0 = presets.CONE_L0 if args.l0 is None else args.l0
-    LE = presets.CONE_LE if args.le is None else args.le
+    model, errors, L0, LE = _setup(args, presets.CONE_L0, presets.CONE_LE)
     order = 2 * DEFAULT_ORDER if args.order is None else _order(args.order)
     if args.positions < 1:
         raise InputError(f"--positions: expected at least 1, got {args.positions}")
@@ -306,10 +310,7 @@ def run_sobol(args) -> int:
     from .. import presets
     from ..sensitivity import gsil
     from ..sobol import compare, sobol_total
-    model = _model(args)
-    errors = parse_errors(model, args.errors)
-    L0 = model.machine.tool_length if args.l0 is None else args.l0
-    LE = model.machine.cutting_length if args.le is None else args.le
+    model, errors, L0, LE = _setup(args)
     grid = presets.workspace_grid(model)
     s = sobol_total(model, grid, L0, LE, args.bound, args.samples, args.seed)
     g = gsil(model, grid, errors, L0, LE, _order(args.order), progress=False)
