@@ -63,9 +63,8 @@ def scales(machine, t=None) -> dict[str, Scale]:
     out = {}
     for name in machine.variables:
         ax = machine.axis(name)
-        lo, hi = ax.stroke
+        lo, hi = ax.model_stroke
         if ax.type == "rotary":
-            lo, hi = math.radians(lo), math.radians(hi)
             unit, to_unit = "deg", 180.0 / math.pi
         else:
             unit, to_unit = "mm", 1.0

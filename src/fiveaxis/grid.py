@@ -124,7 +124,7 @@ class Grid:
                 axes.append(GridAxis(name, v, v, 1))
             else:
                 count = counts.get(name, 1)
-                lo, hi = (conv(s) for s in ax.stroke)
+                lo, hi = ax.model_stroke
                 if count == 1:
                     mid = 0.5 * (lo + hi)
                     axes.append(GridAxis(name, mid, mid, 1))

@@ -46,6 +46,12 @@ class Axis:
     pige: dict = field(default_factory=dict)  # PIGE name -> kind, placed in the PI matrix before this joint
 
     @property
+    def model_stroke(self) -> tuple[float, float]:
+        """The stroke in model units: mm for linear axes, rad for rotary axes (the file gives degrees)."""
+        lo, hi = self.stroke
+        return (math.radians(lo), math.radians(hi)) if self.type == "rotary" else (lo, hi)
+
+    @property
     def pdge(self) -> tuple[str, ...]:
         return tuple(f"{p}_{self.suffix}" for p in PDGE_PREFIXES)
 
@@ -120,8 +126,7 @@ class Machine:
         rng = np.random.default_rng(rng)
         cols = []
         for v in self.variables:
-            a = self.axis(v)
-            lo, hi = (math.radians(x) for x in a.stroke) if a.type == "rotary" else a.stroke
+            lo, hi = self.axis(v).model_stroke
             cols.append(rng.uniform(lo, hi, n))
         return np.column_stack(cols)
 
