@@ -137,6 +137,5 @@ def gsil(model, grid, client, errors=None, L0=None, LE=None, rel_tiny=1e-12, chu
                          "chunk": int(chunk), "tasks": len(starts), "worker_kernel": worker_kernel,
                          "worker_peak_rss_mb": sorted(round(v, 1) for v in peaks.values())}}
     if hasattr(grid, "describe"):
-        rotary = tuple(n for n in grid.names if model.machine.axis(n).type == "rotary")
-        settings["grid"] = grid.describe(rotary)
+        settings["grid"] = grid.describe(model.machine.rotary)
     return SensitivityResult("GSIL", model.errors, values, settings)

@@ -86,6 +86,11 @@ class Machine:
         known = [n for n in CANONICAL_ORDER if n in names]
         return tuple(known + [n for n in names if n not in known])
 
+    @property
+    def rotary(self) -> tuple[str, ...]:
+        """Names of the rotary axes (degrees at the interfaces, rad in the model), in `variables` order."""
+        return tuple(n for n in self.variables if self.axis(n).type == "rotary")
+
     def axis(self, name: str) -> Axis:
         for a in self.axes:
             if a.name == name:

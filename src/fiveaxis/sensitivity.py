@@ -264,8 +264,7 @@ def gsil(model, grid, errors=None, L0=None, LE=None, order=None, rel_tiny=REL_TI
                     seconds=round(time.perf_counter() - t0, 3))
     settings["skipped_poses" if order == "exact" else "skipped_nodes"] = skipped * factor
     if hasattr(grid, "describe"):
-        rotary = tuple(n for n in grid.names if model.machine.axis(n).type == "rotary")
-        settings["grid"] = grid.describe(rotary)
+        settings["grid"] = grid.describe(model.machine.rotary)
         settings["grid_units"] = "mm; degrees for rotary axes; [lo, hi, count]"
     if check:
         sample = _sample(grid, CHECK_SAMPLE)

@@ -116,12 +116,11 @@ def workspace_grid(model, specs):
     stroke, changed by the --axis specs (mm; degrees for rotary axes)."""
     from .. import presets
     from ..grid import Grid, grid_from_specs
-    rotary = tuple(n for n in model.variables if model.machine.axis(n).type == "rotary")
     if tuple(model.variables) == ("X", "Y", "Z", "A", "B"):
         base = presets.workspace_grid(model)
     else:
         base = Grid.from_strokes(model.machine, {n: 5 for n in model.variables})
-    return grid_from_specs(base, specs, rotary)
+    return grid_from_specs(base, specs, model.machine.rotary)
 
 
 def _print_ranking(result, top: int, title: str):
