@@ -56,10 +56,19 @@ def test_non_numeric_cell_names_row_line_and_column(tmp_path, machine):
     assert "data row 3 (line 4)" in msg and "column B" in msg and "'abc'" in msg
 
 
-@pytest.mark.parametrize("cell", ["nan", "inf", "-inf", ""])
-def test_nan_inf_and_empty_cells(tmp_path, machine, cell):
+@pytest.mark.parametrize("cell", ["nan", "inf", "-inf"])
+def test_nan_inf_cells(tmp_path, machine, cell):
     msg = _error(_csv(tmp_path, f"{HEADER}\n{ROW}\n100,-50,10,5,-10,{cell},0,0\n"), machine)
     assert "data row 2 (line 3)" in msg and "column dx" in msg
+
+
+def test_blank_deviation_is_not_measured_but_a_blank_pose_is_an_error(tmp_path, machine):
+    m = read(_csv(tmp_path, f"{HEADER}\n{ROW}\n100,-50,10,5,-10,,0,\n"), machine)
+    assert np.isnan(m.d[1, 0]) and np.isnan(m.d[1, 2]) and m.d[1, 1] == 0
+    msg = _error(_csv(tmp_path, f"{HEADER}\n{ROW}\n100,,10,5,-10,0,0,0\n", "p.csv"), machine)
+    assert "data row 2 (line 3)" in msg and "column Y" in msg and "empty cell" in msg
+    msg = _error(_csv(tmp_path, f"{HEADER}\n{ROW}\n100,-50,10,5,-10,,,\n", "q.csv"), machine)
+    assert "data row 2 (line 3)" in msg and "nothing measured" in msg
 
 
 def test_empty_file_and_header_only(tmp_path, machine):
@@ -74,7 +83,7 @@ def test_duplicate_header(tmp_path, machine):
 
 def test_fewer_rows_than_identifiable_parameters(tmp_path, machine):
     msg = _error(_csv(tmp_path, f"{HEADER}\n" + f"{ROW}\n" * 3), machine, min_rows=15)
-    assert "3 data row(s), fewer than the 15 parameters" in msg
+    assert "9 measured value(s), fewer than the 15 parameters" in msg
 
 
 def test_blank_lines_are_skipped_and_lines_stay_true(tmp_path, machine):

@@ -31,9 +31,10 @@ def effect_hash(machine, name: str) -> str:
 
 @dataclass
 class CustomEffect:
-    """A custom effect: error (or L) += sum_k basis_k(pose) * p_k."""
+    """A custom effect: param (an error, or L) += sum_k basis_k(pose, t) * p_k. Same interface as the vocabulary's
+    effects (`fiveaxis.effects`): id, param, names, basis(ctx), describe(machine), physical(...)."""
     name: str
-    error: str
+    param: str
     expr: str
     params: tuple
     kernels: object
@@ -43,43 +44,32 @@ class CustomEffect:
         return self.name
 
     @property
+    def error(self) -> str:
+        return self.param
+
+    @property
     def names(self) -> tuple[str, ...]:
         return tuple(f"{self.name}.{p}" for p in self.params)
 
     @property
     def description(self) -> str:
-        return f"custom effect {self.name}: {self.error} += {self.expr}"
+        return f"custom effect {self.name}: {self.param} += {self.expr}"
 
-    def basis(self, machine, poses, t) -> np.ndarray:
-        """df/dp_k (n, k) at poses (mm, rad) and times t (s; zeros when the data has none)."""
-        n = len(poses)
-        v = np.column_stack([poses, np.zeros(n) if t is None else np.asarray(t, float)])
+    def describe(self, machine) -> str:
+        return self.description
+
+    def basis(self, ctx) -> np.ndarray:
+        """df/dp_k (n, k) at the poses of an EffectContext (mm, rad) and its times t (s; zeros without t)."""
+        n = ctx.n
+        v = np.column_stack([ctx.poses, np.zeros(n) if ctx.t is None else np.asarray(ctx.t, float)])
         out = np.empty((n, len(self.params)))
         self.kernels.basis(np.ascontiguousarray(v), out)
         return out
 
-    def _vec(self, model, J, tool_dir):
-        return tool_dir if self.error == "L" else J[:, list(model.errors).index(self.error), :]
-
-    def columns(self, prob, coefs) -> np.ndarray:
-        """Design columns (3n, k): J_error * df/dp_k (for L: the tool direction * df/dp_k)."""
-        b = self.basis(prob.model.machine, prob.meas.poses, prob.meas.t)
-        vec = self._vec(prob.model, prob.J, prob.tool_dir)
-        return (vec[:, :, None] * b[:, None, :]).reshape(-1, b.shape[1])
-
-    def per_pose_raw(self, model, poses, t, L, coefs):
-        """Error values added per pose (n, n_errors) and tool-length change (n,) for coefficients coefs."""
-        f = self.basis(model.machine, poses, t) @ np.asarray(coefs, float)
-        E = np.zeros((len(poses), len(model.errors)))
-        dL = np.zeros(len(poses))
-        if self.error == "L":
-            dL += f
-        else:
-            E[:, list(model.errors).index(self.error)] += f
-        return E, dL
-
-    def per_pose(self, prob, coefs):
-        return self.per_pose_raw(prob.model, prob.meas.poses, prob.meas.t, prob.meas.L, coefs)
+    def physical(self, machine, coefs, sc) -> list:
+        """The parameters p_k as fitted: the expression gives their unit (param's unit per its basis function)."""
+        unit = "mm" if self.param == "L" or not machine.is_angular(self.param) else "rad"
+        return [(float(c), f"{unit} per unit of d(expr)/d{p}") for c, p in zip(coefs, self.params)]
 
 
 def load_custom(machine, name: str) -> CustomEffect:

@@ -21,6 +21,8 @@ import numpy as np
 
 from . import effects as fx
 from . import fit as F
+from . import observations as ob
+from .measurements import concat
 
 ALIAS_COS = 0.999
 #: A candidate whose projected column keeps less than this fraction of its norm is already in the model.
@@ -64,8 +66,8 @@ class Candidates:
 
 
 def candidate_matrix(prob: F.Problem, effects) -> np.ndarray:
-    """Weighted design columns (3n, M) of vocabulary effects."""
-    return fx.columns(effects, prob.J, prob.tool_dir, prob.u, prob.model.errors) * prob.w[:, None]
+    """Weighted design columns (m, M) of candidate effects at the problem's readings."""
+    return prob.effect_columns(effects) * prob.w[:, None]
 
 
 def project(Q: np.ndarray, G: np.ndarray, rw: np.ndarray, effects, g2=None) -> Candidates:
@@ -101,8 +103,8 @@ def block_gains(Q: np.ndarray, blocks, rw: np.ndarray):
 
 
 def _basis(prob: F.Problem):
-    """Orthonormal basis of the column space of a problem's weighted design."""
-    return F.identify(prob.A * prob.w[:, None]).U
+    """Orthonormal basis of the column space of a problem's weighted design (free parameters)."""
+    return F.identify(prob.A[:, prob.free] * prob.w[:, None]).U
 
 
 def ebic_penalty(N: int, M: int) -> float:
@@ -115,11 +117,9 @@ def ebic_delta(rss: float, gain: float, N: int, M: int, known_sigma: bool, k: in
     pen = k * ebic_penalty(N, M)
     if known_sigma:                       # weighted RSS is chi2 with unit variance
         return -gain + pen
-    return N * math.log(max(rss - gain, 1e-300) / rss) + pen
-
-
-def _rows_of(poses_idx):
-    return np.stack([3 * poses_idx, 3 * poses_idx + 1, 3 * poses_idx + 2], axis=1).ravel()
+    if rss <= 0:                          # an exact fit: nothing left to explain
+        return pen
+    return N * math.log(max(rss - gain, 1e-300 * rss) / rss) + pen
 
 
 def cross_validate(prob: F.Problem, effects, G: np.ndarray, k: int = K_FOLDS, seed: int = 0, customs=(),
@@ -127,17 +127,22 @@ def cross_validate(prob: F.Problem, effects, G: np.ndarray, k: int = K_FOLDS, se
     """Nested K-fold CV of "add the best candidate": per fold, rank on the training poses (by extended BIC, as
     on the whole data), evaluate held out. Returns (held-out weighted SSE without, with the per-fold best
     candidate, ids chosen per fold)."""
-    n = prob.meas.n
-    order = np.random.default_rng(seed).permutation(n)
-    folds = np.array_split(order, k)
-    Aw = prob.A * prob.w[:, None]
-    dw = prob.d * prob.w
+    groups = ob.pose_groups(prob.meas)[prob.obs.row]      # readings of one pose are held out together
+    ng = int(groups.max()) + 1 if len(groups) else 0
+    order = np.random.default_rng(seed).permutation(ng)
+    fold_of = np.empty(ng, dtype=int)
+    for f, part in enumerate(np.array_split(order, k)):
+        fold_of[part] = f
+    row_fold = fold_of[groups]
+    Aw = prob.A[:, prob.free] * prob.w[:, None]
+    dw = (prob.d - prob.A[:, ~prob.free] @ np.array([prob.fixed[n] for n, f in zip(prob.names, prob.free)
+                                                     if not f])) * prob.w
     sse0 = sse1 = 0.0
     chosen = []
     g2_all = np.einsum("ij,ij->j", G, G)
     for f in range(k):
-        test = _rows_of(np.sort(folds[f]))
-        train = _rows_of(np.sort(np.concatenate([folds[j] for j in range(k) if j != f])))
+        test = np.flatnonzero(row_fold == f)
+        train = np.flatnonzero(row_fold != f)
         idf = F.identify(Aw[train])
         theta = F._solve(idf, dw[train])
         r_tr = dw[train] - Aw[train] @ theta
@@ -153,9 +158,9 @@ def cross_validate(prob: F.Problem, effects, G: np.ndarray, k: int = K_FOLDS, se
         if blocks:
             rss = float(r_tr @ r_tr)
             cg, ks, _ = block_gains(idf.U, [b[train] for b in blocks], r_tr)
-            dv = ebic_delta(rss, float(cands.gain[best]), len(train), M or len(effects), prob.meas.sigma is not None)
+            dv = ebic_delta(rss, float(cands.gain[best]), len(train), M or len(effects), prob.known_sigma)
             for j in range(len(blocks)):
-                dj = ebic_delta(rss, float(cg[j]), len(train), M or len(effects), prob.meas.sigma is not None,
+                dj = ebic_delta(rss, float(cg[j]), len(train), M or len(effects), prob.known_sigma,
                                 max(ks[j], 1))
                 if dj < dv:
                     dv, cols, name = dj, blocks[j], customs[j].name
@@ -188,27 +193,38 @@ class Diagnosis:
         return {"file": str(self.fit.problem.meas.path), "n": self.n, "rms_mm": self.rms_mm,
                 "noise_mm": self.noise_mm, "noise_source": self.noise_source,
                 "missing_effect": self.missing_effect,
-                "added": [e.id if isinstance(e, fx.Effect) else e.name for e in self.fit.problem.effects],
+                "added": [e.id for e in self.fit.problem.effects],
                 "decision": self.decision, "n_candidates": self.n_candidates,
                 "candidates": self.candidates, "forward": self.forward, "structure": self.structure,
                 "already_in_model": self.absorbed}
 
 
 def residual_structure(prob: F.Problem, residual: np.ndarray) -> dict:
-    """Share of each residual direction (dx, dy, dz) that a cubic in each variable explains (R^2)."""
+    """Share of the residual of each kind of reading (dx, dy, dz, di, dj, dk, du) that a cubic in each variable
+    explains (R^2), for every effect variable of the data."""
     out = {}
-    R = residual.reshape(-1, 3)
-    for tok, u in prob.u.items():
-        V = np.column_stack([np.ones_like(u), u, u ** 2, u ** 3])
-        coef, *_ = np.linalg.lstsq(V, R, rcond=None)
-        ss = np.sum((R - R.mean(axis=0)) ** 2, axis=0)
-        share = 1 - np.sum((R - V @ coef) ** 2, axis=0) / np.where(ss > 0, ss, 1)
-        out[tok] = {"dx": float(share[0]), "dy": float(share[1]), "dz": float(share[2])}
+    labels = prob.obs.labels()
+    kinds = [k for k in ("dx", "dy", "dz", "di", "dj", "dk", "du") if (labels == k).any()]
+    for tok in prob.scales:
+        try:
+            u = prob.ctx.u(tok)[prob.obs.row]
+        except Exception:                  # a variable without data (no t column)
+            continue
+        out[tok] = {}
+        for k in kinds:
+            sel = labels == k
+            r = residual[sel]
+            uu = u[sel]
+            V = np.column_stack([np.ones_like(uu), uu, uu ** 2, uu ** 3])
+            coef, *_ = np.linalg.lstsq(V, r, rcond=None)
+            ss = float(np.sum((r - r.mean()) ** 2))
+            out[tok][k] = float(1 - np.sum((r - V @ coef) ** 2) / ss) if ss > 0 else 0.0
     return out
 
 
 def _separating(prob: F.Problem, group, all_effects):
-    """Extra measurements that would tell the effects of an alias set apart: another tool length, a full stroke."""
+    """Extra measurements that would tell the effects of an alias set apart: another tool length, a full stroke.
+    Each option repeats the measured readings at modified poses and checks whether the columns part."""
     meas, model = prob.meas, prob.model
     tips = []
     L0 = float(np.median(meas.L))
@@ -226,6 +242,7 @@ def _separating(prob: F.Problem, group, all_effects):
                                f"{unit}; the stroke is {lo:g} to {hi:g} {unit})", dict(var=i, lo=lo / to, hi=hi / to)))
     effs = [all_effects[j] for j in group]
     rng = np.random.default_rng(1)
+    from scipy.sparse.csgraph import connected_components
     for key, text, how in options:
         poses = meas.poses.copy()
         L = meas.L.copy()
@@ -233,14 +250,14 @@ def _separating(prob: F.Problem, group, all_effects):
             L = how["L"]
         else:
             poses[:, how["var"]] = rng.uniform(how["lo"], how["hi"], meas.n)
-        extra = meas.__class__(meas.path, meas.variables, poses, L, meas.d, meas.t, meas.sigma, None, True, [])
-        both = _concat(meas, extra)
-        p2 = F.build(model, both, prob.effects)
-        # Same time scale as the data: times of the extra poses repeat the measured ones.
+        both = concat(meas, meas.with_poses(poses, L))
+        try:
+            p2 = F.build(model, both, prob.effects, prob.fixed)
+        except Exception:                 # the variant is not a valid plan (e.g. a setup it breaks): skip it
+            continue
         Q = _basis(p2)
         G = candidate_matrix(p2, effs)
         c = project(Q, G, np.zeros(len(p2.d)), effs)
-        from scipy.sparse.csgraph import connected_components
         cos = np.array([c.cos_with(i) for i in range(len(effs))])
         k, label = connected_components(cos > ALIAS_COS, directed=False)
         if k > 1:
@@ -249,41 +266,35 @@ def _separating(prob: F.Problem, group, all_effects):
     return tips
 
 
-def _concat(a, b):
-    cat = (lambda x, y: None if x is None or y is None else np.concatenate([x, y]))
-    return a.__class__(a.path, a.variables, np.vstack([a.poses, b.poses]), np.concatenate([a.L, b.L]),
-                       np.vstack([a.d, b.d]), cat(a.t, b.t), cat(a.sigma, b.sigma), None, True, [])
-
-
-def diagnose(model, meas, added=(), top: int = 10) -> Diagnosis:
-    """Fit, then rank every effect of the vocabulary by how much of the residual it explains, and decide."""
+def diagnose(model, meas, added=(), top: int = 10, fixed=None) -> Diagnosis:
+    """Fit, then rank every effect of the vocabulary by how much of the residual it explains, and decide.
+    fixed: {name: value} parameters held at known values (mm, rad)."""
     with F.one_blas_thread():
-        return _diagnose(model, meas, added, top)
+        return _diagnose(model, meas, added, top, fixed)
 
 
-def _diagnose(model, meas, added, top) -> Diagnosis:
-    res = F.fit(model, meas, added)
+def _diagnose(model, meas, added, top, fixed=None) -> Diagnosis:
+    res = F.fit(model, meas, added, fixed=fixed)
     prob = res.problem
     N = len(prob.d)
     rw = res.residual * prob.w
     rss = float(rw @ rw)
-    present = {e.id for e in prob.effects if isinstance(e, fx.Effect)}
+    present = {e.id for e in prob.effects}
     vocab = [e for e in fx.vocabulary(model.machine, model.errors, meas.t is not None) if e.id not in present]
-    present_custom = {e.name for e in prob.effects if not isinstance(e, fx.Effect)}
     customs = []
     if model.machine.effects:
         from .custom_effects import load_custom
-        customs = [load_custom(model.machine, nm) for nm in model.machine.effects if nm not in present_custom]
+        customs = [load_custom(model.machine, nm) for nm in model.machine.effects if nm not in present]
     M = len(vocab) + len(customs)
     G = candidate_matrix(prob, vocab)
     cands = project(res.idf.U, G, rw, vocab)
-    blocks = [ce.columns(prob, None) * prob.w[:, None] for ce in customs]
+    blocks = [prob.effect_columns([ce]) * prob.w[:, None] for ce in customs]
     cgain, cks, cbases = block_gains(res.idf.U, blocks, rw) if blocks else (np.zeros(0), [], [])
     order = np.argsort(-cands.gain, kind="stable")
     absorbed = [vocab[j].id for j in range(len(vocab)) if cands.ratio[j] <= ABSORBED]
     # rms (mm) after adding each candidate: r - beta * g_perp / w, evaluated for the listed ones.
     w = prob.w
-    known = meas.sigma is not None
+    known = res.known_sigma
     # Decision on the best candidate.
     best = int(order[0])
     d_ebic = ebic_delta(rss, float(cands.gain[best]), N, M, known)
@@ -333,17 +344,18 @@ def _diagnose(model, meas, added, top) -> Diagnosis:
         QtG = np.vstack([QtG, qs.T @ G])
         n_coef += qs.shape[1]
         r_cur = r_cur - qs @ (qs.T @ r_cur)
-        forward.append({"id": name, "rms_mm": float(np.sqrt(np.mean((r_cur / w) ** 2)))})
+        forward.append({"id": name, "rms_mm": _rms_mm(prob, r_cur / w)})
     if known:
         from scipy.stats import chi2
-        noise = float(np.sqrt(np.mean(meas.sigma ** 2)))
+        noise = res.noise(ob.LENGTH) or 0.0
         source = "sigma column"
         decision["chi2"] = rss
         decision["chi2_dof"] = N - res.idf.rank
         decision["chi2_p"] = float(chi2.sf(rss, max(N - res.idf.rank, 1)))
     else:
         dof = max(N - res.idf.rank - n_coef, 1)
-        noise = float(np.sqrt(np.sum((r_cur / w) ** 2) / dof))
+        lg = prob.obs.group == ob.LENGTH
+        noise = float(np.sqrt(np.sum(r_cur ** 2) / dof * np.mean(1.0 / w[lg] ** 2))) if lg.any() else 0.0
         source = ("estimated from the residual after the effects the rule accepts" if forward
                   else "estimated from the residual of the fit")
     # Candidates best first; aliases collapsed into the best member of their set.
@@ -360,7 +372,7 @@ def _diagnose(model, meas, added, top) -> Diagnosis:
         r_after = (rw - cands.beta[j] * cands.perp(int(j))) / w
         eff = vocab[j]
         item = {"id": eff.id, "aliases": [vocab[i].id for i in group],
-                "rms_mm": float(np.sqrt(np.mean(r_after ** 2))),
+                "rms_mm": _rms_mm(prob, r_after),
                 "explained": float(cands.gain[j] / rss) if rss > 0 else 0.0,
                 "delta_ebic": ebic_delta(rss, float(cands.gain[j]), N, M, known),
                 "description": fx.describe(model.machine, eff)}
@@ -372,7 +384,7 @@ def _diagnose(model, meas, added, top) -> Diagnosis:
     for j, ce in enumerate(customs):
         Qb = cbases[j]
         r_after = (rw - Qb @ (Qb.T @ rw)) / w
-        listed.append({"id": ce.name, "aliases": [], "rms_mm": float(np.sqrt(np.mean(r_after ** 2))),
+        listed.append({"id": ce.name, "aliases": [], "rms_mm": _rms_mm(prob, r_after),
                        "explained": float(cgain[j] / rss) if rss > 0 else 0.0,
                        "delta_ebic": ebic_delta(rss, float(cgain[j]), N, M, known, max(cks[j], 1)),
                        "description": ce.description, "coefficient": None, "unit": "", "_gain": float(cgain[j])})
@@ -387,7 +399,13 @@ def _diagnose(model, meas, added, top) -> Diagnosis:
 def _coefficient(res, cands, j, eff, w):
     """Physical coefficient of a candidate when added alone (first order): beta / |g_perp| in scaled units."""
     c = cands.beta[j] / cands.gnorm[j] if cands.gnorm[j] > 0 else 0.0
-    return fx.physical(res.problem.model.machine, eff, float(c), res.problem.scales)
+    return eff.physical(res.problem.model.machine, [float(c)], res.problem.scales)[0]
+
+
+def _rms_mm(prob: F.Problem, r: np.ndarray) -> float:
+    """RMS (mm) of a residual over the readings in mm (tool tip and 1-D), 0 without them."""
+    lg = prob.obs.group == ob.LENGTH
+    return float(np.sqrt(np.mean(r[lg] ** 2))) if lg.any() else 0.0
 
 
 def report(dg: Diagnosis) -> str:

@@ -1,31 +1,40 @@
-"""The vocabulary of effects that a model may be missing: `<param>:<var><deg>`, and their design columns.
+"""Effects a model may be missing, and the one interface every effect has (vocabulary and custom alike).
 
-`ex_x:x1` means that the error ex_x changes linearly with the X position (a twisted guideway); `dz_x:x2` a
-quadratic vertical straightness of X; `L:t1` a tool growing with time; `ey_B:B1` an angular positioning error of
-B growing with B. `param` is one of the model's error names or `L` (tool length), `var` a pose variable (`x y z`
-for linear axes, `A B` for rotary axes) or `t` (time, s), `deg` 1 to 3.
+An effect adds to one parameter `param` (an error of the model, mm or rad, or `L`, the tool length in mm) a sum of
+coefficients times basis functions of the pose, the time and the approach directions:
 
-An effect adds one coefficient c: param(pose) = base + c * u^deg with u = (var - centre) / half, the variable
-scaled by its stroke (centre and half-range of the machine file; for t: centre 0, half the last time of the data)
-so that the design stays well conditioned. Its design column is d(P_err)/dc = J_param(pose) * u^deg (for L: the
-ideal tool direction times u^deg). Coefficients are reported in physical units: change of param per unit of
-(var - centre)^deg, var in mm, degrees or seconds.
-Custom effects from the machine file (`[effects.<name>]`) are handled by `fiveaxis.custom_effects`.
+    param(pose) = param_0 + sum_k c_k b_k(pose, t, dir)
+
+Every effect is a record with `id`, `param`, `names` (one name per coefficient) and `basis(ctx)` -> (n, k), the
+values b_k at n poses of an `EffectContext`; `describe(machine)` and `physical(machine, coefs, ctx_scales)` say
+what it is and give the coefficients in physical units. The design column of coefficient k on any measured row
+is the row's column of `param` times b_k at the row's pose (first order, Eq. 10-11), so that the fit, the
+diagnosis, the simulation and the compensation need nothing else of an effect.
+
+The vocabulary (ids: `fiveaxis.effect_ids`):
+- `<param>:<var><deg>` (deg 1-3): c * u^deg with u = (var - centre) / half, the variable scaled by its stroke
+  (centre and half-range of the machine file; for t: centre 0, half the last time of the data) so that the design
+  stays well conditioned; reported in physical units: change of param per unit of (var - centre)^deg.
+- `<param>:<var>r`: c * dir_var (+1 or -1, the direction in which the axis last moved): a reversal (backlash)
+  of 2c. Needs a `dir_<VAR>` column.
+- `<param>:<var>p<P>`: c1 sin(2 pi v / P) + c2 cos(2 pi v / P), v in mm, degrees or s: a periodic error.
+- `<param>:te<tau>`: c (1 - exp(-t / tau)), tau in s: a thermal drift with a time constant.
+Custom effects from the machine file (`[effects.<name>]`) live in `fiveaxis.custom_effects` and have the same
+interface.
 """
 from __future__ import annotations
 
 import math
-import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import effect_ids as ids
 from .errors import InputError
 
-ID_RE = re.compile(r"^(?P<param>[A-Za-z_][A-Za-z0-9_]*):(?P<var>[A-Za-z][A-Za-z0-9]*?)(?P<deg>[1-3])$")
 DEGREES = (1, 2, 3)
-TOOL = "L"
-TIME = "t"
+TOOL = ids.TOOL
+TIME = ids.TIME
 
 
 @dataclass(frozen=True)
@@ -38,19 +47,59 @@ class Scale:
     unit: str           # unit at the interface: mm, deg or s
     to_unit: float      # interface unit per model unit (180/pi for rotary axes, 1 otherwise)
 
+    def to_json(self) -> dict:
+        return {"token": self.token, "column": self.column, "centre": self.centre, "half": self.half,
+                "unit": self.unit, "to_unit": self.to_unit}
 
-@dataclass(frozen=True)
-class Effect:
-    """One effect of the vocabulary: param changes as (scaled var)^deg."""
-    id: str
-    param: str
-    var: str
-    deg: int
+
+@dataclass
+class EffectContext:
+    """Where effects are evaluated: n poses (mm, rad; model variable order), times t (s) or None, approach
+    directions dirs {pose variable: (n,) of +1/-1}, and the scales of the effect variables."""
+    variables: tuple
+    poses: np.ndarray
+    t: np.ndarray | None
+    dirs: dict
+    scales: dict
+    _u: dict = field(default_factory=dict, repr=False)
 
     @property
-    def names(self) -> tuple[str, ...]:
-        """Names of its coefficients (one per effect of the vocabulary)."""
-        return (self.id,)
+    def n(self) -> int:
+        return len(self.poses)
+
+    def raw(self, token: str) -> np.ndarray:
+        """The variable itself at every pose: mm, rad or s."""
+        s = self.scales.get(token)
+        if s is None:
+            raise InputError(f"effects on '{token}' need a '{token}' column in the measurements")
+        if s.column is None:
+            if self.t is None:
+                raise InputError("time effects need a t column (s) in the measurements")
+            return np.asarray(self.t, dtype=float)
+        return self.poses[:, list(self.variables).index(s.column)]
+
+    def u(self, token: str) -> np.ndarray:
+        """The scaled variable u = (value - centre) / half at every pose (cached)."""
+        if token not in self._u:
+            s = self.scales.get(token)
+            if s is None:
+                raise InputError(f"effects on '{token}' need a '{token}' column in the measurements")
+            self._u[token] = (self.raw(token) - s.centre) / s.half
+        return self._u[token]
+
+    def direction(self, token: str) -> np.ndarray:
+        """dir_<VAR> at every pose (+1/-1) for a pose variable token."""
+        col = self.scales[token].column if token in self.scales else None
+        if col is None or col not in self.dirs:
+            raise InputError(f"reversal effects on '{token}' need a dir_{col or token.upper()} column (+1 or -1: "
+                             f"the direction in which the axis last moved)")
+        return np.asarray(self.dirs[col], dtype=float)
+
+    def subset(self, rows) -> "EffectContext":
+        """The context of some poses (index array or mask), same scales."""
+        pick = (lambda a: None if a is None else np.asarray(a)[rows])
+        return EffectContext(self.variables, self.poses[rows], pick(self.t), {k: v[rows] for k, v in self.dirs.items()},
+                             self.scales)
 
 
 def var_token(machine, axis_name: str) -> str:
@@ -58,8 +107,14 @@ def var_token(machine, axis_name: str) -> str:
     return axis_name.lower() if machine.axis(axis_name).type == "linear" else axis_name
 
 
-def scales(machine, t=None) -> dict[str, Scale]:
-    """Scaling of every effect variable: pose variables from the strokes, time from the data (t in s or None)."""
+def tokens(machine, with_time: bool = True) -> list[str]:
+    """Variable tokens of a machine's effect ids, in variable order, then t."""
+    return [var_token(machine, v) for v in machine.variables] + ([TIME] if with_time else [])
+
+
+def scales(machine, t=None, tmax: float | None = None) -> dict[str, Scale]:
+    """Scaling of every effect variable: pose variables from the strokes, time from the data (t in s) or from
+    tmax (s, e.g. read back from a fitted-model file)."""
     out = {}
     for name in machine.variables:
         ax = machine.axis(name)
@@ -70,68 +125,98 @@ def scales(machine, t=None) -> dict[str, Scale]:
             unit, to_unit = "mm", 1.0
         out[var_token(machine, name)] = Scale(var_token(machine, name), name, 0.5 * (lo + hi), 0.5 * (hi - lo),
                                               unit, to_unit)
-    if t is not None:
-        tmax = float(np.max(np.abs(t))) if len(t) else 0.0
-        out[TIME] = Scale(TIME, None, 0.0, tmax if tmax > 0 else 1.0, "s", 1.0)
+    if tmax is None and t is not None and len(t):
+        tmax = float(np.max(np.abs(t)))
+    if tmax is not None or t is not None:
+        out[TIME] = Scale(TIME, None, 0.0, tmax if tmax and tmax > 0 else 1.0, "s", 1.0)
     return out
+
+
+def context(machine, poses, t=None, dirs=None, sc=None) -> EffectContext:
+    """An EffectContext at poses (n, nvar; mm, rad) with times t (s) and approach directions dirs."""
+    return EffectContext(tuple(machine.variables), np.asarray(poses, dtype=float), t, dict(dirs or {}),
+                         sc if sc is not None else scales(machine, t))
+
+
+# -- the kinds of the vocabulary ------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Effect:
+    """An effect of the vocabulary: param changes with var as its kind says (see the module docstring)."""
+    id: str
+    param: str
+    var: str
+    kind: str = "poly"
+    arg: float = 1.0           # degree, period (var's interface unit) or tau (s)
+
+    @property
+    def deg(self) -> int:
+        return int(self.arg) if self.kind == "poly" else 0
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Names of its coefficients: the id, or id.sin / id.cos for a periodic effect."""
+        if self.kind == "periodic":
+            return (f"{self.id}.sin", f"{self.id}.cos")
+        return (self.id,)
+
+    def basis(self, ctx: EffectContext) -> np.ndarray:
+        """Change of param per unit coefficient at every pose of ctx: (n, len(names))."""
+        if self.kind == "poly":
+            return (ctx.u(self.var) ** self.deg)[:, None]
+        if self.kind == "reversal":
+            return ctx.direction(self.var)[:, None]
+        if self.kind == "periodic":
+            s = ctx.scales[self.var]
+            phase = 2.0 * math.pi * ctx.raw(self.var) * s.to_unit / self.arg
+            return np.column_stack([np.sin(phase), np.cos(phase)])
+        return (1.0 - np.exp(-ctx.raw(TIME) / self.arg))[:, None]
+
+    def unit_of(self, machine) -> str:
+        return "mm" if self.param == TOOL or not machine.is_angular(self.param) else "rad"
+
+    def physical(self, machine, coefs, sc: dict) -> list[tuple[float, str]]:
+        """Coefficients in physical units, with the unit: poly: change of param per (unit of var)^deg; the others:
+        amplitude (mm or rad)."""
+        unit = self.unit_of(machine)
+        if self.kind == "poly":
+            s = sc[self.var]
+            half = s.half * s.to_unit
+            per = s.unit if self.deg == 1 else f"{s.unit}^{self.deg}"
+            return [(float(c) / half ** self.deg, f"{unit}/{per}") for c in coefs]
+        return [(float(c), unit) for c in coefs]
+
+    def describe(self, machine) -> str:
+        return describe(machine, self)
 
 
 def parse(effect_id: str, machine, errors, where: str = "effect") -> Effect:
     """Check an effect id against a model's error names and variables; InputError naming `where` if bad."""
-    m = ID_RE.match(effect_id.strip())
-    tokens = [var_token(machine, v) for v in machine.variables] + [TIME]
-    if not m:
-        raise InputError(f"{where}: '{effect_id}' is not an effect id (expected <param>:<var><deg> such as "
-                         f"ex_x:x1, with var one of {' '.join(tokens)} and deg 1 to 3)")
-    param, var, deg = m["param"], m["var"], int(m["deg"])
-    if param != TOOL and param not in errors:
-        raise InputError(f"{where}: '{effect_id}': unknown parameter '{param}' (expected an error name such as "
+    toks = tokens(machine)
+    e = ids.split(effect_id, toks)
+    if e is None:
+        raise InputError(f"{where}: {ids.explain(effect_id, toks)}")
+    if e.param != TOOL and e.param not in errors:
+        raise InputError(f"{where}: '{effect_id}': unknown parameter '{e.param}' (expected an error name such as "
                          f"{', '.join(errors[:3])} ... or L for the tool length)")
-    if var not in tokens:
-        raise InputError(f"{where}: '{effect_id}': unknown variable '{var}' (expected one of: {' '.join(tokens)})")
-    return Effect(f"{param}:{var}{deg}", param, var, deg)
+    return Effect(e.text, e.param, e.var, e.kind, e.arg)
 
 
 def vocabulary(machine, errors, with_time: bool) -> list[Effect]:
-    """Every effect: all errors and L, times every pose variable (and t if the data has times), degrees 1-3."""
-    tokens = [var_token(machine, v) for v in machine.variables] + ([TIME] if with_time else [])
-    return [Effect(f"{p}:{v}{d}", p, v, d) for p in (*errors, TOOL) for v in tokens for d in DEGREES]
+    """The polynomial effects: all errors and L, times every pose variable (and t if the data has times),
+    degrees 1-3. (Reversal, periodic and thermal candidates depend on the data; see `fiveaxis.diagnose`.)"""
+    toks = tokens(machine, with_time)
+    return [Effect(f"{p}:{v}{d}", p, v, "poly", float(d)) for p in (*errors, TOOL) for v in toks for d in DEGREES]
 
 
-def scaled_values(sc: dict[str, Scale], poses, variables, t) -> dict[str, np.ndarray]:
-    """u = (value - centre) / half of every effect variable at every pose."""
-    out = {}
-    for tok, s in sc.items():
-        raw = t if s.column is None else poses[:, list(variables).index(s.column)]
-        if raw is None:
-            continue
-        out[tok] = (np.asarray(raw, dtype=float) - s.centre) / s.half
-    return out
-
-
-def columns(effects, J, tool_dir, u: dict[str, np.ndarray], errors) -> np.ndarray:
-    """Design columns (3n, len(effects)): d(P_err)/d(coefficient) = J_param * u^deg (L: tool direction * u^deg).
-
-    J: (n, n_errors, 3) at the measured tool lengths; tool_dir: (n, 3) ideal tool axis; rows ordered pose by
-    pose, dx dy dz."""
-    n = J.shape[0]
-    index = {e: i for i, e in enumerate(errors)}
-    out = np.empty((3 * n, len(effects)))
-    for c, eff in enumerate(effects):
-        if eff.var not in u:
-            raise InputError(f"effect {eff.id}: the measurements have no '{eff.var}' column")
-        vec = tool_dir if eff.param == TOOL else J[:, index[eff.param], :]
-        out[:, c] = (vec * (u[eff.var] ** eff.deg)[:, None]).ravel()
-    return out
-
-
-def per_pose(effects, coefs, u: dict[str, np.ndarray], errors, n: int):
-    """Error values added per pose (n, n_errors) and tool-length change per pose (n,) for given coefficients."""
-    E = np.zeros((n, len(errors)))
-    dL = np.zeros(n)
+# -- what every effect provides, used by fit, diagnose, simulate and compensation ----------------------------------
+def per_pose(effects, coefs, ctx: EffectContext, errors):
+    """Error values added per pose (n, n_errors) and tool-length change per pose (n,), for effects and their
+    coefficient arrays coefs (one array per effect, len(effect.names) each)."""
+    E = np.zeros((ctx.n, len(errors)))
+    dL = np.zeros(ctx.n)
     index = {e: i for i, e in enumerate(errors)}
     for eff, c in zip(effects, coefs):
-        term = c * u[eff.var] ** eff.deg
+        term = eff.basis(ctx) @ np.asarray(c, dtype=float).reshape(-1)
         if eff.param == TOOL:
             dL += term
         else:
@@ -139,13 +224,18 @@ def per_pose(effects, coefs, u: dict[str, np.ndarray], errors, n: int):
     return E, dL
 
 
-def physical(machine, effect: Effect, coef: float, sc: dict[str, Scale]) -> tuple[float, str]:
-    """Coefficient in physical units: change of param per (unit of var)^deg, and that unit as text."""
-    s = sc[effect.var]
-    half = s.half * s.to_unit
-    unit = "mm" if effect.param == TOOL or not machine.is_angular(effect.param) else "rad"
-    per = s.unit if effect.deg == 1 else f"{s.unit}^{effect.deg}"
-    return coef / half ** effect.deg, f"{unit}/{per}"
+def split_coefficients(effects, theta) -> list[np.ndarray]:
+    """The flat coefficient vector of some effects, split per effect."""
+    out, k = [], 0
+    for eff in effects:
+        out.append(np.asarray(theta[k:k + len(eff.names)], dtype=float))
+        k += len(eff.names)
+    return out
+
+
+def effect_id(eff) -> str:
+    """The id of any effect (vocabulary id or custom effect name)."""
+    return eff.id
 
 
 # -- plain language -------------------------------------------------------------------------------------------
@@ -170,7 +260,7 @@ def describe_param(machine, param: str) -> str:
         where = next((a.name for a in machine.axes if param in a.pige), "?")
         if kind.startswith("r"):
             return f"the orientation (squareness) error {param} before axis {where} (rotation about {kind[1]})"
-        return f"the offset {param} of axis {where} (along {kind[1]})"
+        return f"the offset {param} of axis {where} (along {kind[1:]})"
     prefix, d = param.split("_")[0], param.split("_")[0][1]
     own = _DIR[int(np.argmax(np.abs(ax.direction)))]
     if ax.type == "linear":
@@ -189,13 +279,29 @@ def describe_param(machine, param: str) -> str:
     return f"the radial motion of {ax.name} along {d}"
 
 
+def _var_words(machine, var):
+    if var == TIME:
+        return "time", "s"
+    name = var.upper() if var.upper() in machine.variables else var
+    kind = machine.axis(name).type if name in machine.variables else "linear"
+    return name, ("deg" if kind == "rotary" else "mm")
+
+
 def describe(machine, effect: Effect) -> str:
-    """A plain-language description of an effect, e.g. 'roll of the X carriage changing linearly along X'."""
+    """A plain-language description of an effect, e.g. 'the roll of the X carriage changing linearly along X'."""
     what = describe_param(machine, effect.param)
+    name, unit = _var_words(machine, effect.var)
+    if effect.kind == "reversal":
+        return f"{what} changing with the direction of approach of {name} (reversal: backlash or lost motion)"
+    if effect.kind == "periodic":
+        note = " (a lead-screw or rack pitch error)" if unit == "mm" else (
+            " (a gear or encoder error)" if unit == "deg" else " (a cyclic thermal or environmental effect)")
+        return f"{what} varying periodically with {name}, period {ids.fmt(effect.arg)} {unit}{note}"
+    if effect.kind == "thermal":
+        return f"{what} drifting with time towards a new value, time constant {ids.fmt(effect.arg)} s (thermal)"
     if effect.var == TIME:
         how = f"drifting {_HOW[effect.deg]} with time"
     else:
-        name = effect.var.upper()
         kind = machine.axis(name).type if name in machine.variables else "linear"
         how = f"changing {_HOW[effect.deg]} {'along' if kind == 'linear' else 'with the angle of'} {name}"
     text = f"{what} {how}"

@@ -1,11 +1,18 @@
-"""Weighted least squares of a model's errors (and added effects) to measured tool-tip deviations.
+"""Weighted least squares of a model's errors, added effects and setup placements to measured readings.
 
-First order (the design is J of Eq. 10 stacked pose by pose), then refined on the exact nonlinear model by
-Gauss-Newton steps with the first-order design. Identifiability is part of the answer: the columns are scaled to
-unit norm, the SVD gives the rank and condition number, and its null space gives the parameter combinations the
-data cannot separate. A parameter touched by the null space gets no value of its own; only the combinations of
-such parameters that the data determines (e.g. `ex_x + Syz`) get a value and a standard error.
-Units: mm for translations and tool-tip deviations, rad for rotations; effect coefficients as in `effects`.
+The design has one row per reading (`fiveaxis.observations`): tool-tip components, tool-axis components and 1-D
+readings along a direction, in the workpiece or the machine frame, and one column per parameter: the 41 (or so)
+errors of the model (mm, rad; Eq. 10-11), the coefficients of added effects (`fiveaxis.effects`) and the unknown
+placements of the setups (`fiveaxis.setups`). First order, then refined on the exact nonlinear model by
+Gauss-Newton steps with the first-order design. Parameters known from elsewhere can be held fixed.
+Identifiability is part of the answer: the columns are scaled to unit norm, the SVD gives the rank and the condition
+number, and its null space the combinations the data cannot separate. A parameter touched by the null space gets no
+value of its own; only the combinations of such parameters that the data determines (e.g. `ex_y + Syz`) get a value
+and an uncertainty.
+Weights: 1/sigma from the file; without sigma, the noise of each kind of reading (mm, rad) is estimated from the
+residual (variance components). Uncertainties are standard uncertainties, scaled by sqrt(reduced chi2) when a
+sigma column is given and the fit is worse than it says (Birge ratio), and reported also expanded (k = 2).
+Units: mm for translations and readings, rad for rotations; effect coefficients as in `fiveaxis.effects`.
 """
 from __future__ import annotations
 
@@ -15,6 +22,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import effects as fx
+from . import observations as ob
+from . import setups as su
 from .errors import InputError
 
 #: Singular values below RANK_RTOL * largest (of the unit-norm columns) count as zero: those directions are not
@@ -24,6 +33,10 @@ RANK_RTOL = 1e-8
 NULL_TOL = 1e-6
 #: Correlations stronger than this are listed.
 STRONG_CORRELATION = 0.95
+#: Coverage factor of the expanded uncertainty in reports.
+K_EXPANDED = 2.0
+#: Initial weight of tool-axis readings (1/rad) relative to 1/mm for tip readings when neither has a sigma.
+ANGLE_WEIGHT0 = 100.0
 
 
 @dataclass
@@ -31,55 +44,80 @@ class Problem:
     """Everything the fit and the diagnosis need about one model and one measurement set."""
     model: object
     meas: object
-    effects: list              # added effects (fx.Effect or custom effects), in parameter order after the errors
-    names: list                # parameter names: errors, then the coefficients of the effects
-    scales: dict
-    u: dict                    # scaled effect variables per pose
+    obs: ob.Observations
+    effects: list              # added effects (fiveaxis.effects interface), coefficients after the errors
+    names: list                # parameter names: errors, effect coefficients, setup unknowns
+    ctx: fx.EffectContext      # where effects are evaluated (poses, t, dirs, scales)
     J: np.ndarray              # (n, n_errors, 3) at the measured tool lengths
+    K: np.ndarray              # (n, n_errors, 3)
     tool_dir: np.ndarray       # (n, 3) ideal tool axis
-    A: np.ndarray              # (3n, p) design, mm per unit parameter
-    w: np.ndarray              # (3n,) weights 1/sigma (ones without a sigma column)
-    d: np.ndarray              # (3n,) measured deviations, mm
+    tip: np.ndarray            # (n, 3) ideal tool tip (mm, workpiece frame)
+    A: np.ndarray              # (m, p) design, reading per unit parameter
+    w: np.ndarray              # (m,) weights 1/sigma (relative weights where sigma is estimated)
+    d: np.ndarray              # (m,) readings (mm, rad)
+    setups: su.SetupBlock
+    fixed: dict = field(default_factory=dict)   # name -> value held fixed (mm, rad)
+    known: np.ndarray = None   # (m,) bool: the row's sigma comes from the file
 
     @property
     def n_errors(self) -> int:
         return len(self.model.errors)
 
+    @property
+    def scales(self) -> dict:
+        return self.ctx.scales
+
+    @property
+    def n_effect_coefs(self) -> int:
+        return sum(len(e.names) for e in self.effects)
+
+    @property
+    def free(self) -> np.ndarray:
+        """(p,) bool: the parameter is fitted (not held fixed)."""
+        return np.array([n not in self.fixed for n in self.names])
+
+    @property
+    def known_sigma(self) -> bool:
+        return bool(self.known.all())
+
+    def param_column(self, param: str) -> np.ndarray:
+        """Reading per unit change of an error (mm or rad) or of the tool length L (mm), (m,)."""
+        if param == fx.TOOL:
+            return ob.tip_column(self.obs, self.tool_dir)
+        return self.A[:, list(self.model.errors).index(param)]
+
     def effect_columns(self, effects) -> np.ndarray:
-        """Design columns of effects (vocabulary or custom) at these poses."""
-        cols = []
-        for eff in effects:
-            if isinstance(eff, fx.Effect):
-                cols.append(fx.columns([eff], self.J, self.tool_dir, self.u, self.model.errors))
-            else:
-                cols.append(eff.columns(self, np.zeros(len(eff.names))))
-        return np.hstack(cols) if cols else np.empty((len(self.d), 0))
+        """Design columns (m, sum of coefficients) of effects at these readings."""
+        cols = [self.param_column(e.param)[:, None] * e.basis(self.ctx)[self.obs.row] for e in effects]
+        return np.hstack(cols) if cols else np.empty((self.obs.m, 0))
+
+    def per_pose(self, theta: np.ndarray):
+        """Error values (n, n_errors) and tool-length changes (n,) per pose for parameter values theta."""
+        ne = self.n_errors
+        coefs = fx.split_coefficients(self.effects, theta[ne:ne + self.n_effect_coefs])
+        E, dL = fx.per_pose(self.effects, coefs, self.ctx, self.model.errors)
+        return E + theta[:ne], dL
 
     def predict(self, theta: np.ndarray, exact: bool = True) -> np.ndarray:
-        """Tool-tip deviations (3n, mm) predicted for parameter values theta (first order or exact)."""
+        """Readings (m,) predicted for parameter values theta (first order, or the exact model)."""
         if not exact:
             return self.A @ theta
-        n, ne = self.meas.n, self.n_errors
-        E = np.tile(theta[:ne], (n, 1))
-        dL = np.zeros(n)
-        k = ne
-        for eff in self.effects:
-            c = theta[k:k + len(eff.names)]
-            if isinstance(eff, fx.Effect):
-                dE, dl = fx.per_pose([eff], c, self.u, self.model.errors, n)
-            else:
-                dE, dl = eff.per_pose(self, c)
-            E += dE
-            dL += dl
-            k += len(eff.names)
-        P = self.model.position_error(self.meas.poses, np.ascontiguousarray(E), self.meas.L + dL, exact=True)
-        return (P + self.tool_dir * dL[:, None]).ravel()
+        E, dL = self.per_pose(theta)
+        P, V = self.model.tool_errors(self.meas.poses, np.ascontiguousarray(E), self.meas.L + dL, exact=True)
+        out = ob.apply(self.obs, P + self.tool_dir * dL[:, None], V)
+        q = self.setups.q
+        if q:
+            out = out + self.setups.columns @ theta[-q:]
+        return out
 
 
 def resolve_effects(model, ids, where="--add"):
     """Effects from ids: the vocabulary (`ex_x:x1`) or custom effects of the machine file (by name)."""
     out, seen = [], set()
     for ident in ids:
+        if not isinstance(ident, str):
+            out.append(ident)
+            continue
         if ident in seen:
             raise InputError(f"{where}: effect '{ident}' given twice (or already in the machine file's "
                              f"[model] effects)")
@@ -97,29 +135,65 @@ def machine_effects(model) -> list[str]:
     return list(model.machine.added_effects)
 
 
-def build(model, meas, added=()) -> Problem:
-    """The design of a model with added effects (ids or Effect records) at the measured poses."""
-    resolved = iter(resolve_effects(model, [e for e in added if isinstance(e, str)]))
-    effects = [next(resolved) if isinstance(e, str) else e for e in added]
-    J, _ = model.jk(meas.poses, meas.L)
-    _, tool_dir = model.ideal_tool(meas.poses, meas.L)
-    sc = fx.scales(model.machine, meas.t)
-    u = fx.scaled_values(sc, meas.poses, model.variables, meas.t)
-    n = meas.n
-    base = J.transpose(0, 2, 1).reshape(3 * n, -1)
-    w = np.repeat(1.0 / meas.sigma, 3) if meas.sigma is not None else np.ones(3 * n)
-    prob = Problem(model, meas, list(effects), list(model.errors), sc, u, J, tool_dir, base, w, meas.d.ravel())
+def _check_finite(prob_names, A, meas, obs, start):
+    bad = ~np.isfinite(A)
+    if bad.any():
+        r, c = np.argwhere(bad)[0]
+        raise InputError(f"{meas.path}: data row {meas.rows[obs.row[r]]}: the design column of {prob_names[start + c]} "
+                         f"is not finite there (an effect's expression undefined at this pose, e.g. log or sqrt of "
+                         f"a negative value)")
+
+
+def build(model, meas, added=(), fixed=None) -> Problem:
+    """The design of a model with added effects (ids or effect records) and held parameters at the readings."""
+    effects = resolve_effects(model, list(added))
+    obs = ob.build(meas, model.machine)
+    J, K = model.jk(meas.poses, meas.L)
+    tip, tool_dir = model.ideal_tool(meas.poses, meas.L)
+    ctx = fx.context(model.machine, meas.poses, meas.t, meas.dirs)
+    base = ob.design(obs, J, K)
+    sb = su.block(obs, meas, model.machine, tip)
+    names = list(model.errors)
+    prob = Problem(model, meas, obs, effects, names, ctx, J, K, tool_dir, tip, base, np.ones(obs.m), obs.value,
+                   sb)
+    blocks = [base]
     if effects:
-        prob.A = np.hstack([base, prob.effect_columns(effects)])
-        prob.names = list(model.errors) + [nm for e in effects for nm in e.names]
+        E = prob.effect_columns(effects)
+        _check_finite([n for e in effects for n in e.names], E, meas, obs, 0)
+        blocks.append(E)
+        names += [nm for e in effects for nm in e.names]
+    if sb.q:
+        blocks.append(sb.columns)
+        names += sb.names
+    prob.A = np.hstack(blocks) if len(blocks) > 1 else base
+    prob.names = names
+    prob.fixed = _check_fixed(model, names, fixed or {})
+    known = ~np.isnan(obs.sigma)
+    w = np.where(known, 1.0 / np.where(known, obs.sigma, 1.0), 1.0)
+    angle = obs.group == ob.ANGLE
+    if (~known & angle).any() and (~known & ~angle).any():
+        w[~known & angle] = ANGLE_WEIGHT0
+    prob.w, prob.known = w, known
     return prob
+
+
+def _check_fixed(model, names, fixed: dict) -> dict:
+    out = {}
+    for name, value in fixed.items():
+        if name not in names:
+            raise InputError(f"fixed parameter '{name}': not a parameter of this fit (expected an error name such as "
+                             f"{', '.join(model.errors[:3])} ..., an added effect's coefficient or a setup unknown)")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise InputError(f"fixed parameter '{name}': expected a finite number (mm or rad), got {value!r}")
+        out[name] = float(value)
+    return out
 
 
 @dataclass
 class Identifiability:
     """Rank, condition and null space of a weighted design with unit-norm columns."""
     norms: np.ndarray          # column norms of the weighted design
-    U: np.ndarray              # (3n, r) orthonormal basis of the column space
+    U: np.ndarray              # (m, r) orthonormal basis of the column space
     s: np.ndarray              # (r,) non-zero singular values (unit-norm columns)
     Vt: np.ndarray             # (r, p) right singular vectors
     null: np.ndarray           # (p, p - r) null-space basis (unit-norm coordinates)
@@ -137,12 +211,16 @@ def identify(Aw: np.ndarray) -> Identifiability:
     norms = np.linalg.norm(Aw, axis=0)
     safe = np.where(norms > 0, norms, 1.0)
     X = Aw / safe
-    if X.shape[0] > 2 * X.shape[1]:       # tall: QR first, then the SVD of the small triangle (same result)
-        Qx, R = np.linalg.qr(X)
-        Us, s, Vt = np.linalg.svd(R)
-        U = Qx @ Us
-    else:
-        U, s, Vt = np.linalg.svd(X, full_matrices=X.shape[0] < X.shape[1])
+    try:
+        if X.shape[0] > 2 * X.shape[1]:       # tall: QR first, then the SVD of the small triangle (same result)
+            Qx, R = np.linalg.qr(X)
+            Us, s, Vt = np.linalg.svd(R)
+            U = Qx @ Us
+        else:
+            U, s, Vt = np.linalg.svd(X, full_matrices=X.shape[0] < X.shape[1])
+    except np.linalg.LinAlgError:
+        raise InputError("the design of this fit could not be decomposed (SVD did not converge): the readings or "
+                         "an effect's columns are not usable numbers") from None
     r = int(np.sum(s > RANK_RTOL * s[0])) if s.size and s[0] > 0 else 0
     null = Vt[r:].T                       # includes the unit vectors of zero columns
     determined = np.linalg.norm(null, axis=1) < NULL_TOL if null.size else np.ones(len(norms), bool)
@@ -188,16 +266,17 @@ def formula(terms: dict) -> str:
 
 @dataclass
 class FitResult:
-    """The fitted parameters with their identifiability, and the residual (mm)."""
+    """The fitted parameters with their identifiability, and the residual (readings: mm, rad)."""
     problem: Problem
-    theta: np.ndarray          # parameter values (minimum-norm choice along undetermined directions)
-    cov: np.ndarray
-    idf: Identifiability
-    residual: np.ndarray       # (3n,) mm, exact model
-    residual_first: np.ndarray  # (3n,) mm, first-order model
+    theta: np.ndarray          # all parameter values (fixed ones included; minimum norm along undetermined ones)
+    cov: np.ndarray            # (p, p) covariance (zero rows and columns for fixed parameters)
+    idf: Identifiability       # of the free parameters
+    residual: np.ndarray       # (m,) exact model
+    residual_first: np.ndarray  # (m,) first-order model
     sigma2: float              # variance factor (1 with a sigma column: weights are 1/sigma)
     known_sigma: bool
     iterations: int
+    uncertainty_scale: float = 1.0   # sqrt(reduced chi2) applied to the uncertainties (1: not scaled)
     groups: list = field(default_factory=list)          # lists of names not determined alone
     combinations: list = field(default_factory=list)    # Combination records
     correlations: list = field(default_factory=list)    # (name, name, r)
@@ -207,8 +286,23 @@ class FitResult:
         return self.problem.names
 
     @property
+    def free_names(self):
+        return [n for n, f in zip(self.problem.names, self.problem.free) if f]
+
+    def _rms(self, group) -> float | None:
+        g = self.problem.obs.group == group
+        return float(np.sqrt(np.mean(self.residual[g] ** 2))) if g.any() else None
+
+    @property
     def rms_mm(self) -> float:
-        return float(np.sqrt(np.mean(self.residual ** 2)))
+        """RMS of the residual of the readings in mm (tip and 1-D)."""
+        v = self._rms(ob.LENGTH)
+        return v if v is not None else 0.0
+
+    @property
+    def rms_rad(self) -> float | None:
+        """RMS of the residual of the tool-axis readings (rad), None without them."""
+        return self._rms(ob.ANGLE)
 
     @property
     def dof(self) -> int:
@@ -217,6 +311,14 @@ class FitResult:
     @property
     def chi2(self) -> float:
         return float(np.sum((self.residual * self.problem.w) ** 2))
+
+    def noise(self, group) -> float | None:
+        """Standard deviation of one reading of a group (mm or rad): from the file, or estimated."""
+        g = self.problem.obs.group == group
+        if not g.any():
+            return None
+        w = self.problem.w[g]
+        return float(np.sqrt(self.sigma2 * np.mean(1.0 / w ** 2)))
 
     def std(self) -> np.ndarray:
         return np.sqrt(np.clip(np.diag(self.cov), 0, None))
@@ -268,141 +370,310 @@ def one_blas_thread():
     return threadpool_limits(limits=1, user_api="blas")
 
 
-def fit(model, meas, added=(), refine: bool = True, max_iter: int = 6) -> FitResult:
-    """Fit the errors of a model and the added effects to measurements; first order, then exact."""
+def fit(model, meas, added=(), refine: bool = True, max_iter: int = 6, fixed=None) -> FitResult:
+    """Fit the errors of a model, the added effects and the setups to measurements; first order, then exact.
+
+    added: effect ids or records, or a Problem already built; fixed: {name: value} held at known values."""
     with one_blas_thread():
-        return _fit(model, meas, added, refine, max_iter)
+        prob = added if isinstance(added, Problem) else build(model, meas, added, fixed)
+        return _fit(prob, refine, max_iter)
 
 
-def _fit(model, meas, added, refine, max_iter) -> FitResult:
-    prob = added if isinstance(added, Problem) else build(model, meas, added)
-    Aw = prob.A * prob.w[:, None]
-    dw = prob.d * prob.w
+def _solve_all(prob, free, fixed_vals, refine, max_iter):
+    """(theta, idf, first-order residual, exact residual, iterations) for the current weights."""
+    Af = prob.A[:, free]
+    theta = np.zeros(len(prob.names))
+    theta[~free] = fixed_vals
+    Aw = Af * prob.w[:, None]
     idf = identify(Aw)
-    theta = _solve(idf, dw)
+    rhs = prob.d - prob.A[:, ~free] @ fixed_vals
+    theta[free] = _solve(idf, rhs * prob.w)
     res_first = prob.d - prob.A @ theta
     iterations = 0
     if refine:
         for iterations in range(1, max_iter + 1):
             r = prob.d - prob.predict(theta)
             step = _solve(idf, r * prob.w)
-            theta = theta + step
-            scale = np.abs(theta) * idf.norms
-            if np.all(np.abs(step) * idf.norms <= 1e-10 * (np.max(scale) + 1e-300)):
+            theta[free] = theta[free] + step
+            scale = np.abs(theta[free]) * idf.norms
+            if np.all(np.abs(step) * idf.norms <= 1e-10 * (np.max(scale, initial=0.0) + 1e-300)):
                 break
         residual = prob.d - prob.predict(theta)
     else:
         residual = res_first
-    known = prob.meas.sigma is not None
-    dof = max(len(dw) - idf.rank, 1)
-    sigma2 = 1.0 if known else float(np.sum((residual * prob.w) ** 2) / dof)
-    cov = _cov(idf, sigma2)
-    res = FitResult(prob, theta, cov, idf, residual, res_first, sigma2, known, iterations)
-    res.groups, res.combinations = _groups_and_combinations(idf, theta, cov, prob.names)
-    std = res.std()
+    return theta, idf, res_first, residual, iterations
+
+
+def _fit(prob: Problem, refine, max_iter) -> FitResult:
+    free = prob.free
+    fixed_vals = np.array([prob.fixed[n] for n, f in zip(prob.names, free) if not f])
+    groups = prob.obs.group
+    present = [g for g in (ob.LENGTH, ob.ANGLE) if (groups == g).any()]
+    unknown = [g for g in present if not prob.known[groups == g].all()]
+    theta, idf, res_first, residual, iterations = _solve_all(prob, free, fixed_vals, refine, max_iter)
+    m = len(prob.d)
+    if m - idf.rank < 1 and unknown:
+        raise InputError(f"{prob.meas.path}: {m} reading(s) for {idf.rank} determined parameter(s): the noise cannot "
+                         f"be estimated (expected more readings than parameters, or a sigma column)")
+    if unknown and len(present) > 1:
+        # Variance components: weight each kind of reading (mm, rad) by its own noise, estimated from the residual.
+        for _ in range(4):
+            rw = residual * prob.w
+            s2 = {}
+            for g in present:
+                sel = groups == g
+                s2[g] = float(np.sum(rw[sel] ** 2)) / max(sel.sum() * (1 - idf.rank / m), 1.0)
+            target = 1.0 if len(unknown) < len(present) else s2[present[0]]
+            change = 0.0
+            for g in unknown:
+                if s2[g] > 0 and target > 0:
+                    f = math.sqrt(target / s2[g])
+                    prob.w[groups == g] *= f
+                    change = max(change, abs(f - 1))
+            if change < 1e-3:
+                break
+            theta, idf, res_first, residual, iterations = _solve_all(prob, free, fixed_vals, refine, max_iter)
+    known = not unknown
+    dof = max(m - idf.rank, 1)
+    chi2 = float(np.sum((residual * prob.w) ** 2))
+    sigma2 = 1.0 if known else chi2 / dof
+    scale = 1.0
+    if known and chi2 / dof > 1.0:
+        scale = math.sqrt(chi2 / dof)
+    covf = _cov(idf, sigma2) * scale ** 2
+    p = len(prob.names)
+    cov = np.zeros((p, p))
+    fi = np.flatnonzero(free)
+    cov[np.ix_(fi, fi)] = covf
+    res = FitResult(prob, theta, cov, idf, residual, res_first, sigma2, known, iterations, scale)
+    fnames = [prob.names[i] for i in fi]
+    res.groups, res.combinations = _groups_and_combinations(idf, theta[fi], covf, fnames)
+    std = np.sqrt(np.clip(np.diag(covf), 0, None))
     det = np.flatnonzero(idf.determined & (idf.norms > 0))
     for a_i, a in enumerate(det):
         for b in det[a_i + 1:]:
             if std[a] > 0 and std[b] > 0:
-                r_ab = cov[a, b] / (std[a] * std[b])
+                r_ab = covf[a, b] / (std[a] * std[b])
                 if abs(r_ab) >= STRONG_CORRELATION:
-                    res.correlations.append((prob.names[a], prob.names[b], float(r_ab)))
+                    res.correlations.append((fnames[a], fnames[b], float(r_ab)))
     return res
 
 
 def identifiable_count(model, n_poses: int = 64, seed: int = 0) -> int:
-    """Rank of the model's error design on generic poses inside the strokes: the parameters it can identify."""
+    """Rank of the model's error design on generic poses inside the strokes (tool-tip readings): the parameters
+    it can identify from full 3-D tip data at one tool length."""
     J, _ = model.jk(model.machine.random_poses(n_poses, seed), model.machine.tool_length)
     return identify(J.transpose(0, 2, 1).reshape(3 * n_poses, -1)).rank
 
 
+def truth_vector(prob: Problem, errors: dict, effects: dict | None = None, setups: dict | None = None) -> np.ndarray:
+    """Parameter values in the problem's order from known values (a simulation's truth): errors by name (mm, rad),
+    effect coefficients by coefficient name (as fitted), setup unknowns by name; missing ones are zero."""
+    vals = {**errors, **(effects or {}), **(setups or {})}
+    return np.array([float(vals.get(n, 0.0)) for n in prob.names])
+
+
 # -- reports ---------------------------------------------------------------------------------------------------
-def _unit(model, name: str) -> str:
+def _unit(prob: Problem, name: str) -> str:
+    model = prob.model
     if name in model.errors:
         return "rad" if model.machine.is_angular(name) else "mm"
+    if su.is_setup_param(name):
+        return prob.setups.unit(name.split("[")[0])
     return ""
 
 
+def _entry(value, std, unit) -> dict:
+    out = {"value": value, "std": std, "unit": unit}
+    if std is not None:
+        out["expanded_k2"] = K_EXPANDED * std
+    return out
+
+
 def parameters(res: FitResult) -> dict:
-    """Per-parameter values in physical units; undetermined parameters have value None and a note."""
+    """Per-parameter values in physical units (machine errors and effect coefficients; setups apart); an
+    undetermined parameter has value None and a note; a fixed one its value and std 0."""
     prob, model = res.problem, res.problem.model
     std = res.std()
     out = {}
-    index = {n: i for i, n in enumerate(prob.names)}
     in_group = {n: g for g in res.groups for n in g}
+    fi = {n: i for i, n in enumerate(res.free_names)}
     for i, name in enumerate(prob.names):
-        if name in in_group:
-            if res.idf.norms[i] == 0:
-                note = "no effect on the measured tool tip at these poses"
+        if su.is_setup_param(name):
+            continue
+        if name in prob.fixed:
+            out[name] = {"value": prob.fixed[name], "std": 0.0, "unit": _unit(prob, name), "fixed": True}
+        elif name in in_group:
+            if res.idf.norms[fi[name]] == 0:
+                note = "no effect on the measured readings at these poses"
             else:
                 forms = [c.formula for c in res.combinations if name in c.terms]
                 note = "not determined alone by this data" + (f"; see {'; '.join(forms)}" if forms else "")
-            out[name] = {"value": None, "std": None, "unit": _unit(model, name), "note": note}
+            out[name] = {"value": None, "std": None, "unit": _unit(prob, name), "note": note}
         else:
-            out[name] = {"value": float(res.theta[i]), "std": float(std[i]), "unit": _unit(model, name)}
+            out[name] = _entry(float(res.theta[i]), float(std[i]), _unit(prob, name))
     k = prob.n_errors
     for eff in prob.effects:
-        if isinstance(eff, fx.Effect):
-            i = index[eff.id]
-            if out[eff.id]["value"] is not None:
-                v, unit = fx.physical(model.machine, eff, res.theta[i], prob.scales)
-                sv, _ = fx.physical(model.machine, eff, std[i], prob.scales)
-                out[eff.id].update(value=v, std=abs(sv), unit=unit)
-            out[eff.id]["description"] = fx.describe(model.machine, eff)
-        else:
-            for nm in eff.names:
-                out[nm]["description"] = eff.description
+        idx = list(range(k, k + len(eff.names)))
+        vals = eff.physical(model.machine, res.theta[idx], prob.scales)
+        stds = eff.physical(model.machine, std[idx], prob.scales)
+        for j, nm in enumerate(eff.names):
+            entry = out[nm]
+            if entry["value"] is not None and not entry.get("fixed"):
+                entry.update(_entry(vals[j][0], abs(stds[j][0]), vals[j][1]))
+            else:
+                entry["unit"] = vals[j][1]
+            entry["description"] = eff.describe(model.machine)
         k += len(eff.names)
     return out
 
 
+def setup_results(res: FitResult) -> list[dict]:
+    """Each setup: its kind, frame, the fitted placement unknowns (mm, rad) and what its readings cannot see."""
+    prob = res.problem
+    std = res.std()
+    index = {n: i for i, n in enumerate(prob.names)}
+    in_group = {n for g in res.groups for n in g}
+    out = []
+    for s in prob.setups.setups:
+        item = s.to_json()
+        params = {}
+        for nm in s.names:
+            i = index[nm]
+            unit = prob.setups.unit(nm.split("[")[0])
+            if nm in prob.fixed:
+                params[nm] = {"value": prob.fixed[nm], "std": 0.0, "unit": unit, "fixed": True}
+            elif nm in in_group:
+                forms = [c.formula for c in res.combinations if nm in c.terms]
+                params[nm] = {"value": None, "std": None, "unit": unit,
+                              "note": "not determined alone by this data" + (f"; see {'; '.join(forms)}" if forms
+                                                                              else "")}
+            else:
+                params[nm] = _entry(float(res.theta[i]), float(std[i]), unit)
+        item["parameters"] = params
+        out.append(item)
+    return out
+
+
 def to_json(res: FitResult) -> dict:
-    return {
-        "file": str(res.problem.meas.path), "n": res.problem.meas.n,
-        "rms_mm": res.rms_mm, "rms_first_order_mm": float(np.sqrt(np.mean(res.residual_first ** 2))),
+    prob = res.problem
+    obs = prob.obs
+    counts = {ob.KIND_NAMES[k]: int(np.sum(obs.kind == k)) for k in range(3) if (obs.kind == k).any()}
+    first = res.residual_first
+    lg = obs.group == ob.LENGTH
+    out = {
+        "file": str(prob.meas.path), "n": prob.meas.n, "readings": counts, "frame": obs.frame,
+        "rms_mm": res.rms_mm,
+        "rms_first_order_mm": float(np.sqrt(np.mean(first[lg] ** 2))) if lg.any() else 0.0,
         "rank": res.idf.rank, "n_parameters": res.idf.n_params, "condition": res.idf.condition,
         "sigma": "sigma column" if res.known_sigma else "estimated from the residual",
         "reduced_chi2": res.chi2 / max(res.dof, 1) if res.known_sigma else None,
-        "effects": [e.id if isinstance(e, fx.Effect) else e.name for e in res.problem.effects],
+        "uncertainty_scale": res.uncertainty_scale,
+        "noise_mm": res.noise(ob.LENGTH),
+        "effects": [e.id for e in prob.effects],
+        "fixed": dict(prob.fixed),
         "parameters": parameters(res),
+        "setups": setup_results(res),
         "unidentifiable": res.groups,
-        "combinations": [dict({"formula": c.formula, "terms": c.terms, "value": c.value, "std": c.std},
+        "combinations": [dict({"formula": c.formula, "terms": c.terms, "value": c.value, "std": c.std,
+                               "expanded_k2": K_EXPANDED * c.std, "unit": _combo_unit(prob, c.terms)},
                               **({"note": "effect coefficients in this combination are their change at the end of "
                                           "the scaled range (u = 1), in the parameter's unit"}
-                                 if set(c.terms) - set(res.problem.model.errors) else {}))
+                                 if set(c.terms) - set(prob.model.errors) - set(prob.setups.names) else {}))
                          for c in res.combinations],
         "correlations": [{"a": a, "b": b, "r": r} for a, b, r in res.correlations],
         "iterations": res.iterations,
     }
+    if res.rms_rad is not None:
+        out["rms_rad"] = res.rms_rad
+        out["noise_rad"] = res.noise(ob.ANGLE)
+    if out["noise_mm"] is None:
+        del out["noise_mm"]
+    return out
+
+
+def _combo_unit(prob, terms) -> str:
+    """The unit of a combination: that of its first term (a combination mixes parameters of one unit, or of
+    units the readings relate: mm and rad times the tool length)."""
+    first = next(iter(terms))
+    return _unit(prob, first) or "scaled"
+
+
+# -- text ------------------------------------------------------------------------------------------------------
+def human(value: float, unit: str) -> str:
+    """A value in units for people: um for mm, urad for rad, with 4 significant figures."""
+    if unit == "mm":
+        return f"{value * 1000:.4g} um"
+    if unit == "rad":
+        return f"{value * 1e6:.4g} urad"
+    if unit.startswith("mm/"):
+        return f"{value * 1000:.4g} um/{unit[3:]}"
+    if unit.startswith("rad/"):
+        return f"{value * 1e6:.4g} urad/{unit[4:]}"
+    return f"{value:.6g} {unit}".rstrip()
 
 
 def report(res: FitResult) -> str:
-    """A readable report (in the manner of lmfit's fit_report)."""
+    """A readable report (in the manner of lmfit's fit_report): um and urad, expanded uncertainty (k = 2)."""
     j = to_json(res)
+    readings = ", ".join(f"{v} {k}" for k, v in j["readings"].items())
     lines = ["[[Fit]]",
-             f"    file:            {j['file']}",
-             f"    poses:           {j['n']} ({3 * j['n']} deviations dx, dy, dz)",
-             f"    parameters:      {j['n_parameters']}, determined by this data: rank {j['rank']}",
+             f"    file:            {j['file']} ({j['frame']} frame)",
+             f"    poses:           {j['n']} ({readings} readings)",
+             f"    parameters:      {j['n_parameters']} fitted, determined by this data: rank {j['rank']}"
+             + (f"; held fixed: {', '.join(j['fixed'])}" if j["fixed"] else ""),
              f"    condition:       {j['condition']:.4g} (design with unit-norm columns)",
              f"    residual RMS:    {j['rms_mm'] * 1000:.4g} um (exact model; first order "
-             f"{j['rms_first_order_mm'] * 1000:.4g} um, {j['iterations']} Gauss-Newton steps)"]
+             f"{j['rms_first_order_mm'] * 1000:.4g} um, {j['iterations']} Gauss-Newton steps)"
+             + (f"; tool axis {j['rms_rad'] * 1e6:.4g} urad" if "rms_rad" in j else "")]
     if res.known_sigma:
         lines.append(f"    reduced chi2:    {j['reduced_chi2']:.4g} (weights from the sigma column)")
+        if res.uncertainty_scale > 1:
+            lines.append(f"    uncertainties:   scaled by sqrt(reduced chi2) = {res.uncertainty_scale:.3g}: the fit is "
+                         f"worse than the sigma column says")
     else:
-        lines.append(f"    noise estimate:  {math.sqrt(res.sigma2) * 1000:.4g} um (no sigma column: from the residual)")
+        noise = []
+        if "noise_mm" in j:
+            noise.append(f"{j['noise_mm'] * 1000:.4g} um")
+        if "noise_rad" in j:
+            noise.append(f"{j['noise_rad'] * 1e6:.4g} urad (tool axis)")
+        lines.append(f"    noise estimate:  {', '.join(noise)} (no sigma column: from the residual)")
     if j["effects"]:
         lines.append(f"    added effects:   {', '.join(j['effects'])}")
-    lines.append("[[Parameters determined by this data]]  value +- std")
+    lines.append("[[Parameters determined by this data]]  value +- expanded uncertainty (k = 2)")
     for name, p in j["parameters"].items():
         if p["value"] is None:
             continue
-        unit = p["unit"]
-        lines.append(f"    {name:12s} {p['value']: .6g} +- {p['std']:.2g} {unit}"
+        if p.get("fixed"):
+            lines.append(f"    {name:12s} {human(p['value'], p['unit'])} (held fixed)")
+            continue
+        lines.append(f"    {name:12s} {human(p['value'], p['unit'])} +- {human(p['expanded_k2'], p['unit'])}"
                      + (f"   {p['description']}" if "description" in p else ""))
+    if j["setups"]:
+        lines.append("[[Setups: placement of the artefacts (not machine errors)]]  value +- expanded uncertainty "
+                     "(k = 2)")
+        for s in j["setups"]:
+            vals = []
+            for nm, p in s["parameters"].items():
+                short = nm.split("[")[0]
+                if p["value"] is None:
+                    vals.append(f"{short} not determined alone")
+                elif p.get("fixed"):
+                    vals.append(f"{short} {human(p['value'], p['unit'])} (fixed)")
+                else:
+                    vals.append(f"{short} {human(p['value'], p['unit'])} +- {human(p['expanded_k2'], p['unit'])}")
+            unseen = f"; not seen by its readings: {', '.join(n.split('[')[0] for n in s['not_seen_by_the_readings'])}" \
+                if s["not_seen_by_the_readings"] else ""
+            lines.append(f"    {s['id']} ({s['kind']}, {s['frame']} frame, {s['readings']} readings): "
+                         f"{'; '.join(vals)}{unseen}")
     if j["combinations"]:
         lines.append("[[Combinations determined by this data (members are not determined alone)]]")
         for c in j["combinations"]:
-            lines.append(f"    {c['formula']} = {c['value']: .6g} +- {c['std']:.2g}")
+            unit = c["unit"] if c["unit"] in ("mm", "rad") else ""
+            if unit:
+                lines.append(f"    {c['formula']} = {human(c['value'], unit)} +- {human(c['expanded_k2'], unit)}")
+            else:
+                lines.append(f"    {c['formula']} = {c['value']: .6g} +- {c['expanded_k2']:.2g}")
     if j["unidentifiable"]:
         lines.append("[[Not determined alone by this data]]")
         for g in j["unidentifiable"]:

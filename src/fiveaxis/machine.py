@@ -12,6 +12,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from . import effect_ids
 from .errors import InputError
 
 #: Kinds of position-independent error: small rotation about or translation along a local axis.
@@ -24,14 +25,14 @@ CANONICAL_ORDER = ("X", "Y", "Z", "A", "B", "C")
 MACHINES_DIR = Path(__file__).resolve().parents[2] / "machines"
 
 _TOP_KEYS = {"name", "title", "description", "tool", "tool_chain", "workpiece_chain", "errors",
-             "conventions", "effects", "model"}
+             "conventions", "effects", "model", "fit"}
 _AXIS_KEYS = {"axis", "type", "direction", "stroke", "errors", "pige", "description"}
 _TOOL_KEYS = {"length", "cutting_length", "direction"}
 _ERROR_KEYS = {"linear", "angular", "values"}
 _CONVENTION_KEYS = {"description", "move"}
 _MODEL_KEYS = {"effects"}
+_FIT_KEYS = {"fixed"}
 _EFFECT_KEYS = {"error", "expr", "description"}
-_EFFECT_ID_RE = re.compile(r"^(?P<param>[A-Za-z_][A-Za-z0-9_]*):(?P<var>[A-Za-z][A-Za-z0-9]*?)(?P<deg>[1-3])$")
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9]*$")
 
 
@@ -74,6 +75,7 @@ class Machine:
     effects: dict = field(default_factory=dict)       # custom effects: name -> {"error", "expr", ...}
     pige_order: tuple = ()                            # PIGE names as first declared: stable across conventions
     added_effects: tuple = ()                         # effects the model includes: ids (ex_x:x1) or custom names
+    fixed: dict = field(default_factory=dict)         # [fit] fixed: parameters held at known values (mm, rad)
 
     @property
     def axes(self) -> tuple[Axis, ...]:
@@ -156,7 +158,7 @@ class Machine:
         return Machine(self.name, self.path, self.title, moved(self.tool_chain), moved(self.workpiece_chain),
                        self.tool_length, self.cutting_length, self.tool_direction, self.linear_error,
                        self.angular_error, self.error_values, self.conventions, self.effects,
-                       self.pige_names, self.added_effects)
+                       self.pige_names, self.added_effects, self.fixed)
 
 
 def module_name(machine_name: str, convention: str = "equations") -> str:
@@ -344,18 +346,30 @@ def parse_machine(data: dict, path: Path) -> Machine:
         _fail(path, "model.effects", f"expected a list of effect ids such as [\"ex_x:x1\"], got {added!r}")
     tokens = {a.name.lower() if a.type == "linear" else a.name for c in chains.values() for a in c} | {"t"}
     for i, ident in enumerate(added):
-        m = _EFFECT_ID_RE.match(ident) if isinstance(ident, str) else None
         if isinstance(ident, str) and ident in effects:
             continue
-        if not m or m["param"] not in seen_errors | {"L"} or m["var"] not in tokens:
-            _fail(path, f"model.effects[{i}]", f"expected an effect id <error or L>:<{'|'.join(sorted(tokens))}><1-3> "
-                                               f"or a custom effect name, got {ident!r}")
+        m = effect_ids.split(ident, tokens)
+        if m is None or m.param not in seen_errors | {"L"}:
+            _fail(path, f"model.effects[{i}]", f"expected an effect id {effect_ids.expected(sorted(tokens))} with an "
+                                               f"error name of this machine or L, or a custom effect name, "
+                                               f"got {ident!r}")
     if len(set(added)) != len(added):
         _fail(path, "model.effects", "an effect is listed twice")
+    fitd = data.get("fit", {})
+    if not isinstance(fitd, dict):
+        _fail(path, "fit", "expected a table such as [fit] fixed = { dXOC = 0.012 }")
+    _unknown(path, "fit.", fitd, _FIT_KEYS)
+    fixed = fitd.get("fixed", {})
+    if not isinstance(fixed, dict):
+        _fail(path, "fit.fixed", "expected a table of parameter name = value (mm or rad)")
+    for k, v in fixed.items():
+        if k not in seen_errors:
+            _fail(path, f"fit.fixed.{k}", "unknown error name")
+        _number(path, f"fit.fixed.{k}", v)
     return Machine(name=name, path=Path(path), title=str(data.get("title", name)),
                    tool_chain=chains["tool_chain"], workpiece_chain=chains["workpiece_chain"],
                    tool_length=length, cutting_length=cutting, tool_direction=tdir,
                    linear_error=lin, angular_error=ang, error_values={k: float(v) for k, v in values.items()},
                    conventions=conventions, effects=dict(effects),
                    pige_order=tuple(n for c in chains.values() for a in c for n in a.pige),
-                   added_effects=tuple(added))
+                   added_effects=tuple(added), fixed={k: float(v) for k, v in fixed.items()})

@@ -13,20 +13,40 @@ import tomllib
 from pathlib import Path
 
 from ..errors import InputError
+from ..instruments import NAMES as INSTRUMENTS
+from ..measurements import FRAMES, SETUP_KINDS
 
 
 def _common(p, file_arg=True):
     if file_arg:
-        p.add_argument("file", type=Path, help="measurements: CSV or Parquet, one row per pose "
-                                               "(X,Y,Z mm; A,B deg; dx,dy,dz mm; optional L,t,di,dj,dk,sigma)")
+        p.add_argument("file", type=Path, help="measurements: CSV or Parquet, one row per pose (the machine's axes, "
+                                               "mm and deg; dx,dy,dz mm and/or di,dj,dk, or du with ux,uy,uz; "
+                                               "optional L,t,sigma,sigma_axis,setup,dir_<AXIS>; docs/measurements.md)")
     p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
     p.add_argument("--convention", default="equations", help="convention of the machine file (default: equations)")
+    p.add_argument("--frame", default=None, choices=FRAMES,
+                   help="frame of the deviations and directions: workpiece (default; the frame the errors are derived "
+                        "in) or machine (the bed: probe cycles, bed-mounted trackers; rotated by the nominal table "
+                        "rotation)")
+
+
+def _fit_options(p):
+    p.add_argument("--add", action="append", default=[], metavar="EFFECT",
+                   help="add an effect to the model, e.g. ex_x:x1 (repeatable)")
+    p.add_argument("--fix", action="append", default=[], metavar="NAME=VALUE",
+                   help="hold a parameter at a value known from elsewhere (mm or rad), e.g. dXOC=0.012; repeatable "
+                        "(also [fit] fixed = {...} in the machine file)")
+    p.add_argument("--setup-kind", default=None, choices=SETUP_KINDS,
+                   help="kind of the setups whose rows do not say (setup_kind column): point (offset; default), "
+                        "rigid (offset and rotation), planar (in-plane offset and rotation)")
+    p.add_argument("--setup-frame", default=None, choices=FRAMES,
+                   help="frame the setups' artefacts are fixed in when their rows do not say (setup_frame column): "
+                        "workpiece (on the table; default) or machine (on the bed)")
 
 
 def register_fit(p):
     _common(p)
-    p.add_argument("--add", action="append", default=[], metavar="EFFECT",
-                   help="add an effect to the model, e.g. ex_x:x1 (repeatable)")
+    _fit_options(p)
     p.add_argument("--first-order", action="store_true", help="skip the refinement on the exact model")
     p.add_argument("--json", action="store_true", help="print JSON instead of the report")
     p.set_defaults(func=run_fit)
@@ -34,8 +54,7 @@ def register_fit(p):
 
 def register_diagnose(p):
     _common(p)
-    p.add_argument("--add", action="append", default=[], metavar="EFFECT",
-                   help="add an effect to the model before diagnosing, e.g. ex_x:x1 (repeatable)")
+    _fit_options(p)
     p.add_argument("--top", type=int, default=10, help="candidates to list (default 10)")
     p.add_argument("--json", action="store_true", help="print JSON instead of the report")
     p.add_argument("--plot", type=Path, default=None, metavar="DIR",
@@ -48,6 +67,18 @@ def register_simulate(p):
     p.add_argument("--effect", action="append", default=[], metavar="EFFECT[=VALUE]",
                    help="hidden effect, e.g. ex_x:x1=2e-5 (VALUE: change at the end of the stroke, mm or rad; "
                         "default 20 urad or 10 um); repeatable")
+    p.add_argument("--instrument", default="tip", choices=INSTRUMENTS,
+                   help="what is measured, with its standard plan: tip (random poses, 3-D tip; default), rtest, "
+                        "probe-sphere, ballbar, interferometer, tracker (docs/measurements.md)")
+    p.add_argument("--poses", type=Path, default=None, metavar="FILE",
+                   help="simulate at the poses of this file (CSV/Parquet with the machine's axes; optional L, t, "
+                        "dir_<AXIS>, setup; 1-D readings where it has ux,uy,uz) instead of a standard plan")
+    p.add_argument("--with-axis", action="store_true", help="also read the tool axis (di, dj, dk) at tip poses")
+    p.add_argument("--noise-axis", type=float, default=2e-6, help="noise of tool-axis readings, rad (default 2e-6)")
+    p.add_argument("--setup-scale", type=float, default=1.0,
+                   help="size of the random setup placements relative to 20 um and 0.03 deg (default 1)")
+    p.add_argument("--truth", type=Path, default=None, metavar="FILE",
+                   help="where to write the true values (JSON; default: the output file + .truth.json)")
     p.add_argument("--n", type=int, default=1500, help="number of poses (default 1500)")
     p.add_argument("--noise", type=float, default=1e-3, help="measurement noise, mm (default 0.001)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
@@ -80,12 +111,30 @@ def _load(args):
     from ..measurements import read
     machine = load_machine(args.machine)
     model = load(machine, args.convention)
-    meas = read(args.file, model.machine, min_rows=F.identifiable_count(model))
+    meas = read(args.file, model.machine, min_rows=2, frame=args.frame, setup_kind=args.setup_kind,
+                setup_frame=args.setup_frame)
     for w in meas.warnings:
         print(f"fiveaxis: warning: {w}", file=sys.stderr)
     added = F.machine_effects(model) + list(args.add)
     effects = F.resolve_effects(model, added)
-    return model, meas, effects
+    return model, meas, effects, _fixed(model, args.fix)
+
+
+def _fixed(model, specs) -> dict:
+    """[fit] fixed of the machine file, overridden by --fix NAME=VALUE (mm, rad)."""
+    out = dict(model.machine.fixed)
+    for spec in specs:
+        name, sep, raw = spec.partition("=")
+        if not sep:
+            raise InputError(f"--fix {spec}: expected NAME=VALUE (mm or rad)")
+        try:
+            value = float(raw)
+        except ValueError:
+            raise InputError(f"--fix {spec}: expected a number after '=', got {raw!r}") from None
+        if value != value or value in (float("inf"), float("-inf")):
+            raise InputError(f"--fix {spec}: expected a finite number")
+        out[name.strip()] = value
+    return out
 
 
 def _dump(obj):
@@ -102,8 +151,8 @@ def _dump(obj):
 
 def run_fit(args) -> int:
     from .. import fit as F
-    model, meas, effects = _load(args)
-    res = F.fit(model, meas, effects, refine=not args.first_order)
+    model, meas, effects, fixed = _load(args)
+    res = F.fit(model, meas, effects, refine=not args.first_order, fixed=fixed)
     if args.json:
         _dump(F.to_json(res))
     else:
@@ -115,8 +164,8 @@ def run_diagnose(args) -> int:
     from .. import diagnose as D
     if args.top < 1:
         raise InputError(f"--top: expected a positive number, got {args.top}")
-    model, meas, effects = _load(args)
-    dg = D.diagnose(model, meas, effects, top=args.top)
+    model, meas, effects, fixed = _load(args)
+    dg = D.diagnose(model, meas, effects, top=args.top, fixed=fixed)
     if args.plot is not None:
         from ..plots.residuals import plot_residuals
         path = plot_residuals(dg, args.plot)
@@ -130,10 +179,13 @@ def run_diagnose(args) -> int:
 
 def run_simulate(args) -> int:
     from ..kernels import load
-    from ..measurements import write
+    from ..measurements import in_frame, write
     from ..simulate import simulate, to_frame
     if args.output.exists() and not args.force:
         raise InputError(f"{args.output}: exists; not overwriting it (use --force to replace it)")
+    truth_path = args.truth or args.output.with_name(args.output.name + ".truth.json")
+    if truth_path.exists() and not args.force:
+        raise InputError(f"{truth_path}: exists; not overwriting it (use --force to replace it)")
     model = load(args.machine, args.convention)
     lengths = None
     if args.tool_lengths:
@@ -141,18 +193,56 @@ def run_simulate(args) -> int:
             lo, hi = (float(x) for x in args.tool_lengths.split(","))
         except ValueError:
             raise InputError(f"--tool-lengths: expected MIN,MAX in mm, got {args.tool_lengths!r}") from None
-        if not 0 <= lo <= hi:
-            raise InputError(f"--tool-lengths: expected 0 <= MIN <= MAX, got {args.tool_lengths!r}")
+        if not (lo == lo and hi == hi and 0 <= lo <= hi < float("inf")):
+            raise InputError(f"--tool-lengths: expected finite 0 <= MIN <= MAX, got {args.tool_lengths!r}")
         lengths = (lo, hi)
-    if args.duration <= 0:
-        raise InputError(f"--duration: expected a positive time in s, got {args.duration}")
+    if not (args.duration > 0 and args.duration < float("inf")):
+        raise InputError(f"--duration: expected a positive, finite time in s, got {args.duration}")
+    for opt, v in (("--noise", args.noise), ("--noise-axis", args.noise_axis), ("--setup-scale", args.setup_scale)):
+        if not (v >= 0 and v < float("inf")):
+            raise InputError(f"{opt}: expected a finite number >= 0, got {v}")
+    if args.seed < 0:
+        raise InputError(f"--seed: expected a number >= 0, got {args.seed}")
+    if args.n < 1 or args.n > MAX_SIMULATED:
+        raise InputError(f"--n: expected 1 to {MAX_SIMULATED} poses, got {args.n}")
+    if args.noise == 0 and args.with_sigma:
+        raise InputError("--with-sigma with --noise 0: a standard deviation of 0 is not a measurement (give a noise)")
+    plan = None
+    if args.poses is not None:
+        plan = _plan_from_file(args, model, lengths)
     sim = simulate(model, args.effect, n=args.n, noise=args.noise, seed=args.seed, tool_lengths=lengths,
-                   duration=None if args.no_time else args.duration, with_sigma=args.with_sigma)
+                   duration=None if args.no_time else args.duration, with_sigma=args.with_sigma,
+                   instrument=args.instrument, with_axis=args.with_axis, noise_axis=args.noise_axis, plan=plan,
+                   setup_scale=args.setup_scale)
+    meas = sim.meas
+    if args.frame and args.frame != meas.frame:
+        meas = in_frame(meas, model.machine, args.frame)
+        sim.meas = meas
     path = write(to_frame(sim, model), args.output, force=args.force)
+    _write_text(truth_path, json.dumps(sim.truth_json(model, args.seed), indent=1) + "\n")
     hidden = ", ".join(f"{k}={v}" for k, v in sim.effects.items()) or "none"
-    print(f"fiveaxis: wrote {path}: {args.n} poses, noise {args.noise} mm, hidden effects: {hidden}, seed {args.seed}",
-          file=sys.stderr)
+    print(f"fiveaxis: wrote {path}: {meas.n} poses ({sim.instrument}, {meas.frame} frame), noise {args.noise} mm, "
+          f"hidden effects: {hidden}, {len(meas.setups)} setup(s), seed {args.seed}", file=sys.stderr)
+    print(f"fiveaxis: wrote {truth_path}: the true values", file=sys.stderr)
     return 0
+
+
+#: simulate --n above this is refused (it would take minutes and gigabytes).
+MAX_SIMULATED = 10_000_000
+
+
+def _plan_from_file(args, model, lengths):
+    """A plan from a poses file: the file's poses, L, t, directions and setups; 1-D readings where it has a
+    direction, else tool-tip readings."""
+    from ..instruments import Plan
+    from ..measurements import read
+    meas = read(args.poses, model.machine, frame=args.frame, readings_required=False)
+    for w in meas.warnings:
+        print(f"fiveaxis: warning: {w}", file=sys.stderr)
+    line = meas.u is not None
+    return Plan("poses file", meas.poses, meas.L, meas.has_L, "line" if line else
+                ("tip+axis" if args.with_axis else "tip"), u=meas.u, setup=meas.setup, setup_kind=meas.setup_kind,
+                setup_frame=meas.setup_frame, dirs=meas.dirs, frame=meas.frame)
 
 
 def run_model(args) -> int:
