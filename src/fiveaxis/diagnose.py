@@ -353,9 +353,9 @@ def _diagnose(model, meas, added, top, fixed=None) -> Diagnosis:
         decision["chi2_dof"] = N - res.idf.rank
         decision["chi2_p"] = float(chi2.sf(rss, max(N - res.idf.rank, 1)))
     else:
-        dof = max(N - res.idf.rank - n_coef, 1)
         lg = prob.obs.group == ob.LENGTH
-        noise = float(np.sqrt(np.sum(r_cur ** 2) / dof * np.mean(1.0 / w[lg] ** 2))) if lg.any() else 0.0
+        dof = max(lg.sum() * (1 - (res.idf.rank + n_coef) / N), 1.0)     # the readings in mm take their share
+        noise = float(np.sqrt(np.sum((r_cur[lg] / w[lg]) ** 2) / dof)) if lg.any() else 0.0
         source = ("estimated from the residual after the effects the rule accepts" if forward
                   else "estimated from the residual of the fit")
     # Candidates best first; aliases collapsed into the best member of their set.

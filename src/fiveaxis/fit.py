@@ -29,6 +29,9 @@ from .errors import InputError
 #: Singular values below RANK_RTOL * largest (of the unit-norm columns) count as zero: those directions are not
 #: determined by the data.
 RANK_RTOL = 1e-8
+#: A column whose norm is below this fraction of the largest is rounding noise (a parameter the readings do not see:
+#: e.g. a rotation about z read by a ballbar at a lever arm that is zero up to rounding), and counts as zero.
+ZERO_COLUMN_RTOL = 1e-12
 #: A null-space component below this (unit-norm coordinates) does not touch a parameter.
 NULL_TOL = 1e-6
 #: Correlations stronger than this are listed.
@@ -209,8 +212,10 @@ class Identifiability:
 def identify(Aw: np.ndarray) -> Identifiability:
     """SVD of the design with unit-norm columns (zero columns stay zero): rank, condition, null space."""
     norms = np.linalg.norm(Aw, axis=0)
+    if norms.size and np.isfinite(norms).all():
+        norms = np.where(norms > ZERO_COLUMN_RTOL * norms.max(), norms, 0.0)
     safe = np.where(norms > 0, norms, 1.0)
-    X = Aw / safe
+    X = np.where(norms > 0, Aw / safe, 0.0)
     try:
         if X.shape[0] > 2 * X.shape[1]:       # tall: QR first, then the SVD of the small triangle (same result)
             Qx, R = np.linalg.qr(X)
