@@ -20,25 +20,37 @@ say "Sobol' total indices over the same workspace, against the GSIL ranking"
 "$BIN/fiveaxis" sobol --machine li2018 --convention printed --top 8
 # --- end section: sensitivity
 
-# --- section: measurements (issue 4)
+# --- section: measurements (issues 4, 8)
 # Confront the model with measurements: diagnose, add the top candidate, diagnose again, until nothing is missing.
+# loop FILE MACHINE [options...]: the rounds, reading `diagnose --json`; prints the RMS trail.
+loop() {
+    local file=$1 machine=$2; shift 2
+    local add=() found=() trail="" noise="" rms="" next=""
+    for round in 1 2 3 4; do
+        say "diagnose, round $round: fiveaxis diagnose $file --machine $machine $* ${add[*]}"
+        "$BIN/fiveaxis" diagnose "$file" --machine "$machine" "$@" "${add[@]}" --top 3
+        read -r rms noise next < <("$BIN/fiveaxis" diagnose "$file" --machine "$machine" "$@" "${add[@]}" --json |
+            "$BIN/python" -c 'import json, sys; j = json.load(sys.stdin); c = j["candidates"]
+print("%.4g %.4g %s" % (j["rms_mm"] * 1000, j["noise_mm"] * 1000, c[0]["id"] if j["missing_effect"] and c else "-"))')
+        trail="$trail${trail:+ -> }$rms um"
+        [ "$next" != "-" ] || break
+        add+=(--add "$next")
+        found+=("$next")
+    done
+    say "The error fell: residual RMS $trail against noise $noise um; effects found: ${found[*]:-none}"
+}
+
 MEAS=examples/li2018_measurements.csv
 say "Measurements ($MEAS: 1500 simulated poses with two hidden effects): fit of the 41 errors, identifiability"
 "$BIN/fiveaxis" fit "$MEAS" | sed '/Not determined/,$d'
-ADD=()
-FOUND=()
-TRAIL=""
-for round in 1 2 3 4; do
-    say "diagnose, round $round: fiveaxis diagnose $MEAS ${ADD[*]}"
-    OUT=$("$BIN/fiveaxis" diagnose "$MEAS" "${ADD[@]}" --top 3)
-    echo "$OUT"
-    RMS=$(echo "$OUT" | sed -n 's/.*residual RMS \([0-9.e+-]*\) um against noise \([0-9.e+-]*\) um.*/\1/p')
-    NOISE=$(echo "$OUT" | sed -n 's/.*residual RMS \([0-9.e+-]*\) um against noise \([0-9.e+-]*\) um.*/\2/p')
-    TRAIL="$TRAIL${TRAIL:+ -> }$RMS um"
-    NEXT=$(echo "$OUT" | sed -n 's/.*next: fiveaxis diagnose FILE --add \(.*\)$/\1/p')
-    [ -n "$NEXT" ] || break
-    ADD+=(--add "$NEXT")
-    FOUND+=("$NEXT")
-done
-say "The error fell: residual RMS $TRAIL against noise $NOISE um; effects found: ${FOUND[*]:-none}"
+loop "$MEAS" li2018
+
+OUT=${OUT:-out}
+mkdir -p "$OUT"
+RTEST="$OUT/ac_trunnion_rtest.csv"
+say "An R-test on the A/C trunnion machine (3 sphere placements, unknown): simulated with a hidden radial motion of C"
+"$BIN/fiveaxis" simulate --machine ac_trunnion --instrument rtest --n 600 --effect dx_C:C1=0.01 --seed 2 \
+    --with-sigma -o "$RTEST" --force
+"$BIN/fiveaxis" fit "$RTEST" --machine ac_trunnion | sed '/Combinations determined/,$d'
+loop "$RTEST" ac_trunnion
 # --- end section: measurements

@@ -32,7 +32,7 @@ DIRECTION = ("ux", "uy", "uz")
 LINE = "du"
 READINGS = DEVIATIONS + AXIS_DEVIATIONS + (LINE,)
 NUMERIC_OPTIONAL = ("L", "t", "sigma", "sigma_axis") + DIRECTION
-TEXT_OPTIONAL = ("setup", "setup_kind", "setup_frame")
+TEXT_OPTIONAL = ("setup", "setup_kind", "setup_frame", "frame")
 OPTIONAL = ("L", "t") + AXIS_DEVIATIONS + (LINE,) + DIRECTION + ("sigma", "sigma_axis") + TEXT_OPTIONAL
 #: Names of measurement columns: a machine axis may not be called like one of them (see fiveaxis.machine).
 RESERVED = READINGS + NUMERIC_OPTIONAL + TEXT_OPTIONAL
@@ -299,8 +299,7 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     do not say (columns setup_kind, setup_frame win); readings_required=False reads a file of poses only (a plan
     to simulate or to measure)."""
     path = Path(path)
-    frame = frame or "workpiece"
-    if frame not in FRAMES:
+    if frame is not None and frame not in FRAMES:
         raise InputError(f"unknown frame '{frame}' (expected one of: {', '.join(FRAMES)})")
     for what, value, allowed in (("setup kind", setup_kind, SETUP_KINDS), ("setup frame", setup_frame, FRAMES)):
         if value is not None and value not in allowed:
@@ -329,6 +328,17 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
         raise InputError(f"{path}: no data rows (expected one row per measured pose under the header)")
     n = len(keep)
     num = lambda c, blank_ok=False: _numbers(path, c, cols[c], lines, keep, blank_ok, types)  # noqa: E731
+    if "frame" in cols:
+        said = _texts(path, "frame", cols["frame"], lines, keep, types)
+        for i, v in enumerate(said):
+            if v not in FRAMES or v != said[0]:
+                raise InputError(f"{_where(path, keep[i] + 1, lines)}, column frame: {_echo(v)} (expected one frame "
+                                 f"for the whole file: {' or '.join(FRAMES)})")
+        if frame is not None and frame != said[0]:
+            raise InputError(f"{path}: column frame says {said[0]}, but the file is read in the {frame} frame (drop "
+                             f"the frame option or the column)")
+        frame = said[0]
+    frame = frame or "workpiece"
     data = {c: num(c) for c in variables}
     for c in ("L", "t"):
         if c in cols:
@@ -536,6 +546,8 @@ def frame(meas: Measurements, machine):
         cols["sigma"] = meas.sigma
     if meas.sigma_axis is not None:
         cols["sigma_axis"] = meas.sigma_axis
+    if meas.frame != "workpiece":
+        cols["frame"] = [meas.frame] * meas.n
     if meas.setup is not None:
         cols["setup"] = meas.setup
         if any(k != "point" for k in meas.setup_kind.values()):
