@@ -21,3 +21,19 @@ def poses_and_lengths(machine, n, seed=0):
 @pytest.fixture(scope="session")
 def li2018():
     return load_machine("li2018")
+
+
+def worst_z(res, sim):
+    """Largest |estimate - truth| / standard uncertainty over every parameter and combination a fit determines,
+    with the truth of the simulation it fitted; and how many there were."""
+    from fiveaxis.simulate import truth_theta
+    truth = truth_theta(res.problem, sim)
+    idx = {n: i for i, n in enumerate(res.names)}
+    std = res.std()
+    zs = []
+    for name, det, norm in zip(res.free_names, res.idf.determined, res.idf.norms):
+        if det and norm > 0:
+            zs.append((res.theta[idx[name]] - truth[idx[name]]) / std[idx[name]])
+    for c in res.combinations:
+        zs.append((c.value - sum(k * truth[idx[n]] for n, k in c.terms.items())) / c.std)
+    return float(np.max(np.abs(zs))), len(zs)

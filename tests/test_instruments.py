@@ -12,7 +12,9 @@ from fiveaxis import frames, htm
 from fiveaxis import observations as ob
 from fiveaxis.cli import main
 from fiveaxis.measurements import in_frame, read
-from fiveaxis.simulate import simulate, to_frame, truth_theta
+from fiveaxis.simulate import simulate, to_frame
+
+from conftest import worst_z
 
 NOISE = 1e-3
 
@@ -20,20 +22,6 @@ NOISE = 1e-3
 @pytest.fixture(scope="module")
 def models():
     return {name: fiveaxis.load(name) for name in ("li2018", "ac_trunnion", "tilting_head")}
-
-
-def worst_z(res, sim):
-    """Largest |estimate - truth| / standard uncertainty over every determined parameter and combination."""
-    truth = truth_theta(res.problem, sim)
-    idx = {n: i for i, n in enumerate(res.names)}
-    std = res.std()
-    zs = []
-    for name, det, norm in zip(res.free_names, res.idf.determined, res.idf.norms):
-        if det and norm > 0:
-            zs.append((res.theta[idx[name]] - truth[idx[name]]) / std[idx[name]])
-    for c in res.combinations:
-        zs.append((c.value - sum(k * truth[idx[n]] for n, k in c.terms.items())) / c.std)
-    return np.max(np.abs(zs)), len(zs)
 
 
 @pytest.mark.parametrize("machine, instrument, n", [

@@ -22,6 +22,7 @@ import numpy as np
 from . import effects as fx
 from . import fit as F
 from . import observations as ob
+from . import setups as su
 from .measurements import concat
 
 ALIAS_COS = 0.999
@@ -188,6 +189,7 @@ class Diagnosis:
     forward: list = field(default_factory=list)   # greedy forward selection (first order), for a preview
     n_candidates: int = 0
     absorbed: list = field(default_factory=list)  # candidates the model already contains on this data
+    hidden_by_placement: list = field(default_factory=list)  # candidates only a setup's placement absorbs
 
     def to_json(self) -> dict:
         return {"file": str(self.fit.problem.meas.path), "n": self.n, "rms_mm": self.rms_mm,
@@ -196,7 +198,7 @@ class Diagnosis:
                 "added": [e.id for e in self.fit.problem.effects],
                 "decision": self.decision, "n_candidates": self.n_candidates,
                 "candidates": self.candidates, "forward": self.forward, "structure": self.structure,
-                "already_in_model": self.absorbed}
+                "already_in_model": self.absorbed, "hidden_by_placement": self.hidden_by_placement}
 
 
 def residual_structure(prob: F.Problem, residual: np.ndarray) -> dict:
@@ -392,8 +394,11 @@ def _diagnose(model, meas, added, top, fixed=None) -> Diagnosis:
     listed = listed[:top]
     for c in listed:
         del c["_gain"]
-    return Diagnosis(res, meas.n, res.rms_mm, noise, source, missing, listed, decision,
-                     residual_structure(prob, res.residual), forward, M, absorbed)
+    dg = Diagnosis(res, meas.n, res.rms_mm, noise, source, missing, listed, decision,
+                   residual_structure(prob, res.residual), forward, M, absorbed)
+    dg.hidden_by_placement = su.hidden_by_placement(
+        prob, vocab, G, [j for j in range(len(vocab)) if cands.ratio[j] <= ABSORBED])
+    return dg
 
 
 def _coefficient(res, cands, j, eff, w):
@@ -445,6 +450,14 @@ def report(dg: Diagnosis) -> str:
         if c["aliases"] and "separate_by" in c and not c["separate_by"]:
             lines.append("        neither another tool length nor wider axis ranges would separate them (their columns stay "
                          "parallel)")
+    if j["hidden_by_placement"]:
+        hid = j["hidden_by_placement"]
+        lines.append(f"[[Not visible with this placement]] {len(hid)} candidate(s) the setups' placement unknowns "
+                     f"absorb (a machine error that looks like the artefact lying differently), e.g. "
+                     f"{', '.join(h['id'] for h in hid[:4])} (setup {', '.join(sorted({s for h in hid for s in h['setups']}))})")
+        tips = sorted({h["separate_by"] for h in hid if h["separate_by"]})
+        for t in tips:
+            lines.append(f"        {t}")
     if dg.missing_effect and j["candidates"]:
         lines.append(f"    next: fiveaxis diagnose FILE --add {j['candidates'][0]['id']}")
     return "\n".join(lines)

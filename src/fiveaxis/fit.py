@@ -556,8 +556,34 @@ def setup_results(res: FitResult) -> list[dict]:
             else:
                 params[nm] = _entry(float(res.theta[i]), float(std[i]), unit)
         item["parameters"] = params
+        text = placement_text(s, params)
+        if text:
+            item["placement"] = text
         out.append(item)
     return out
+
+
+def placement_text(setup, params: dict) -> str:
+    """'lies rotated by 0.0281 deg about z (+- 0.0012 deg, k = 2; 14.6 um at its extent of 30 mm) and shifted by
+    (-44.1, 79.3) um': the placement of a setup in words, from its determined unknowns."""
+    def val(sym):
+        p = params.get(f"{sym}[{setup.id}]")
+        return None if p is None or p["value"] is None else p
+    parts = []
+    rot = [(sym[2:], val(sym)) for sym in ("w_x", "w_y", "w_z", "w_n") if val(sym) is not None]
+    for axis, p in rot:
+        about = "the plate's normal" if axis == "n" else axis
+        u = p.get("expanded_k2")
+        parts.append(f"rotated by {math.degrees(p['value']):.4g} deg about {about}"
+                     + (f" (+- {math.degrees(u):.2g} deg, k = 2)" if u else "")
+                     + (f", {abs(p['value']) * setup.extent_mm * 1000:.3g} um at its extent of "
+                        f"{setup.extent_mm:.4g} mm" if setup.extent_mm else ""))
+    shift = [(sym[2:], val(sym)) for sym in ("c_x", "c_y", "c_z", "c_1", "c_2")]
+    shift = [(k, p) for k, p in shift if p is not None]
+    if shift:
+        parts.append("shifted by (" + ", ".join(f"{p['value'] * 1000:.3g}" for _, p in shift) + ") um along "
+                     + ", ".join(k for k, _ in shift))
+    return ("lies " + " and ".join(parts)) if parts else ""
 
 
 def to_json(res: FitResult) -> dict:
@@ -671,6 +697,8 @@ def report(res: FitResult) -> str:
                 if s["not_seen_by_the_readings"] else ""
             lines.append(f"    {s['id']} ({s['kind']}, {s['frame']} frame, {s['readings']} readings): "
                          f"{'; '.join(vals)}{unseen}")
+            if "placement" in s and s["kind"] != "point":
+                lines.append(f"        {s['id']} {s['placement']}")
     if j["combinations"]:
         lines.append("[[Combinations determined by this data (members are not determined alone)]]")
         for c in j["combinations"]:

@@ -16,6 +16,9 @@ readings are reported in. `fiveaxis.simulate` turns a plan into readings of a si
   directions, each circle a setup (pivot offset and bar length); 1-D readings along the bar.
 - `interferometer`: ISO 230-2 bidirectional runs of each linear axis, 5 cycles, 1-D along the axis, each axis a
   setup (dead path).
+- `test-part`: a plate of holes drilled at a grid of X, Y positions (Z and the rotary axes fixed), measured on a
+  CMM in the plate's plane only (dx, dy; dz blank): one setup of kind `planar` (the plate's unknown position and
+  rotation on the CMM), workpiece frame.
 - `tracker`: 1-D distances from 4 stations on the bed (setups in the machine frame: station offset and dead path)
   to the tool tip at random poses; machine frame.
 Units: mm, rad inside; the plan's setup truth (when simulated) in mm and rad.
@@ -31,7 +34,7 @@ from . import frames
 from .errors import InputError
 from .kinematics import linear_for_tip, within_strokes
 
-NAMES = ("tip", "rtest", "probe-sphere", "ballbar", "interferometer", "tracker")
+NAMES = ("tip", "rtest", "probe-sphere", "ballbar", "interferometer", "tracker", "test-part")
 
 
 @dataclass
@@ -41,7 +44,7 @@ class Plan:
     poses: np.ndarray                    # (n, nvar) mm, rad
     L: np.ndarray                        # (n,) mm
     has_L: bool
-    reads: str                           # "tip" (3-D), "tip+axis", or "line" (1-D along u)
+    reads: str                           # "tip" (3-D), "tip+axis", "tip-plane" (dx, dy), or "line" (1-D along u)
     u: np.ndarray | None = None          # (n, 3) unit direction of 1-D readings, in `frame`
     setup: np.ndarray | None = None      # (n,) object: setup id or None
     setup_kind: dict = field(default_factory=dict)
@@ -291,8 +294,33 @@ def tracker(model, n, rng, stations: int = 4) -> Plan:
                 notes=[f"stations at {np.round(st, 1).tolist()} mm (machine frame)"])
 
 
+def test_part(model, n, rng, size: float | None = None, kind: str = "planar") -> Plan:
+    """A plate of about n holes on a square grid (side `size` mm, default 300 mm or 60% of the smaller of the X and
+    Y strokes)
+    drilled with the rotary axes at their centre pose; dx, dy measured; one setup `part` of the given kind."""
+    lin, _ = _variables(model)
+    if len(lin) < 2:
+        raise InputError(f"instrument test-part: machine {model.machine.name} needs two linear axes")
+    centre = _centre_pose(model)
+    ix, iy = model.variables.index(lin[0]), model.variables.index(lin[1])
+    spans = [np.diff(model.machine.axis(v).model_stroke)[0] for v in lin[:2]]
+    side = min(300.0, 0.6 * min(spans)) if size is None else float(size)
+    k = max(3, int(round(math.sqrt(n))))
+    g = np.linspace(-side / 2, side / 2, k)
+    gx, gy = np.meshgrid(g, g, indexing="ij")
+    poses = np.tile(centre, (k * k, 1))
+    poses[:, ix] += gx.ravel()
+    poses[:, iy] += gy.ravel()
+    if not within_strokes(model.machine, poses).all():
+        raise InputError(f"instrument test-part: a plate of {side:g} mm leaves the strokes of {model.machine.name}")
+    setup = np.array(["part"] * len(poses), dtype=object)
+    return Plan("test-part", poses, np.full(len(poses), model.machine.tool_length), False, "tip-plane", setup=setup,
+                setup_kind={"part": kind}, setup_frame={"part": "workpiece"},
+                notes=[f"{k} x {k} holes over {side:g} mm x {side:g} mm, measured in the XY plane"])
+
+
 BUILDERS = {"tip": tip, "rtest": rtest, "probe-sphere": probe_sphere, "ballbar": ballbar,
-            "interferometer": interferometer, "tracker": tracker}
+            "interferometer": interferometer, "tracker": tracker, "test-part": test_part}
 
 
 def plan(name: str, model, n: int, rng, **options) -> Plan:

@@ -223,3 +223,71 @@ def truth_values(sb: SetupBlock, obs: Observations, meas, machine, tip, truth: d
         vals = np.linalg.lstsq(X, change[rows], rcond=None)[0]
         out.update({n: float(v) for n, v in zip(s.names, vals)})
     return out
+
+
+def hidden_by_placement(prob, effects, G: np.ndarray, absorbed: list[int]) -> list[dict]:
+    """Candidate effects (columns G, weighted) that the fit cannot see only because a setup's placement unknowns
+    absorb them: absorbed by the full design, not by the machine's own columns. For each, which setups hide it and
+    whether measuring the artefact again in a second placement (turned by 90 deg about its normal, or moved) would
+    separate it. Returns [{"id", "setups", "separate_by"}]."""
+    from . import fit as F
+    sb = prob.setups
+    if not sb.q or not absorbed:
+        return []
+    machine_cols = [i for i, n in enumerate(prob.names) if not is_setup_param(n) and prob.free[i]]
+    Qm = F.identify(prob.A[:, machine_cols] * prob.w[:, None]).U
+    out = []
+    for j in absorbed:
+        g = G[:, j]
+        r = g - Qm @ (Qm.T @ g)
+        if np.linalg.norm(r) <= 1e-6 * np.linalg.norm(g):
+            continue                                 # the machine's own columns already hold it
+        hiding = [s.id for s in sb.setups if _correlates(r, sb.columns[:, [sb.names.index(n) for n in s.names]]
+                                                         * prob.w[:, None])]
+        out.append({"id": effects[j].id, "setups": hiding})
+    if out:
+        tip = _second_placement_separates(prob, [effects[j] for j in absorbed if effects[j].id in
+                                                 {o["id"] for o in out}])
+        for o in out:
+            o["separate_by"] = tip.get(o["id"], "")
+    return out
+
+
+def _correlates(r, X) -> bool:
+    return bool(np.linalg.norm(X.T @ r) > 1e-6 * np.linalg.norm(r) * max(np.linalg.norm(X), 1e-300))
+
+
+def _second_placement_separates(prob, effects) -> dict:
+    """Whether readings of the same features in a setup of KNOWN orientation (offset only: a straightedge or laser
+    straightness kit aligned to the machine, or the part aligned on the machine and its rotation held) would
+    separate each effect from the placement: the effects whose columns the extended design no longer absorbs.
+    (Measuring the same part again in another placement on the CMM cannot: the part carries the machine's errors
+    in its own frame, whatever its placement.)"""
+    from . import fit as F
+    from .measurements import concat
+    meas, model = prob.meas, prob.model
+    if meas.setup is None:
+        return {}
+    extra = meas.with_poses(meas.poses.copy(), meas.L.copy())
+    rotating = {s.id for s in prob.setups.setups if s.kind != "point"}
+    if not rotating:
+        return {}
+    extra.setup = np.array([None if s is None else f"{s}~aligned" for s in meas.setup], dtype=object)
+    extra.setup_kind = {f"{k}~aligned": "point" for k in meas.setup_kind}
+    extra.setup_frame = {f"{k}~aligned": v for k, v in meas.setup_frame.items()}
+    try:
+        p2 = F.build(model, concat(meas, extra), prob.effects, prob.fixed)
+    except Exception:          # the variant is not a valid measurement set: give no advice rather than a wrong one
+        return {}
+    Q = F.identify(p2.A[:, p2.free] * p2.w[:, None]).U
+    G2 = p2.effect_columns(effects) * p2.w[:, None]
+    out = {}
+    rot_names = [n for s in prob.setups.setups if s.id in rotating for n in s.names if n.startswith("w_")]
+    for k, eff in enumerate(effects):
+        g = G2[:, k]
+        if np.linalg.norm(g - Q @ (Q.T @ g)) > 1e-6 * np.linalg.norm(g):
+            out[eff.id] = (f"readings whose orientation is known would separate it from the placement of "
+                           f"{', '.join(sorted(rotating))}: a straightness measurement against a reference aligned "
+                           f"to the machine (laser or straightedge), or the part aligned on the machine and its "
+                           f"rotation held fixed ({', '.join(f'{n} = 0' for n in rot_names)})")
+    return out

@@ -108,13 +108,16 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
              duration: float | None = 3600.0, with_sigma: bool = False, base_scale: float = 1.0,
              path="simulated", instrument: str = "tip", with_axis: bool = False,
              noise_axis: float = NOISE_AXIS_RAD, plan: ins.Plan | None = None, setup_scale: float = 1.0,
-             options: dict | None = None) -> Simulation:
+             options: dict | None = None, errors: dict | None = None,
+             setup_kind: str | None = None, placements: dict | None = None) -> Simulation:
     """A simulated measurement set. effects: specs (`ex_x:x1=2e-5`) or (effect, values) pairs.
 
     instrument: a plan of `fiveaxis.instruments` (n: about how many poses), or `plan` given; tool_lengths: None
     (the machine's L0, no L column) or (min, max) mm for a random L per pose (tip plans); duration: s over which the
     poses are measured in order (t column), None for no t column; setup_scale: size of the random setup placements
-    relative to SETUP_OFFSET_MM and SETUP_ROTATION_RAD."""
+    relative to SETUP_OFFSET_MM and SETUP_ROTATION_RAD; errors: {name: value} (mm, rad) set instead of drawn;
+    setup_kind: the kind of every setup of the plan (point, rigid, planar) instead of the instrument's;
+    placements: {setup id: {"c_mm": [3], "l_mm": x, "w_rad": [3]}} set instead of drawn (any key may be left out)."""
     _check(n, noise, noise_axis, duration, tool_lengths)
     rng = np.random.default_rng(seed)
     machine = model.machine
@@ -124,12 +127,18 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
         if instrument == "tip":
             opts.update(with_axis=with_axis, tool_lengths=tool_lengths)
         plan = ins.plan(instrument, model, n, rng, **opts)
+    if setup_kind is not None:
+        plan.setup_kind = {s: setup_kind for s in plan.setup_kind}
     m = plan.n
     t = None if duration is None else np.sort(rng.uniform(0, duration, m))
     if t is not None:
         t[-1] = duration          # the last pose ends the run: u = t / duration
     sd = np.array([BASE_ANGULAR_RAD if machine.is_angular(e) else BASE_LINEAR_MM for e in model.errors])
     base = rng.normal(0.0, 1.0, len(sd)) * sd * base_scale
+    for name, value in (errors or {}).items():
+        if name not in model.errors:
+            raise InputError(f"error '{name}': unknown error name (expected one of {', '.join(model.errors[:3])} ...)")
+        base[list(model.errors).index(name)] = float(value)
     ctx = fx.context(machine, plan.poses, t, plan.dirs)
     E = np.tile(base, (m, 1))
     dL = np.zeros(m)
@@ -152,6 +161,8 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
                         u=plan.u if plan.reads == "line" else None, setup=plan.setup,
                         setup_kind=dict(plan.setup_kind), setup_frame=dict(plan.setup_frame), dirs=dict(plan.dirs),
                         frame=plan.frame)
+    if plan.reads == "tip-plane":
+        meas.d[:, 2] = np.nan                 # measured in the plane only: dz not read
     obs = ob.build(meas, machine)
     values = ob.apply(obs, P, V)
     setup_truth = {}
@@ -164,6 +175,8 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
                 c[2], w[:2] = 0.0, 0.0
             setup_truth[sid] = {"kind": kind, "frame": meas.setup_frame.get(sid, "workpiece"), "c_mm": c.tolist(),
                                 "l_mm": float(rng.normal(0.0, SETUP_OFFSET_MM * setup_scale)), "w_rad": w.tolist()}
+            for key, value in ((placements or {}).get(sid) or {}).items():
+                setup_truth[sid][key] = value
         values = values + su.reading_change(obs, meas, machine, tip0, setup_truth)
     sig = np.where(obs.group == ob.ANGLE, noise_axis, noise)
     values = values + rng.normal(0.0, 1.0, obs.m) * sig

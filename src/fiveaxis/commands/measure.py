@@ -79,6 +79,10 @@ def register_simulate(p):
                    help="size of the random setup placements relative to 20 um and 0.03 deg (default 1)")
     p.add_argument("--truth", type=Path, default=None, metavar="FILE",
                    help="where to write the true values (JSON; default: the output file + .truth.json)")
+    p.add_argument("--error", action="append", default=[], metavar="NAME=VALUE",
+                   help="set a base error instead of drawing it (mm or rad), e.g. Sxy=5e-5; repeatable")
+    p.add_argument("--setup-kind", default=None, choices=SETUP_KINDS,
+                   help="kind of the plan's setups (default: the instrument's; test-part: planar)")
     p.add_argument("--n", type=int, default=1500, help="number of poses (default 1500)")
     p.add_argument("--noise", type=float, default=1e-3, help="measurement noise, mm (default 0.001)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
@@ -210,10 +214,19 @@ def run_simulate(args) -> int:
     plan = None
     if args.poses is not None:
         plan = _plan_from_file(args, model, lengths)
+    errors = {}
+    for spec in args.error:
+        name, sep, raw = spec.partition("=")
+        try:
+            errors[name.strip()] = float(raw)
+        except ValueError:
+            raise InputError(f"--error {spec}: expected NAME=VALUE (mm or rad)") from None
+        if not sep or errors[name.strip()] != errors[name.strip()] or abs(errors[name.strip()]) == float("inf"):
+            raise InputError(f"--error {spec}: expected NAME=VALUE with a finite value (mm or rad)")
     sim = simulate(model, args.effect, n=args.n, noise=args.noise, seed=args.seed, tool_lengths=lengths,
                    duration=None if args.no_time else args.duration, with_sigma=args.with_sigma,
                    instrument=args.instrument, with_axis=args.with_axis, noise_axis=args.noise_axis, plan=plan,
-                   setup_scale=args.setup_scale)
+                   setup_scale=args.setup_scale, errors=errors, setup_kind=args.setup_kind)
     meas = sim.meas
     if args.frame and args.frame != meas.frame:
         meas = in_frame(meas, model.machine, args.frame)
