@@ -91,7 +91,8 @@ class Problem:
 
     def effect_columns(self, effects) -> np.ndarray:
         """Design columns (m, sum of coefficients) of effects at these readings."""
-        cols = [self.param_column(e.param)[:, None] * e.basis(self.ctx)[self.obs.row] for e in effects]
+        with np.errstate(invalid="ignore", over="ignore"):     # non-finite columns are reported by build()
+            cols = [self.param_column(e.param)[:, None] * e.basis(self.ctx)[self.obs.row] for e in effects]
         return np.hstack(cols) if cols else np.empty((self.obs.m, 0))
 
     def per_pose(self, theta: np.ndarray):

@@ -327,4 +327,9 @@ def plan(name: str, model, n: int, rng, **options) -> Plan:
     """The standard plan of an instrument (see the module docstring) with about n readings' poses."""
     if name not in BUILDERS:
         raise InputError(f"unknown instrument '{name}' (expected one of: {', '.join(BUILDERS)})")
-    return BUILDERS[name](model, n, rng, **options)
+    try:
+        return BUILDERS[name](model, n, rng, **options)
+    except InputError as exc:
+        if str(exc).startswith("instrument"):
+            raise
+        raise InputError(f"instrument {name}: {exc}") from None
