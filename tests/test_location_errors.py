@@ -109,6 +109,17 @@ def report(name: str) -> str:
             f"{rank(pdge + pige)}")
 
 
+def test_every_location_error_is_described_in_words():
+    """diagnose describes candidate effects of every parameter: chain-end and axis-line errors too."""
+    from fiveaxis.effects import describe_param
+    m = load_machine("tilting_head")
+    words = {n: describe_param(m, n) for n in m.pige_names}
+    assert words["dXOS"] == "the offset dXOS of the spindle (along x)"
+    assert words["SAOS"] == "the orientation (squareness) error SAOS of the spindle (rotation about x)"
+    assert words["dXOB"] == "the position dXOB of the axis line of B (along x)"
+    assert words["SBOC"] == "the orientation (squareness) error SBOC before axis C (rotation about y)"
+
+
 if __name__ == "__main__":      # .venv/bin/python tests/test_location_errors.py tilting_head ac_trunnion li2018
     import sys
     for arg in sys.argv[1:] or ["tilting_head"]:
