@@ -1,9 +1,12 @@
 """Homogeneous transforms of a machine's kinematic chain (Eq. 1): PI . T . PD for every joint.
 
 Every joint contributes three factors: the position-independent errors PI (constant), the ideal motion T
-(pose variable), and the position-dependent errors PD. The relative transform from the workpiece to the tool
-is inv(W) . T_tool where W is the bed-to-workpiece chain; for a machine without a workpiece chain W = I.
-Rotations use sin and cos symbols (`s_A`, `c_A`) so that the first-order terms stay polynomials.
+(pose variable), and the position-dependent errors PD. A joint with a nominal offset starts with Trans(offset);
+a rotary joint whose axis line is shifted by d (kinds lx ly lz) has T(d) . R(q) . T(-d) in place of R(q). After
+the last joint of each chain come its end's Trans(offset) . PI (the spindle, the workpiece holder). The relative
+transform from the workpiece to the tool is inv(W) . T_tool where W is the bed-to-workpiece chain; for a machine
+without a workpiece chain W = I. Rotations use sin and cos symbols (`s_A`, `c_A`) so that the first-order terms
+stay polynomials. A joint or end without offset or line errors has exactly the factors PI, T, PD.
 """
 from __future__ import annotations
 
@@ -11,7 +14,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from fiveaxis.machine import Axis, Machine
+from fiveaxis.machine import LINE_KINDS, Axis, ChainEnd, Machine
 
 L = sp.Symbol("L", real=True)
 
@@ -93,15 +96,52 @@ class Chain:
         return tuple(self.errors)
 
 
-def _pi_factor(axis: Axis, errors: dict, exact_syms: dict) -> Factor:
+def _pi_factor(label: str, pige: dict, errors: dict) -> Factor:
+    """PI: the small rotations and translations (kinds rx ... tz) of a joint or chain end."""
+    pige = {n: k for n, k in pige.items() if k not in LINE_KINDS}
     comps = {k: 0 for k in ("rx", "ry", "rz", "tx", "ty", "tz")}
-    for name, kind in axis.pige.items():
+    for name, kind in pige.items():
         comps[kind] = errors[name]
     lin = small_transform(comps["rx"], comps["ry"], comps["rz"], (comps["tx"], comps["ty"], comps["tz"]), False)
     ex = small_transform(comps["rx"], comps["ry"], comps["rz"], (comps["tx"], comps["ty"], comps["tz"]), True)
-    zero = {errors[n]: 0 for n in axis.pige}
-    derivs = {n: lin.diff(errors[n]).subs(zero) for n in axis.pige}
-    return Factor(f"PI({axis.name})", sp.eye(4), ex, derivs)
+    zero = {errors[n]: 0 for n in pige}
+    derivs = {n: lin.diff(errors[n]).subs(zero) for n in pige}
+    return Factor(f"PI({label})", sp.eye(4), ex, derivs)
+
+
+def exact_number(x: float):
+    """A float of the machine file as an exact rational (its shortest decimal form): 12.5 -> 25/2."""
+    return sp.Rational(repr(float(x)))
+
+
+def _offset_factor(label: str, offset) -> list:
+    """Trans(offset) (mm, nominal, no error) as a one-factor list, or [] for a zero offset."""
+    if not any(offset):
+        return []
+    M = homogeneous(sp.eye(3), [exact_number(x) for x in offset])
+    return [Factor(f"O({label})", M, M)]
+
+
+def _line_factors(axis: Axis, errors: dict) -> tuple[list, list]:
+    """T(d) before and T(-d) after the rotation of a rotary axis whose line is shifted by d (kinds lx ly lz)."""
+    line = {n: k for n, k in axis.pige.items() if k in LINE_KINDS}
+    if not line:
+        return [], []
+    d = [0, 0, 0]
+    for name, kind in line.items():
+        d["xyz".index(kind[1])] = errors[name]
+    out = []
+    for sign, tag in ((1, "+"), (-1, "-")):
+        M = homogeneous(sp.eye(3), [sign * x for x in d])
+        derivs = {n: M.diff(errors[n]) for n in line}
+        out.append([Factor(f"line{tag}({axis.name})", sp.eye(4), M, derivs)])
+    return out[0], out[1]
+
+
+def _end_factors(end: ChainEnd, errors: dict) -> list:
+    """Trans(offset) . PI after the last joint of a chain (none for an end without offset and errors)."""
+    pige = [_pi_factor(end.name, end.pige, errors)] if end.pige else []
+    return _offset_factor(end.name, end.offset) + pige
 
 
 def _pd_factor(axis: Axis, errors: dict) -> Factor:
@@ -140,18 +180,21 @@ def build_chain(machine: Machine) -> Chain:
     errors = {n: sp.Symbol(n, real=True) for n in machine.error_names}
 
     def joint(axis):
-        pi = _pi_factor(axis, errors, {})
+        pi = _pi_factor(axis.name, axis.pige, errors)
         t, _ = _motion_factor(axis, pose[axis.name], trig)
         pd = _pd_factor(axis, errors)
-        return [pi, t, pd]
+        before, after = _line_factors(axis, errors)
+        return _offset_factor(axis.name, axis.offset) + [pi] + before + [t] + after + [pd]
 
+    workpiece = [f for axis in machine.workpiece_chain for f in joint(axis)]
+    workpiece += _end_factors(machine.workpiece_end, errors)
     factors = []
-    for axis in reversed(machine.workpiece_chain):
-        for f in reversed(joint(axis)):
-            # inv(F) at e=0 is inv(F0); d inv(F)/de = -inv(F0) dF inv(F0).
-            inv0 = rigid_inverse(f.ideal)
-            derivs = {n: -inv0 * D * inv0 for n, D in f.derivs.items()}
-            factors.append(Factor(f"inv {f.label}", inv0, f.exact, derivs, inverse=True))
+    for f in reversed(workpiece):
+        # inv(F) at e=0 is inv(F0); d inv(F)/de = -inv(F0) dF inv(F0).
+        inv0 = rigid_inverse(f.ideal)
+        derivs = {n: -inv0 * D * inv0 for n, D in f.derivs.items()}
+        factors.append(Factor(f"inv {f.label}", inv0, f.exact, derivs, inverse=True))
     for axis in machine.tool_chain:
         factors.extend(joint(axis))
+    factors.extend(_end_factors(machine.tool_end, errors))
     return Chain(machine, pose, trig, errors, factors, unit(machine.tool_direction))

@@ -99,8 +99,11 @@ def derive_model(machine: Machine, convention: str = "equations") -> Model:
     prefix = sp.eye(4)
     for idx, f in enumerate(F):
         for name, D in f.derivs.items():
-            a[name] = _matmul(prefix, D * so[idx], canon)[:3, 0]
-            k[name] = _matmul(prefix, D * sv[idx], canon)[:3, 0]
+            # an error may sit in several factors (the T(d), T(-d) pair of an axis-line shift): sum the terms
+            da = _matmul(prefix, D * so[idx], canon)[:3, 0]
+            dk = _matmul(prefix, D * sv[idx], canon)[:3, 0]
+            a[name] = (a[name] + da).applyfunc(canon) if name in a else da
+            k[name] = (k[name] + dk).applyfunc(canon) if name in k else dk
         prefix = _matmul(prefix, f.ideal, canon)
     p_ideal = cur_o[:3, 0] + L * cur_v[:3, 0]
     v_ideal = cur_v[:3, 0]

@@ -11,11 +11,22 @@ from fiveaxis_derive.model import derive_model
 
 from conftest import DATA, SHIPPED, poses_and_lengths
 
-MODELS = [(name, "equations") for name in SHIPPED] + [("li2018", "printed")]
+#: Machine files of tests/data with offsets, axis-line shifts and chain ends: derived on demand into a cache.
+DATA_MODELS = [pytest.param(str(DATA / f"{n}.toml"), "equations", id=n)
+               for n in ("ac_trunnion_offsets", "planar_offsets")]
+MODELS = [(name, "equations") for name in SHIPPED] + [("li2018", "printed")] + DATA_MODELS
+
+
+@pytest.fixture(scope="module", autouse=True)
+def model_cache(tmp_path_factory):
+    """Models of tests/data files are derived into a temporary FIVEAXIS_CACHE, once for this module."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("FIVEAXIS_CACHE", str(tmp_path_factory.mktemp("models")))
+        yield
 
 
 def lambdified(model):
-    """SymPy reference: J (n, 41, 3) and K from the derived expressions, via lambdify (NumPy)."""
+    """SymPy reference: J (n, ne, 3) and K from the derived expressions, via lambdify (NumPy)."""
     syms = [model.chain.pose[v] for v in model.variables] + [L]
     exprs = [list(model.J(n)) + list(model.K(n)) for n in model.error_names]
     f = sp.lambdify(syms, exprs, modules="numpy", cse=True)
@@ -23,7 +34,7 @@ def lambdified(model):
     def evaluate(poses, Ls):
         out = f(*poses.T, Ls)
         arr = np.stack([np.stack([np.broadcast_to(np.asarray(c, float), Ls.shape) for c in row]) for row in out])
-        arr = np.moveaxis(arr, 2, 0)          # (n, 41, 6)
+        arr = np.moveaxis(arr, 2, 0)          # (n, ne, 6)
         return arr[..., :3], arr[..., 3:]
 
     return evaluate
@@ -66,7 +77,7 @@ def test_exact_and_first_order_kernels(name, convention):
     machine = m.machine.with_convention(convention)
     poses, Ls = poses_and_lengths(machine, 2000, seed=3)
     rng = np.random.default_rng(4)
-    E = rng.normal(0, 1e-4, 41)
+    E = rng.normal(0, 1e-4, len(m.errors))
     P, V = m.tool_errors(poses, E, Ls, exact=True)
     Pref, Vref = htm.tool_errors(machine, poses, Ls, E)
     assert np.abs(P - Pref).max() < 1e-9 and np.abs(V - Vref).max() < 1e-12
@@ -132,6 +143,69 @@ def test_non_axis_aligned_rotary_axis(tmp_path, monkeypatch):
     J, K = m.jk(poses, Ls)
     Jfd, Kfd = htm.jk_finite_differences(machine, poses, Ls)
     assert relative(J, Jfd) < 1e-6 and relative(K, Kfd) < 1e-6
-    E = np.random.default_rng(8).normal(0, 1e-4, 41)
+    E = np.random.default_rng(8).normal(0, 1e-4, len(m.errors))
     P, _ = m.tool_errors(poses, E, Ls, exact=True)
     assert np.abs(P - htm.tool_errors(machine, poses, Ls, E)[0]).max() < 1e-9
+
+
+def test_offsets_axis_line_and_chain_ends_closed_form():
+    """planar_offsets by hand: C's frame at o = (30, -20, 5), spindle point 10 mm along y of the C frame, tool
+    along its x at length L, workpiece frame at w = (0, 0, -40) turned by SCOW about z. Ideal tip in the workpiece
+    frame: (X + 30 - 10 s + L c, -20 + 10 c + L s, 45). Turning about the line through d instead of the origin,
+    p -> d + R(C) (p - d), moves the tip by (I - R(C)) d."""
+    model = derive_model(load_machine(DATA / "planar_offsets.toml"))
+    X, C = model.chain.pose["X"], model.chain.pose["C"]
+    c, s = sp.cos(C), sp.sin(C)
+    tip = (X + 30 - 10 * s + L * c, -20 + 10 * c + L * s, 45)     # relative to the workpiece frame
+    carriage = (tip[0] - X, tip[1], 5)                               # the tip relative to the X carriage
+    expected = {
+        "dXOC": ((1 - c, -s, 0), (0, 0, 0)), "dYOC": ((s, 1 - c, 0), (0, 0, 0)),       # (I - R(C)) d
+        "SCOC": ((-(L * s + 10 * c), L * c - 10 * s, 0), (-s, c, 0)),                  # about C's origin
+        "dYOS": ((-s, c, 0), (0, 0, 0)),                                               # along y of the C frame
+        "SCOW": ((tip[1], -tip[0], 0), (s, -c, 0)),                                    # -z x (P - w)
+        "ez_x": ((-carriage[1], carriage[0], 0), (-s, c, 0)),                          # z x (P - X x)
+        "ex_x": ((0, -carriage[2], carriage[1]), (0, 0, s)),
+        "dx_C": ((c, s, 0), (0, 0, 0)),
+    }
+    for name, (J, K) in expected.items():
+        assert all(sp.expand(a - b) == 0 for a, b in zip(model.J(name), J)), name
+        assert all(sp.expand(a - b) == 0 for a, b in zip(model.K(name), K)), name
+    p = model.p_ideal.subs(model.trig_to_functions())
+    assert all(sp.expand(a - b) == 0 for a, b in zip(p, tip))
+
+
+def test_axis_line_shift_is_exact_and_leaves_the_zero_pose(tmp_path, monkeypatch):
+    """Exact chain (generated kernel and htm): a line shift d of C moves the tip by exactly (I - R(C)) d, even
+    for a large d, and not at all at C = 0; a plain translation (ty) of C moves it by d at every angle."""
+    machine = load_machine(DATA / "planar_offsets.toml")
+    m = fiveaxis.load(machine)
+    C = np.radians([0.0, 30.0, -75.0, 90.0])
+    poses = m.poses(np.array([10.0, -50.0, 0.0, 80.0]), C)
+    d = np.array([0.3, -0.2])
+    E = m.error_vector({"dXOC": d[0], "dYOC": d[1]})
+    expected = np.stack([(1 - np.cos(C)) * d[0] + np.sin(C) * d[1], -np.sin(C) * d[0] + (1 - np.cos(C)) * d[1],
+                         0 * C], axis=1)
+    for P in (m.position_error(poses, E, 100.0, exact=True), htm.tool_errors(machine, poses, 100.0, E)[0]):
+        assert np.abs(P - expected).max() < 1e-12
+        assert np.all(P[0] == 0)
+    plain = load_machine(DATA / "planar.toml")          # its dYOC is a plain translation ("ty") of C
+    Ep = 0.2 * (np.array(plain.error_names) == "dYOC")
+    Pt = htm.tool_errors(plain, m.poses(np.zeros(4), C), 100.0, Ep)[0]
+    assert np.abs(Pt - [0, 0.2, 0]).max() < 1e-12
+
+
+def test_nominal_offsets_of_a_trunnion_by_hand():
+    """ac_trunnion_offsets: W = Trans(0, 0, -150) Rx(A) Trans(0, -12.5, 80) Rz(C), so the ideal tip (X, Y, Z - L)
+    is Rz(-C) (Rx(-A) ((X, Y, Z - L) - (0, 0, -150)) - (0, -12.5, 80)) in workpiece coordinates; the generated
+    kernel and the NumPy chain agree with it."""
+    machine = load_machine(DATA / "ac_trunnion_offsets.toml")
+    m = fiveaxis.load(machine)
+    poses, Ls = poses_and_lengths(machine, 200, seed=11)
+    X, Y, Z, A, C = poses.T
+    q = np.stack([X, Y, Z - Ls + 150.0], axis=1)
+    ca, sa, cc, sc = np.cos(A), np.sin(A), np.cos(C), np.sin(C)
+    r = np.stack([q[:, 0], ca * q[:, 1] + sa * q[:, 2], -sa * q[:, 1] + ca * q[:, 2]], axis=1) - [0, -12.5, 80]
+    tip = np.stack([cc * r[:, 0] + sc * r[:, 1], -sc * r[:, 0] + cc * r[:, 1], r[:, 2]], axis=1)
+    axis = np.stack([-sc * sa, -cc * sa, -ca], axis=1)     # Rz(-C) Rx(-A) (0, 0, -1)
+    for P, V in (m.ideal_tool(poses, Ls), htm.tool(machine, poses, Ls)):
+        assert np.abs(P - tip).max() < 1e-9 and np.abs(V - axis).max() < 1e-14

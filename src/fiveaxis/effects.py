@@ -256,11 +256,14 @@ def describe_param(machine, param: str) -> str:
         return "the tool length"
     ax = _axis_of(machine, param)
     if ax is None:
-        kind = next((a.pige[param] for a in machine.axes if param in a.pige), "")
-        where = next((a.name for a in machine.axes if param in a.pige), "?")
+        kind, where = machine.pige_kinds[param], machine.pige_place(param)
+        end = {"tool": "the spindle", "workpiece": "the workpiece holder"}.get(where)
         if kind.startswith("r"):
-            return f"the orientation (squareness) error {param} before axis {where} (rotation about {kind[1]})"
-        return f"the offset {param} of axis {where} (along {kind[1:]})"
+            return f"the orientation (squareness) error {param} {f'of {end}' if end else f'before axis {where}'} " \
+                   f"(rotation about {kind[1]})"
+        if kind.startswith("l"):
+            return f"the position {param} of the axis line of {where} (along {kind[1]})"
+        return f"the offset {param} of {end or f'axis {where}'} (along {kind[1]})"
     prefix, d = param.split("_")[0], param.split("_")[0][1]
     own = _DIR[int(np.argmax(np.abs(ax.direction)))]
     if ax.type == "linear":

@@ -1,16 +1,19 @@
 """Batched NumPy homogeneous transforms of a machine's exact chain: an independent reference for the kernels.
 
-Built straight from the Machine record (no SymPy, no generated code): PI . T . PD per joint (Eq. 1), the
-workpiece-side chain inverted, error transforms exact (Rz(ez) Ry(ey) Rx(ex) with the translation, the same
-convention as fiveaxis_derive.chain). Poses (n, nvar) in the machine's variable order, mm and rad.
+Built straight from the Machine record (no SymPy, no generated code): Trans(offset) . PI . T . PD per joint
+(Eq. 1), with T(d) R(q) T(-d) for a rotary axis whose line is shifted by d (kinds lx ly lz), then
+Trans(offset) . PI of the chain's end (spindle, workpiece holder); the workpiece-side chain inverted, error
+transforms exact (Rz(ez) Ry(ey) Rx(ex) with the translation, the same convention as fiveaxis_derive.chain).
+Poses (n, nvar) in the machine's variable order, mm and rad.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .machine import Axis, Machine
+from .machine import Axis, ChainEnd, Machine
 
 _KIND_INDEX = {"rx": 0, "ry": 1, "rz": 2, "tx": 3, "ty": 4, "tz": 5}
+_LINE_INDEX = {"lx": 0, "ly": 1, "lz": 2}
 
 
 def _rot(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
@@ -48,29 +51,52 @@ def _rigid_inverse(M: np.ndarray) -> np.ndarray:
     return _homogeneous(Rt, -np.einsum("nij,nj->ni", Rt, M[..., :3, 3]))
 
 
-def _joint(machine: Machine, axis: Axis, q: np.ndarray, E: np.ndarray, index: dict) -> np.ndarray:
-    n = len(q)
+def _translation(t: np.ndarray) -> np.ndarray:
+    """Pure translations (n, 4, 4) by t (n, 3) mm."""
+    return _homogeneous(np.broadcast_to(np.eye(3), t.shape[:-1] + (3, 3)), t)
+
+
+def _located(pige: dict, offset, E: np.ndarray, index: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Trans(offset) . PI (n, 4, 4) of a joint or chain end, and its axis-line shift d (n, 3, mm)."""
+    n = len(E)
     pi = np.zeros((n, 6))
-    for name, kind in axis.pige.items():
-        pi[:, _KIND_INDEX[kind]] = E[:, index[name]]
+    line = np.zeros((n, 3))
+    for name, kind in pige.items():
+        if kind in _LINE_INDEX:
+            line[:, _LINE_INDEX[kind]] = E[:, index[name]]
+        else:
+            pi[:, _KIND_INDEX[kind]] = E[:, index[name]]
+    O = _translation(np.broadcast_to(np.asarray(offset, dtype=float), (n, 3)))
+    return O @ small_transform(pi[:, :3], pi[:, 3:]), line
+
+
+def _joint(machine: Machine, axis: Axis, q: np.ndarray, E: np.ndarray, index: dict) -> np.ndarray:
+    located, d = _located(axis.pige, axis.offset, E, index)
     pd = np.stack([E[:, index[name]] for name in axis.pdge], axis=1)   # ex ey ez dx dy dz
-    return small_transform(pi[:, :3], pi[:, 3:]) @ _motion(axis, q) @ small_transform(pd[:, :3], pd[:, 3:])
+    motion = _translation(d) @ _motion(axis, q) @ _translation(-d)     # rotation about the shifted line
+    return located @ motion @ small_transform(pd[:, :3], pd[:, 3:])
+
+
+def _end(end: ChainEnd, E: np.ndarray, index: dict) -> np.ndarray:
+    return _located(end.pige, end.offset, E, index)[0]
 
 
 def relative_transform(machine: Machine, poses: np.ndarray, errors=None) -> np.ndarray:
-    """Workpiece-to-tool transforms (n, 4, 4) at poses (n, nvar; mm, rad) with errors (41,) or (n, 41) (mm, rad)."""
+    """Workpiece-to-tool transforms (n, 4, 4) at poses (n, nvar; mm, rad) with errors (ne,) or (n, ne) (mm, rad),
+    ne = len(machine.error_names)."""
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
     n = len(poses)
     names = machine.error_names
     E = np.zeros((n, len(names))) if errors is None else np.broadcast_to(np.asarray(errors, float), (n, len(names)))
     index = {nm: i for i, nm in enumerate(names)}
     col = {v: i for i, v in enumerate(machine.variables)}
-    M = np.broadcast_to(np.eye(4), (n, 4, 4)).copy()
+    W = _end(machine.workpiece_end, E, index)
     for axis in reversed(machine.workpiece_chain):
-        M = M @ _rigid_inverse(_joint(machine, axis, poses[:, col[axis.name]], E, index))
+        W = _joint(machine, axis, poses[:, col[axis.name]], E, index) @ W
+    M = _rigid_inverse(W)
     for axis in machine.tool_chain:
         M = M @ _joint(machine, axis, poses[:, col[axis.name]], E, index)
-    return M
+    return M @ _end(machine.tool_end, E, index)
 
 
 def tool(machine: Machine, poses, L, errors=None):
@@ -91,7 +117,7 @@ def tool_errors(machine: Machine, poses, L, errors):
 
 
 def jk_finite_differences(machine: Machine, poses, L, h: float = 1e-6):
-    """J and K (n, 41, 3) by central differences of the exact chain, step h (mm or rad) per error."""
+    """J and K (n, ne, 3) by central differences of the exact chain, step h (mm or rad) per error."""
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
     ne = len(machine.error_names)
     J = np.empty((len(poses), ne, 3))

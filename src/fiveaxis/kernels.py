@@ -119,7 +119,8 @@ class Model:
     def error_vector(self, errors=None) -> np.ndarray:
         """Error values in kernel order: None for the machine file's defaults, a dict by name, or an array.
 
-        A dict may omit errors (they are zero) but may not name unknown ones. Arrays may be (41,) or (n, 41).
+        A dict may omit errors (they are zero) but may not name unknown ones. Arrays may be (ne,) or (n, ne),
+        ne = len(self.errors) (41 for li2018).
         """
         if errors is None:
             defaults = self.machine.default_errors()
@@ -137,7 +138,7 @@ class Model:
 
     # -- kernels ------------------------------------------------------------------------------------------
     def jk(self, poses, L=None):
-        """J (n, 41, 3, mm per unit error) and K (n, 41, 3) at every pose (Eq. 10-11)."""
+        """J (n, ne, 3, mm per unit error) and K (n, ne, 3) at every pose (Eq. 10-11), ne = len(self.errors)."""
         q = self.poses(poses)
         n = len(q)
         J = np.empty((n, len(self.errors), 3))
@@ -146,12 +147,12 @@ class Model:
         return J, K
 
     def J(self, *pose, L=None):
-        """J_i at poses given as coordinates, e.g. m.J(X, Y, Z, A, B, L) for li2018 (mm, rad): (n, 41, 3)."""
+        """J_i at poses given as coordinates, e.g. m.J(X, Y, Z, A, B, L) for li2018 (mm, rad): (n, ne, 3)."""
         pose, L = self._split_L(pose, L)
         return self.jk(self.poses(*pose), L)[0]
 
     def K(self, *pose, L=None):
-        """K_i at poses given as coordinates (rad for angles): (n, 41, 3). K does not depend on L."""
+        """K_i at poses given as coordinates (rad for angles): (n, ne, 3). K does not depend on L."""
         pose, L = self._split_L(pose, L)
         return self.jk(self.poses(*pose), L)[1]
 
@@ -168,7 +169,7 @@ class Model:
         """Tool-tip error P_err (n, 3, mm) and tool-axis error V_err (n, 3) for given error values (Eq. 9).
 
         exact=False: first order, sum_i J_i E_i (Eq. 10-11); exact=True: the nonlinear chain (Eq. 7-8).
-        errors: None (machine defaults), dict by name, (41,) or (n, 41) array (errors varying with the pose).
+        errors: None (machine defaults), dict by name, (ne,) or (n, ne) array (errors varying with the pose).
         """
         q, Ls = self._broadcast_pose_args(poses, L)
         E = np.ascontiguousarray(np.atleast_2d(self.error_vector(errors)), dtype=float)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import re
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from . import effect_ids
@@ -17,6 +17,10 @@ from .errors import InputError
 
 #: Kinds of position-independent error: small rotation about or translation along a local axis.
 PIGE_KINDS = ("rx", "ry", "rz", "tx", "ty", "tz")
+#: Kinds that shift the axis LINE of a rotary axis along a local axis by d: T(d) R(q) T(-d) (rotary axes only).
+#: Unlike tx..tz they have no effect at q = 0: the frames downstream stay put, only the line moves (ISO 230-7's
+#: position of the axis average line, E_X0C ...).
+LINE_KINDS = ("lx", "ly", "lz")
 #: The six position-dependent errors of every axis, in the order of Table 1 (prefix of `<prefix>_<axis>`).
 PDGE_PREFIXES = ("ex", "ey", "ez", "dx", "dy", "dz")
 #: Pose variables are ordered X Y Z, then A B C; other names follow in chain order.
@@ -25,9 +29,11 @@ CANONICAL_ORDER = ("X", "Y", "Z", "A", "B", "C")
 MACHINES_DIR = Path(__file__).resolve().parents[2] / "machines"
 
 _TOP_KEYS = {"name", "title", "description", "tool", "tool_chain", "workpiece_chain", "errors",
-             "conventions", "effects", "model", "fit"}
-_AXIS_KEYS = {"axis", "type", "direction", "stroke", "errors", "pige", "description"}
-_TOOL_KEYS = {"length", "cutting_length", "direction"}
+             "conventions", "effects", "model", "workpiece", "fit"}
+_AXIS_KEYS = {"axis", "type", "direction", "stroke", "errors", "pige", "offset", "description"}
+_TOOL_KEYS = {"length", "cutting_length", "direction", "pige", "offset"}
+_TOOL_REQUIRED = ("length", "cutting_length", "direction")
+_WORKPIECE_KEYS = {"pige", "offset", "description"}
 _ERROR_KEYS = {"linear", "angular", "values"}
 _CONVENTION_KEYS = {"description", "move"}
 _MODEL_KEYS = {"effects"}
@@ -45,6 +51,9 @@ class Axis:
     stroke: tuple[float, float]    # mm for linear, degrees for rotary
     suffix: str                    # PDGE names are ex_<suffix> ... dz_<suffix>
     pige: dict = field(default_factory=dict)  # PIGE name -> kind, placed in the PI matrix before this joint
+    #: Nominal translation (mm) of this joint's frame in the previous frame, before the errors and the motion:
+    #: the joint is Trans(offset) . PI . T(q) . PD, so a rotary axis turns about the line through `offset`.
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     @property
     def model_stroke(self) -> tuple[float, float]:
@@ -55,6 +64,18 @@ class Axis:
     @property
     def pdge(self) -> tuple[str, ...]:
         return tuple(f"{p}_{self.suffix}" for p in PDGE_PREFIXES)
+
+
+@dataclass(frozen=True)
+class ChainEnd:
+    """What follows the last joint of a chain: the spindle ("tool") or the workpiece holder ("workpiece").
+
+    It contributes Trans(offset) . PI after the last joint's PD: `offset` (mm) is nominal, `pige` the location
+    errors there (kinds rx ry rz tx ty tz), e.g. the spindle's offset and tilt in a tilting head.
+    """
+    name: str                      # "tool" or "workpiece"
+    pige: dict = field(default_factory=dict)
+    offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -76,6 +97,8 @@ class Machine:
     pige_order: tuple = ()                            # PIGE names as first declared: stable across conventions
     added_effects: tuple = ()                         # effects the model includes: ids (ex_x:x1) or custom names
     fixed: dict = field(default_factory=dict)         # [fit] fixed: parameters held at known values (mm, rad)
+    tool_end: ChainEnd = ChainEnd("tool")             # the spindle after the last tool-chain joint
+    workpiece_end: ChainEnd = ChainEnd("workpiece")   # the workpiece holder after the last workpiece-chain joint
 
     @property
     def axes(self) -> tuple[Axis, ...]:
@@ -104,8 +127,24 @@ class Machine:
         return tuple(n for a in self.axes for n in a.pdge)
 
     @property
+    def pige_kinds(self) -> dict[str, str]:
+        """Every PIGE name -> its kind (rx ... tz, lx ly lz), on the axes and at the chain ends."""
+        return {n: k for p in (*(a.pige for a in self.axes), self.tool_end.pige, self.workpiece_end.pige)
+                for n, k in p.items()}
+
+    def pige_place(self, error: str) -> str:
+        """Where a PIGE sits: the name of its axis, or "tool" / "workpiece" for the chain ends."""
+        for a in self.axes:
+            if error in a.pige:
+                return a.name
+        for end in (self.tool_end, self.workpiece_end):
+            if error in end.pige:
+                return end.name
+        raise KeyError(error)
+
+    @property
     def pige_names(self) -> tuple[str, ...]:
-        return self.pige_order or tuple(n for a in self.axes for n in a.pige)
+        return self.pige_order or tuple(self.pige_kinds)
 
     @property
     def error_names(self) -> tuple[str, ...]:
@@ -114,10 +153,9 @@ class Machine:
 
     def is_angular(self, error: str) -> bool:
         """True for rotations (rad), False for translations (mm)."""
-        if error in self.pige_names:
-            for a in self.axes:
-                if error in a.pige:
-                    return a.pige[error].startswith("r")
+        kinds = self.pige_kinds
+        if error in kinds:
+            return kinds[error].startswith("r")
         return error.startswith("e")
 
     def default_errors(self) -> dict[str, float]:
@@ -152,13 +190,11 @@ class Machine:
             for a in chain:
                 pige = {n: k for n, k in a.pige.items() if n not in moves}
                 pige.update({n: kinds[n] for n, target in moves.items() if target == a.name})
-                out.append(Axis(a.name, a.type, a.direction, a.stroke, a.suffix, pige))
+                out.append(replace(a, pige=pige))
             return tuple(out)
 
-        return Machine(self.name, self.path, self.title, moved(self.tool_chain), moved(self.workpiece_chain),
-                       self.tool_length, self.cutting_length, self.tool_direction, self.linear_error,
-                       self.angular_error, self.error_values, self.conventions, self.effects,
-                       self.pige_names, self.added_effects, self.fixed)
+        return replace(self, tool_chain=moved(self.tool_chain), workpiece_chain=moved(self.workpiece_chain),
+                       pige_order=self.pige_names)
 
 
 def module_name(machine_name: str, convention: str = "equations") -> str:
@@ -221,6 +257,92 @@ def _vector(path, key, value):
     return vec
 
 
+def _offset(path, key, value):
+    """A nominal offset: a list of three finite numbers (mm), zero allowed."""
+    if not isinstance(value, list) or len(value) != 3:
+        _fail(path, key, f"expected a list of three numbers [x, y, z] (mm), got {value!r}")
+    return tuple(_number(path, key, v) for v in value)
+
+
+def _kind_problem(kind, axis_type, direction=None):
+    """Why a PIGE kind is not allowed where it is placed (None if it is): line kinds only on rotary axes, and
+    not along the axis itself. axis_type is "linear", "rotary" or None for a chain end (after the last joint)."""
+    if kind not in PIGE_KINDS + LINE_KINDS:
+        return f"unknown kind {kind!r} (expected one of: {', '.join(PIGE_KINDS + LINE_KINDS)})"
+    if kind not in LINE_KINDS:
+        return None
+    if axis_type != "rotary":
+        place = "a linear axis" if axis_type == "linear" else "the end of a chain (no axis line there)"
+        return (f"kind {kind!r} shifts the line of a rotary axis and is allowed on rotary axes only, not on {place} "
+                f"(expected one of: {', '.join(PIGE_KINDS)})")
+    # a shift along the axis's own direction leaves the line where it is: no effect, a zero column
+    across = [k for k in LINE_KINDS if _independent_across(direction, [k])]
+    if kind not in across:
+        return (f"kind {kind!r} shifts the axis line along its own direction, which has no effect "
+                f"(expected a shift across the axis: {' or '.join(across)})")
+    return None
+
+
+def _independent_across(direction, kinds) -> bool:
+    """True if the unit shifts of the line kinds, projected across the axis direction, are linearly independent
+    (a line moves in two directions only: at most two kinds, not both along the same direction across)."""
+    n = math.hypot(*direction)
+    u = [c / n for c in direction]
+    proj = []
+    for k in kinds:
+        e = [0.0, 0.0, 0.0]
+        e["xyz".index(k[1])] = 1.0
+        dot = sum(a * b for a, b in zip(e, u))
+        proj.append([a - dot * b for a, b in zip(e, u)])
+    if len(proj) == 1:
+        return math.hypot(*proj[0]) > 1e-9
+    if len(proj) > 2:
+        return False
+    (a1, a2, a3), (b1, b2, b3) = proj
+    return math.hypot(a2 * b3 - a3 * b2, a3 * b1 - a1 * b3, a1 * b2 - a2 * b1) > 1e-9
+
+
+def _pige_problem(pige: dict, axis_type, direction=None):
+    """The first problem of the PIGEs at one place (an axis or a chain end): (error name, why), or None."""
+    used = {}
+    for err, pk in pige.items():
+        if not _NAME_RE.match(err):
+            return err, "expected a name of letters and digits"
+        why = _kind_problem(pk, axis_type, direction)
+        if why:
+            return err, why
+        if pk in used:
+            return err, f"kind {pk!r} is already used by '{used[pk]}' here (one error per kind and place)"
+        used[pk] = err
+    lines = [err for err, pk in pige.items() if pk in LINE_KINDS]
+    if len(lines) > 1 and not _independent_across(direction, [pige[e] for e in lines]):
+        return lines[-1], (f"the line shifts {', '.join(lines)} are not independent across the axis (a line moves in "
+                           f"two directions only; a shift along the axis has no effect)")
+    return None
+
+
+def _parse_pige(path, where, pige, axis_type, direction=None):
+    """The `pige = { name = "kind", ... }` table of an axis or a chain end, checked."""
+    if not isinstance(pige, dict):
+        _fail(path, where, "expected a table of error name = kind")
+    problem = _pige_problem(pige, axis_type, direction)
+    if problem:
+        _fail(path, f"{where}.{problem[0]}", problem[1])
+    return dict(pige)
+
+
+def _parse_end(path, where, d, seen_errors):
+    """A chain end ([tool] or [workpiece]): its location errors and nominal offset."""
+    name = where.split(".")[0]
+    pige = _parse_pige(path, f"{where}pige", d.get("pige", {}), None)
+    offset = _offset(path, f"{where}offset", d["offset"]) if "offset" in d else (0.0, 0.0, 0.0)
+    for err in pige:
+        if err in seen_errors:
+            _fail(path, f"{where}pige.{err}", f"duplicate error name '{err}'")
+        seen_errors.add(err)
+    return ChainEnd(name, pige, offset)
+
+
 def _parse_axis(path, where, d, seen_axes, seen_errors):
     if not isinstance(d, dict):
         _fail(path, where, "expected a table ([[...]]) describing an axis")
@@ -247,15 +369,9 @@ def _parse_axis(path, where, d, seen_axes, seen_errors):
     suffix = d.get("errors", name.lower() if kind == "linear" else name)
     if not isinstance(suffix, str) or not _NAME_RE.match(suffix):
         _fail(path, f"{where}.errors", f"expected a name suffix such as 'x', got {suffix!r}")
-    pige = d.get("pige", {})
-    if not isinstance(pige, dict):
-        _fail(path, f"{where}.pige", "expected a table of error name = kind")
-    for err, pk in pige.items():
-        if pk not in PIGE_KINDS:
-            _fail(path, f"{where}.pige.{err}", f"unknown kind {pk!r} (expected one of: {', '.join(PIGE_KINDS)})")
-        if not _NAME_RE.match(err):
-            _fail(path, f"{where}.pige.{err}", "expected a name of letters and digits")
-    axis = Axis(name, kind, direction, (lo, hi), suffix, dict(pige))
+    pige = _parse_pige(path, f"{where}.pige", d.get("pige", {}), kind, direction)
+    offset = _offset(path, f"{where}.offset", d["offset"]) if "offset" in d else (0.0, 0.0, 0.0)
+    axis = Axis(name, kind, direction, (lo, hi), suffix, pige, offset)
     for err in axis.pdge + tuple(pige):
         if err in seen_errors:
             _fail(path, f"{where}", f"duplicate error name '{err}'")
@@ -284,12 +400,18 @@ def parse_machine(data: dict, path: Path) -> Machine:
     if not isinstance(tool, dict):
         _fail(path, "tool", "expected a table")
     _unknown(path, "tool.", tool, _TOOL_KEYS)
-    for k in _TOOL_KEYS:
+    for k in _TOOL_REQUIRED:
         if k not in tool:
             _fail(path, f"tool.{k}", "missing")
     length = _number(path, "tool.length", tool["length"], nonneg=True)
     cutting = _number(path, "tool.cutting_length", tool["cutting_length"], positive=True)
     tdir = _vector(path, "tool.direction", tool["direction"])
+    tool_end = _parse_end(path, "tool.", tool, seen_errors)
+    workpiece = data.get("workpiece", {})
+    if not isinstance(workpiece, dict):
+        _fail(path, "workpiece", "expected a table with pige = {...} and/or offset = [x, y, z]")
+    _unknown(path, "workpiece.", workpiece, _WORKPIECE_KEYS)
+    workpiece_end = _parse_end(path, "workpiece.", workpiece, seen_errors)
     errs = data.get("errors", {})
     if not isinstance(errs, dict):
         _fail(path, "errors", "expected a table")
@@ -317,11 +439,19 @@ def parse_machine(data: dict, path: Path) -> Machine:
         move = conv.get("move", {})
         if not isinstance(move, dict) or not move:
             _fail(path, where + ".move", "expected a table of PIGE name = axis name")
+        axis_kinds = {n: k for c in chains.values() for a in c for n, k in a.pige.items()}
         for err, target in move.items():
-            if err not in {n for c in chains.values() for a in c for n in a.pige}:
-                _fail(path, f"{where}.move.{err}", "unknown position-independent error")
+            if err not in axis_kinds:
+                _fail(path, f"{where}.move.{err}", "unknown position-independent error of an axis")
             if target not in seen_axes:
                 _fail(path, f"{where}.move.{err}", f"unknown axis {target!r}")
+        for dest in (a for c in chains.values() for a in c if a.name in move.values()):
+            arriving = [n for n, t in move.items() if t == dest.name]
+            pige = {n: k for n, k in dest.pige.items() if n not in move} | {n: axis_kinds[n] for n in arriving}
+            problem = _pige_problem(pige, dest.type, dest.direction)
+            if problem:
+                moved = problem[0] if problem[0] in arriving else arriving[0]
+                _fail(path, f"{where}.move.{moved}", f"on axis {dest.name!r}: {problem[1]}")
         conventions[cname] = {"description": str(conv.get("description", "")), "move": dict(move)}
     effects = data.get("effects", {})
     if not isinstance(effects, dict):
@@ -371,5 +501,8 @@ def parse_machine(data: dict, path: Path) -> Machine:
                    tool_length=length, cutting_length=cutting, tool_direction=tdir,
                    linear_error=lin, angular_error=ang, error_values={k: float(v) for k, v in values.items()},
                    conventions=conventions, effects=dict(effects),
-                   pige_order=tuple(n for c in chains.values() for a in c for n in a.pige),
-                   added_effects=tuple(added), fixed={k: float(v) for k, v in fixed.items()})
+                   pige_order=(tuple(n for a in chains["tool_chain"] for n in a.pige) + tuple(tool_end.pige)
+                               + tuple(n for a in chains["workpiece_chain"] for n in a.pige)
+                               + tuple(workpiece_end.pige)),
+                   added_effects=tuple(added), tool_end=tool_end, workpiece_end=workpiece_end,
+                   fixed={k: float(v) for k, v in fixed.items()})
