@@ -14,6 +14,7 @@ import jinja2
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
+from fiveaxis.errors import one_line
 from fiveaxis.machine import Machine, load_machine, module_name
 
 from .model import Model, derive_model
@@ -151,11 +152,15 @@ def write_atomic(path: Path, text: str) -> bool:
 
 
 def source_label(machine: Machine) -> str:
-    """The machine file's path as written in headers: relative to the repo for shipped machines."""
+    """The machine file's path as written in headers: relative to the repo for shipped machines, else the file name.
+
+    On one line whatever the file is called (a line break in a file name would end the header comment and make
+    the rest of the name a line of code in the generated module)."""
     try:
-        return str(Path(machine.path).resolve().relative_to(ROOT))
+        label = str(Path(machine.path).resolve().relative_to(ROOT))
     except ValueError:
-        return Path(machine.path).name
+        label = Path(machine.path).name
+    return one_line(label)
 
 
 def generate(machine_ref, out_dir: Path | None = None, conventions=None, file_names=None) -> list[tuple[Path, bool]]:

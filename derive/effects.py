@@ -18,7 +18,7 @@ import sympy as sp
 from fiveaxis.errors import InputError
 from fiveaxis.expressions import check
 
-from .codegen import BANNER, GENERATOR_VERSION, TEMPLATES, _assignments, write_atomic
+from .codegen import BANNER, GENERATOR_VERSION, TEMPLATES, _assignments, source_label, write_atomic
 
 #: SymPy function of each name in the whitelist of `fiveaxis.expressions.FUNCTIONS`.
 _FUNCTIONS = {"sin": sp.sin, "cos": sp.cos, "tan": sp.tan, "asin": sp.asin, "acos": sp.acos, "atan": sp.atan,
@@ -88,7 +88,7 @@ def render(machine, name: str, effect_hash: str) -> str:
                              undefined=jinja2.StrictUndefined, autoescape=False)
     spec = machine.effects[name]
     text = env.get_template("effects/effect.py.j2").render(
-        banner=BANNER, name=name, source=Path(machine.path).name, error=spec["error"], expr=spec["expr"],
+        banner=BANNER, name=name, source=source_label(machine), error=spec["error"], expr=spec["expr"],
         effect_hash=effect_hash, generator_version=GENERATOR_VERSION, sympy_version=sp.__version__,
         variables=[s.name for s in variables], parameters=[p.name for p in params], unpack=unpack, basis_body=body)
     return "\n".join(line.rstrip() for line in text.splitlines()) + "\n"
