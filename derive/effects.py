@@ -12,13 +12,13 @@ import operator
 from fractions import Fraction
 from pathlib import Path
 
-import jinja2
 import sympy as sp
 
+from fiveaxis import outputs, provenance
 from fiveaxis.errors import InputError
 from fiveaxis.expressions import check
 
-from .codegen import BANNER, GENERATOR_VERSION, TEMPLATES, _assignments, source_label, write_atomic
+from .codegen import BANNER, _assignments, environment, source_label
 
 #: SymPy function of each name in the whitelist of `fiveaxis.expressions.FUNCTIONS`.
 _FUNCTIONS = {"sin": sp.sin, "cos": sp.cos, "tan": sp.tan, "asin": sp.asin, "acos": sp.acos, "atan": sp.atan,
@@ -84,17 +84,15 @@ def render(machine, name: str, effect_hash: str) -> str:
     body = _assignments([f"b[{k}]" for k in range(len(params))], [sp.diff(expr, p) for p in params], "u")
     if not body.strip():
         body = "    pass"
-    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)), keep_trailing_newline=True,
-                             undefined=jinja2.StrictUndefined, autoescape=False)
     spec = machine.effects[name]
-    text = env.get_template("effects/effect.py.j2").render(
+    text = environment().get_template("effects/effect.py.j2").render(
         banner=BANNER, name=name, source=source_label(machine), error=spec["error"], expr=spec["expr"],
-        effect_hash=effect_hash, generator_version=GENERATOR_VERSION, sympy_version=sp.__version__,
+        effect_hash=effect_hash, generator_version=provenance.GENERATOR_VERSION, sympy_version=sp.__version__,
         variables=[s.name for s in variables], parameters=[p.name for p in params], unpack=unpack, basis_body=body)
     return "\n".join(line.rstrip() for line in text.splitlines()) + "\n"
 
 
 def generate_effect(machine, name: str, path: Path, effect_hash: str) -> Path:
     """Write the numba module of a custom effect to path (atomically); the runtime chooses path and hash."""
-    write_atomic(Path(path), render(machine, name, effect_hash))
+    outputs.write_text(Path(path), render(machine, name, effect_hash), force=True)
     return Path(path)

@@ -37,9 +37,10 @@ def test_interrupted_write_leaves_the_old_module(tmp_path, monkeypatch):
     def boom(src, dst):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(codegen.os, "replace", boom)
+    from fiveaxis import outputs
+    monkeypatch.setattr(outputs.os, "replace", boom)
     with pytest.raises(KeyboardInterrupt):
-        codegen.write_atomic(target, "new")
+        outputs.write_text(target, "new", force=True)
     assert target.read_text() == "old"
     assert os.listdir(tmp_path) == ["li2018.py"]
 
