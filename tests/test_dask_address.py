@@ -8,6 +8,7 @@ from fiveaxis.errors import InputError
 
 @pytest.mark.parametrize("text, expect", [
     ("garbage", "no port"),
+    ("", "no port"),                  # was taken as "no scheduler": a local cluster started
     ("tcp://", "no port"),
     ("tcp://localhost", "no port"),
     ("tcp://localhost:abc", "port 'abc'"),
@@ -20,6 +21,8 @@ from fiveaxis.errors import InputError
     ("tcp://[::1", "IPv6"),
     ("tcp://[::1]8786", "IPv6"),
     ("tcp://h:1\n2", "port"),
+    ("tcp://h:1\n", "port"),
+    ("\u00e9:1", "host name"),
 ])
 def test_bad_scheduler_addresses(capsys, text, expect):
     with pytest.raises(InputError, match=expect):

@@ -37,7 +37,7 @@ def scheduler_address(text: str) -> str:
     """A dask scheduler address checked and normalised: `tcp://HOST:PORT` (also `HOST:PORT`, `tls://HOST:PORT`,
     `tcp://[::1]:PORT`). Anything else is an InputError saying what was expected."""
     expected = "expected tcp://HOST:PORT, e.g. tcp://10.0.0.5:8786"
-    raw = str(text).strip()
+    raw = str(text).strip(" ")
     scheme, sep, rest = raw.partition("://")
     if not sep:
         scheme, rest = "tcp", raw
@@ -53,7 +53,7 @@ def scheduler_address(text: str) -> str:
         host, colon, port = rest.rpartition(":")
         if not colon:
             raise InputError(f"scheduler address {text!r}: no port ({expected})")
-        host_ok = bool(host) and all(c.isalnum() or c in "-._" for c in host)
+        host_ok = bool(host) and all(c.isascii() and (c.isalnum() or c in "-._") for c in host)
     if not host_ok:
         raise InputError(f"scheduler address {text!r}: expected a host name or IP address before the port "
                          f"({expected})")

@@ -42,6 +42,8 @@ _MODULE_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 RESERVED_COLUMNS = ("L", "t", "dx", "dy", "dz", "di", "dj", "dk", "du", "ux", "uy", "uz", "sigma", "sigma_axis",
                     "setup", "setup_kind", "frame")
 RESERVED_PREFIXES = ("dir_", "c_")
+#: Longest name of a machine, convention, axis, error or effect (they become file, module and variable names).
+MAX_NAME = 64
 #: Smallest norm of a direction vector before it is normalised: below it the file most likely holds a typo.
 MIN_DIRECTION_NORM = 1e-6
 #: Largest stroke end: linear axes (mm), rotary axes (degrees, ten turns).
@@ -193,14 +195,20 @@ def module_name(machine_name: str, convention: str = "equations") -> str:
 def resolve(name_or_path: str | Path) -> Path:
     """A machine name (`li2018`) from `machines/`, or a path to a TOML file."""
     p = Path(name_or_path)
-    if p.suffix == ".toml" or p.exists():
-        if not p.exists():
+    try:
+        exists = p.exists()
+    except OSError as exc:                          # e.g. a name longer than the file system allows
+        raise InputError(f"{str(p)[:80]}: not a usable machine name or path ({exc.strerror})") from None
+    if p.suffix == ".toml" or exists:
+        if not exists:
             raise InputError(f"{p}: machine file not found")
+        if p.is_dir():
+            raise InputError(f"{p}: is a folder (expected a machine file, .toml)")
         return p
     candidate = MACHINES_DIR / f"{name_or_path}.toml"
-    if not candidate.exists():
+    if not _MODULE_NAME_RE.fullmatch(str(name_or_path)) or not candidate.exists():
         known = ", ".join(sorted(q.stem for q in MACHINES_DIR.glob("*.toml")))
-        raise InputError(f"unknown machine '{name_or_path}' (expected a .toml path or one of: {known})")
+        raise InputError(f"unknown machine '{_short(str(name_or_path))}' (expected a .toml path or one of: {known})")
     return candidate
 
 
@@ -221,9 +229,16 @@ def _fail(path, key, msg):
 
 
 def _module_name(path, key, name, example):
-    if not isinstance(name, str) or not _MODULE_NAME_RE.fullmatch(name) or "__" in name or keyword.iskeyword(name):
+    if not isinstance(name, str) or not _MODULE_NAME_RE.fullmatch(name) or "__" in name or keyword.iskeyword(name) \
+            or len(name) > MAX_NAME:
         _fail(path, key, f"expected a name of letters, digits and single underscores that starts with a letter and "
-                         f"is no Python keyword, such as '{example}', got {name!r}")
+                         f"is no Python keyword, at most {MAX_NAME} characters, such as '{example}', got "
+                         f"{_short(name)!r}")
+
+
+def _short(value, n: int = 60):
+    """A value as quoted in a message: long strings cut (the message stays readable)."""
+    return value[:n] + "..." if isinstance(value, str) and len(value) > n else value
 
 
 def _unknown(path, where, data, allowed):
@@ -278,8 +293,9 @@ def _parse_axis(path, where, d, seen_axes, seen_errors):
         if k not in d:
             _fail(path, f"{where}.{k}", "missing")
     name = d["axis"]
-    if not isinstance(name, str) or not _NAME_RE.fullmatch(name):
-        _fail(path, f"{where}.axis", f"expected a name of letters and digits such as 'X', got {name!r}")
+    if not isinstance(name, str) or not _NAME_RE.fullmatch(name) or len(name) > MAX_NAME:
+        _fail(path, f"{where}.axis", f"expected a name of letters and digits (at most {MAX_NAME}) such as 'X', got "
+                                     f"{_short(name)!r}")
     if name in seen_axes:
         _fail(path, f"{where}.axis", f"duplicate axis name '{name}'")
     kind = d["type"]
@@ -306,15 +322,15 @@ def _parse_axis(path, where, d, seen_axes, seen_errors):
     if hi - lo < MIN_STROKE:
         _fail(path, f"{where}.stroke", f"[{lo:g}, {hi:g}] {unit} is shorter than {MIN_STROKE:g} {unit}")
     suffix = d.get("errors", name.lower() if kind == "linear" else name)
-    if not isinstance(suffix, str) or not _NAME_RE.fullmatch(suffix):
-        _fail(path, f"{where}.errors", f"expected a name suffix such as 'x', got {suffix!r}")
+    if not isinstance(suffix, str) or not _NAME_RE.fullmatch(suffix) or len(suffix) > MAX_NAME:
+        _fail(path, f"{where}.errors", f"expected a name suffix such as 'x', got {_short(suffix)!r}")
     pige = d.get("pige", {})
     if not isinstance(pige, dict):
         _fail(path, f"{where}.pige", "expected a table of error name = kind")
     for err, pk in pige.items():
         if pk not in PIGE_KINDS:
             _fail(path, f"{where}.pige.{err}", f"unknown kind {pk!r} (expected one of: {', '.join(PIGE_KINDS)})")
-        if not _NAME_RE.fullmatch(err):
+        if not _NAME_RE.fullmatch(err) or len(err) > MAX_NAME:
             _fail(path, f"{where}.pige.{err}", "expected a name of letters and digits")
         if err == "L":
             _fail(path, f"{where}.pige.{err}", "'L' is the tool length in effect ids (choose another name)")
@@ -399,7 +415,7 @@ def parse_machine(data: dict, path: Path) -> Machine:
         if not isinstance(eff, dict):
             _fail(path, where, "expected a table with error = \"<error name>\" and expr = \"<expression>\"")
         _unknown(path, where + ".", eff, _EFFECT_KEYS)
-        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", ename) or ename in seen_errors:
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", ename) or ename in seen_errors or len(ename) > MAX_NAME:
             _fail(path, where, "expected an identifier that is not an error name")
         if eff.get("error") not in seen_errors | {"L"}:
             _fail(path, where + ".error", f"expected an error name of this machine or L, got {eff.get('error')!r}")

@@ -39,7 +39,7 @@ def run_dask(args) -> int:
     from .. import distributed
     from ..kernels import load
     from .sensitivity import _print_ranking, _print_settings, parse_errors, workspace_grid
-    if args.scheduler:
+    if args.scheduler is not None:
         try:
             distributed.scheduler_address(args.scheduler)     # before the model loads: a typo fails at once
         except InputError as exc:
@@ -53,7 +53,7 @@ def run_dask(args) -> int:
         raise InputError(f"--workers: expected a positive number of worker processes, got {args.workers}")
     distributed.warm(model)          # compile or load the cache here, before any local worker starts
     cluster = None
-    if args.scheduler:
+    if args.scheduler is not None:
         try:
             client = distributed.connect(args.scheduler)
         except InputError as exc:
