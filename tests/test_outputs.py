@@ -240,3 +240,19 @@ def test_model_add_edits_the_toml_structurally(capsys, tmp_path, before, layout)
         assert new.count("[model]") == 1
     if layout == "inline":
         assert "[model]" not in new
+
+
+def test_a_refused_rename_names_the_file_not_the_temporary(tmp_path, monkeypatch):
+    """`--in-place` on an immutable file named the hidden temporary file; the error names the file itself, and no
+    temporary is left behind."""
+    target = tmp_path / "m.toml"
+    target.write_text("old")
+
+    def refuse(src, dst):
+        raise PermissionError(1, "Operation not permitted", src, dst)
+
+    monkeypatch.setattr(outputs.os, "replace", refuse)
+    with pytest.raises(InputError) as exc:
+        outputs.write_text(target, "new", force=True)
+    assert str(exc.value) == f"{target}: cannot write (Operation not permitted)"
+    assert os.listdir(tmp_path) == ["m.toml"] and target.read_text() == "old"
