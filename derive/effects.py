@@ -7,45 +7,69 @@ df/dp_k do not depend on p and the fit stays a least-squares problem.
 """
 from __future__ import annotations
 
-import re
+import ast
+import operator
+from fractions import Fraction
 from pathlib import Path
 
-import jinja2
 import sympy as sp
 
+from fiveaxis import outputs, provenance
 from fiveaxis.errors import InputError
+from fiveaxis.expressions import check
 
-from .codegen import BANNER, GENERATOR_VERSION, TEMPLATES, _assignments, write_atomic
+from .codegen import BANNER, _assignments, environment, source_label
 
-PARAM_RE = re.compile(r"^p[0-9]+$")
+#: SymPy function of each name in the whitelist of `fiveaxis.expressions.FUNCTIONS`.
+_FUNCTIONS = {"sin": sp.sin, "cos": sp.cos, "tan": sp.tan, "asin": sp.asin, "acos": sp.acos, "atan": sp.atan,
+              "sinh": sp.sinh, "cosh": sp.cosh, "tanh": sp.tanh, "exp": sp.exp, "log": sp.log, "sqrt": sp.sqrt,
+              "Abs": sp.Abs}
+_OPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,
+        ast.Pow: operator.pow}
 
 
 def tokens(machine) -> list[str]:
     """Variable names in effect expressions, in kernel column order: pose variables, then t."""
-    return [v.lower() if machine.axis(v).type == "linear" else v for v in machine.variables] + ["t"]
+    return list(machine.expression_variables)
+
+
+def to_sympy(node, symbols: dict):
+    """The SymPy expression of a tree vetted by `fiveaxis.expressions.check` (no parser, no eval)."""
+    if isinstance(node, ast.Constant):
+        v = node.value
+        if isinstance(v, Fraction):
+            return sp.Rational(v.numerator, v.denominator)
+        return sp.Integer(v) if isinstance(v, int) else sp.Float(v)
+    if isinstance(node, ast.Name):
+        return symbols[node.id]
+    if isinstance(node, ast.UnaryOp):
+        arg = to_sympy(node.operand, symbols)
+        return -arg if isinstance(node.op, ast.USub) else arg
+    if isinstance(node, ast.BinOp):
+        return _OPS[type(node.op)](to_sympy(node.left, symbols), to_sympy(node.right, symbols))
+    if isinstance(node, ast.Call):
+        return _FUNCTIONS[node.func.id](to_sympy(node.args[0], symbols))
+    raise TypeError(f"not a vetted expression node: {ast.dump(node)}")   # check() lets nothing else through
 
 
 def parse_effect(machine, name: str):
-    """(symbols of the variables, parameter symbols sorted by number, expression) of a custom effect."""
+    """(symbols of the variables, parameter symbols sorted by number, expression) of a custom effect.
+
+    The text is checked against the whitelist of `fiveaxis.expressions` first (it is data from a file, never
+    evaluated); the SymPy expression is then built from the vetted tree node by node, so no second parser ever
+    reads the text."""
     spec = machine.effects[name]
     where = f"{machine.path}: effects.{name}.expr"
     toks = tokens(machine)
+    vetted = check(spec["expr"], toks, where)
     local = {t: sp.Symbol(t, real=True) for t in toks}
-    try:
-        expr = sp.sympify(spec["expr"], locals=dict(local), rational=False)
-    except (sp.SympifyError, SyntaxError, TypeError) as exc:
-        raise InputError(f"{where}: not a valid expression ({str(exc).splitlines()[0][:80]})") from None
-    params, unknown = [], []
-    for s in expr.free_symbols:
-        if s.name in local:
-            continue
-        (params if PARAM_RE.match(s.name) else unknown).append(s)
-    if unknown:
-        raise InputError(f"{where}: unknown name(s) {', '.join(sorted(s.name for s in unknown))} (expected the "
-                         f"variables {' '.join(toks)} and parameters p1, p2, ...)")
+    params = [sp.Symbol(p, real=True) for p in vetted.parameters]
+    expr = to_sympy(vetted.tree, {**local, **{p.name: p for p in params}})
+    if expr.has(sp.I, sp.zoo, sp.oo, sp.nan):
+        raise InputError(f"{where}: not a finite real expression (SymPy reads it as {str(expr)[:60]})")
+    params = [p for p in params if p in expr.free_symbols]
     if not params:
-        raise InputError(f"{where}: no parameters (expected parameters named p1, p2, ...)")
-    params = sorted(params, key=lambda s: int(s.name[1:]))
+        raise InputError(f"{where}: no parameters left (the parameters cancel; expected p1, p2, ... to enter)")
     for p in params:
         if sp.diff(expr, p).free_symbols & set(params):
             raise InputError(f"{where}: not linear in its parameters (expected a sum of p_k times functions of "
@@ -60,17 +84,15 @@ def render(machine, name: str, effect_hash: str) -> str:
     body = _assignments([f"b[{k}]" for k in range(len(params))], [sp.diff(expr, p) for p in params], "u")
     if not body.strip():
         body = "    pass"
-    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(TEMPLATES)), keep_trailing_newline=True,
-                             undefined=jinja2.StrictUndefined, autoescape=False)
     spec = machine.effects[name]
-    text = env.get_template("effects/effect.py.j2").render(
-        banner=BANNER, name=name, source=Path(machine.path).name, error=spec["error"], expr=spec["expr"],
-        effect_hash=effect_hash, generator_version=GENERATOR_VERSION, sympy_version=sp.__version__,
+    text = environment().get_template("effects/effect.py.j2").render(
+        banner=BANNER, name=name, source=source_label(machine), error=spec["error"], expr=spec["expr"],
+        effect_hash=effect_hash, generator_version=provenance.GENERATOR_VERSION, sympy_version=sp.__version__,
         variables=[s.name for s in variables], parameters=[p.name for p in params], unpack=unpack, basis_body=body)
     return "\n".join(line.rstrip() for line in text.splitlines()) + "\n"
 
 
 def generate_effect(machine, name: str, path: Path, effect_hash: str) -> Path:
     """Write the numba module of a custom effect to path (atomically); the runtime chooses path and hash."""
-    write_atomic(Path(path), render(machine, name, effect_hash))
+    outputs.write_text(Path(path), render(machine, name, effect_hash), force=True)
     return Path(path)

@@ -9,7 +9,7 @@ import argparse
 import importlib
 import sys
 
-from .errors import InputError
+from .errors import InputError, one_line
 
 #: sub-command -> (module, one-line help). The module's `register(parser)` adds options and sets `func`.
 COMMANDS = {
@@ -62,14 +62,14 @@ def main(argv=None) -> int:
     except InputError as exc:
         print(f"fiveaxis: error: {exc}", file=sys.stderr)
         return 2
-    except (FileNotFoundError, IsADirectoryError, PermissionError) as exc:
-        print(f"fiveaxis: error: {exc.filename or ''}: {exc.strerror}", file=sys.stderr)
+    except OSError as exc:            # a file that cannot be read or written: its name and the reason, on one line
+        if isinstance(exc, BrokenPipeError):
+            return 0
+        print(f"fiveaxis: error: {one_line(exc.filename or '')}: {one_line(exc.strerror or exc)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("fiveaxis: interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:
-        return 0
 
 
 if __name__ == "__main__":

@@ -13,20 +13,16 @@ from pathlib import Path
 
 import numpy as np
 
+from . import provenance
 from .errors import InputError
-
-TEMPLATE = Path(__file__).resolve().parents[2] / "templates" / "effects" / "effect.py.j2"
-
-
-def _tokens(machine) -> list[str]:
-    return [v.lower() if machine.axis(v).type == "linear" else v for v in machine.variables] + ["t"]
 
 
 def effect_hash(machine, name: str) -> str:
     """Cache key of a custom effect: its definition, the variable order and the template."""
     spec = machine.effects[name]
-    text = "\0".join([name, spec["error"], spec["expr"], " ".join(_tokens(machine))])
-    return hashlib.sha256(text.encode() + b"\0" + TEMPLATE.read_bytes()).hexdigest()
+    text = "\0".join([name, spec["error"], spec["expr"], " ".join(machine.expression_variables)])
+    template = provenance.TEMPLATES / "effects" / "effect.py.j2"
+    return hashlib.sha256(text.encode() + b"\0" + template.read_bytes()).hexdigest()
 
 
 @dataclass

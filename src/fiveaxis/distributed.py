@@ -29,6 +29,51 @@ from .sensitivity import error_values, reduce_grid  # noqa: F401  (reduce_grid i
 CHUNK = 1 << 20
 
 
+#: Schemes of scheduler addresses: plain TCP, or TLS (its certificates come from the dask configuration).
+SCHEMES = ("tcp", "tls")
+
+
+def scheduler_address(text: str) -> str:
+    """A dask scheduler address checked and normalised: `tcp://HOST:PORT` (also `HOST:PORT`, `tls://HOST:PORT`,
+    `tcp://[::1]:PORT`). Anything else is an InputError saying what was expected."""
+    expected = "expected tcp://HOST:PORT, e.g. tcp://10.0.0.5:8786"
+    raw = str(text).strip(" ")
+    scheme, sep, rest = raw.partition("://")
+    if not sep:
+        scheme, rest = "tcp", raw
+    if scheme not in SCHEMES:
+        raise InputError(f"scheduler address {text!r}: unknown scheme '{scheme}' ({expected})")
+    if rest.startswith("["):                       # IPv6: [addr]:port
+        host, close, tail = rest[1:].partition("]")
+        if not close or not tail.startswith(":"):
+            raise InputError(f"scheduler address {text!r}: expected [IPv6 address]:PORT ({expected})")
+        port = tail[1:]
+        host_ok = bool(host) and all(c in "0123456789abcdefABCDEF:." for c in host)
+    else:
+        host, colon, port = rest.rpartition(":")
+        if not colon:
+            raise InputError(f"scheduler address {text!r}: no port ({expected})")
+        host_ok = bool(host) and all(c.isascii() and (c.isalnum() or c in "-._") for c in host)
+    if not host_ok:
+        raise InputError(f"scheduler address {text!r}: expected a host name or IP address before the port "
+                         f"({expected})")
+    if not port.isdigit() or not 0 < int(port) < 65536:
+        raise InputError(f"scheduler address {text!r}: port {port!r} is not a number from 1 to 65535 ({expected})")
+    return f"{scheme}://{'[' + host + ']' if rest.startswith('[') else host}:{int(port)}"
+
+
+def connect(address: str, timeout: str = "20s"):
+    """A dask Client of the scheduler at address (checked by scheduler_address); InputError if it cannot connect."""
+    from dask.distributed import Client
+    address = scheduler_address(address)
+    try:
+        return Client(address, timeout=timeout)
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        # OSError/TimeoutError: nobody answers; ValueError/TypeError: dask refused the address or its TLS settings
+        raise InputError(f"scheduler {address}: cannot connect ({str(exc).splitlines()[0] if str(exc) else exc!r})"
+                         ) from None
+
+
 def _chunk_sum(machine_path, convention, grid, start, stop, lo, hi, E, rel_tiny, worker_kernel):
     """One task: (sum over poses start..stop-1 of W_i (41,), left-out poses), on a worker."""
     from .kernels import load

@@ -12,6 +12,7 @@ import hashlib
 import importlib
 import importlib.util
 import os
+import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +20,7 @@ from types import ModuleType
 
 import numpy as np
 
+from . import provenance
 from .errors import InputError
 from .machine import Machine, load_machine, module_name
 
@@ -40,29 +42,60 @@ def _import_file(path: Path, name: str) -> ModuleType:
 
 
 def _generated_module(machine: Machine, convention: str) -> ModuleType | None:
-    """The committed module for this machine file, if it exists and was generated from the file as it is."""
+    """The committed module for this machine file, if it exists and was generated from the file as it is now and
+    from the templates, generator and SymPy as they are now (its MODEL_HASH); None otherwise."""
     try:
         mod = importlib.import_module(f"fiveaxis_generated.{module_name(machine.name, convention)}")
     except ModuleNotFoundError:
         return None
-    return mod if mod.SOURCE_SHA256 == _sha256(machine.path) else None
+    return mod if _is_current(mod, machine, convention) else None
 
 
 def _sha256(path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+def _expected_hash(machine: Machine, convention: str) -> str | None:
+    """The MODEL_HASH a module derived now from this machine file would carry (None: cannot be derived here)."""
+    return provenance.model_hash(Path(machine.path).read_bytes(), convention or "equations")
+
+
+def _is_current(mod: ModuleType, machine: Machine, convention: str) -> bool:
+    """True if mod was generated from the machine file as it is and (where that can be told) from the templates,
+    generator version and SymPy version of this installation."""
+    if getattr(mod, "SOURCE_SHA256", None) != _sha256(machine.path):
+        return False
+    expected = _expected_hash(machine, convention)
+    return expected is None or getattr(mod, "MODEL_HASH", None) == expected
+
+
+def _header_is_current(path: Path, machine: Machine, convention: str) -> bool:
+    """What _is_current tells of a module, read from its text (SOURCE_SHA256 = ..., MODEL_HASH = ...) without
+    running it: a stale, foreign or damaged file in the cache is never imported."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return False
+    values = dict(re.findall(r'^(SOURCE_SHA256|MODEL_HASH) = "([0-9a-f]{64})"$', text, flags=re.M))
+    expected = _expected_hash(machine, convention)
+    return values.get("SOURCE_SHA256") == _sha256(machine.path) and (expected is None
+                                                                       or values.get("MODEL_HASH") == expected)
+
+
 def _cached_module(machine: Machine, convention: str, derive: bool) -> ModuleType:
-    sha = _sha256(machine.path)
-    name = f"{module_name(machine.name, convention)}_{sha[:16]}"
+    """The module derived on demand into the cache folder, named by its model hash (machine file, templates,
+    generator, SymPy): a template change gives a new name, and a file whose hashes do not match is derived anew."""
+    key = _expected_hash(machine, convention) or _sha256(machine.path)
+    name = f"{module_name(machine.name, convention)}_{key[:16]}"
     path = cache_dir() / f"{name}.py"
-    if not path.exists():
+    if not _header_is_current(path, machine, convention):
         if not derive:
             raise InputError(f"{machine.path}: no generated kernels for this machine file (run `fiveaxis derive "
                              f"{machine.path}`)")
         print(f"fiveaxis: deriving the model of {machine.path} ({convention}) into {path.parent}", file=sys.stderr)
         from fiveaxis_derive.codegen import generate   # the user asked for a model that is not derived yet
         generate(machine, path.parent, [convention], file_names={convention: path.name})
+        sys.modules.pop(f"fiveaxis_models.{name}", None)
     return _import_file(path, f"fiveaxis_models.{name}")
 
 
@@ -208,7 +241,8 @@ def load(machine="li2018", convention: str = "equations", derive: bool = True) -
     """
     machine = machine if isinstance(machine, Machine) else load_machine(machine)
     machine.with_convention(convention)   # checks that the convention exists
-    key = (str(Path(machine.path).resolve()), convention, _sha256(machine.path))
+    key = (str(Path(machine.path).resolve()), convention, _sha256(machine.path),
+           _expected_hash(machine, convention))
     if key not in _LOADED:
         mod = _generated_module(machine, convention) or _cached_module(machine, convention, derive)
         _LOADED[key] = Model(machine, convention or "equations", mod)

@@ -6,13 +6,14 @@ This module is the only part of the runtime that the derivation (`fiveaxis_deriv
 """
 from __future__ import annotations
 
+import keyword
 import math
 import re
 import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from . import effect_ids
+from . import effect_ids, expressions
 from .errors import InputError
 
 #: Kinds of position-independent error: small rotation about or translation along a local axis.
@@ -40,6 +41,26 @@ _MODEL_KEYS = {"effects"}
 _FIT_KEYS = {"fixed"}
 _EFFECT_KEYS = {"error", "expr", "description"}
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9]*$")
+#: Machine and convention names become Python module names (`li2018`, `li2018__printed` in fiveaxis_generated):
+#: identifiers that start with a letter, no `__` (it joins machine and convention), no Python keyword.
+_MODULE_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+#: Axis names that a measurement file uses as columns of its own (an axis of that name would be read twice).
+RESERVED_COLUMNS = ("L", "t", "dx", "dy", "dz", "di", "dj", "dk", "du", "ux", "uy", "uz", "sigma", "sigma_axis",
+                    "setup", "setup_kind", "frame")
+RESERVED_PREFIXES = ("dir_", "c_")
+#: Longest name of a machine, convention, axis, error or effect (they become file, module and variable names).
+MAX_NAME = 64
+#: Smallest norm of a direction vector before it is normalised: below it the file most likely holds a typo.
+MIN_DIRECTION_NORM = 1e-6
+#: Largest stroke end: linear axes (mm), rotary axes (degrees, ten turns).
+MAX_LINEAR_STROKE = 1e5
+MAX_ROTARY_STROKE = 3600.0
+#: Shortest stroke (mm or degrees): an axis that cannot move is not an axis.
+MIN_STROKE = 1e-3
+#: Largest tool length and cutting length (mm), and largest default error values (mm, rad).
+MAX_TOOL_LENGTH = 1e5
+MAX_LINEAR_ERROR = 1e3
+MAX_ANGULAR_ERROR = 1.0
 
 
 @dataclass(frozen=True)
@@ -110,6 +131,12 @@ class Machine:
         names = [a.name for a in self.axes]
         known = [n for n in CANONICAL_ORDER if n in names]
         return tuple(known + [n for n in names if n not in known])
+
+    @property
+    def expression_variables(self) -> tuple[str, ...]:
+        """Variable names in effect expressions, in kernel column order: x y z (mm) for linear axes, rotary axis
+        names as written (rad), then t (s)."""
+        return tuple(v.lower() if self.axis(v).type == "linear" else v for v in self.variables) + ("t",)
 
     @property
     def rotary(self) -> tuple[str, ...]:
@@ -205,14 +232,20 @@ def module_name(machine_name: str, convention: str = "equations") -> str:
 def resolve(name_or_path: str | Path) -> Path:
     """A machine name (`li2018`) from `machines/`, or a path to a TOML file."""
     p = Path(name_or_path)
-    if p.suffix == ".toml" or p.exists():
-        if not p.exists():
+    try:
+        exists = p.exists()
+    except OSError as exc:                          # e.g. a name longer than the file system allows
+        raise InputError(f"{str(p)[:80]}: not a usable machine name or path ({exc.strerror})") from None
+    if p.suffix == ".toml" or exists:
+        if not exists:
             raise InputError(f"{p}: machine file not found")
+        if p.is_dir():
+            raise InputError(f"{p}: is a folder (expected a machine file, .toml)")
         return p
     candidate = MACHINES_DIR / f"{name_or_path}.toml"
-    if not candidate.exists():
+    if not _MODULE_NAME_RE.fullmatch(str(name_or_path)) or not candidate.exists():
         known = ", ".join(sorted(q.stem for q in MACHINES_DIR.glob("*.toml")))
-        raise InputError(f"unknown machine '{name_or_path}' (expected a .toml path or one of: {known})")
+        raise InputError(f"unknown machine '{_short(str(name_or_path))}' (expected a .toml path or one of: {known})")
     return candidate
 
 
@@ -232,15 +265,30 @@ def _fail(path, key, msg):
     raise InputError(f"{path}: {key}: {msg}")
 
 
+def _module_name(path, key, name, example):
+    if not isinstance(name, str) or not _MODULE_NAME_RE.fullmatch(name) or "__" in name or keyword.iskeyword(name) \
+            or len(name) > MAX_NAME:
+        _fail(path, key, f"expected a name of letters, digits and single underscores that starts with a letter and "
+                         f"is no Python keyword, at most {MAX_NAME} characters, such as '{example}', got "
+                         f"{_short(name)!r}")
+
+
+def _short(value, n: int = 60):
+    """A value as quoted in a message: long strings cut (the message stays readable)."""
+    return value[:n] + "..." if isinstance(value, str) and len(value) > n else value
+
+
 def _unknown(path, where, data, allowed):
     for k in data:
         if k not in allowed:
             _fail(path, f"{where}{k}", f"unknown key (expected one of: {', '.join(sorted(allowed))})")
 
 
-def _number(path, key, value, positive=False, nonneg=False):
+def _number(path, key, value, positive=False, nonneg=False, limit=None):
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         _fail(path, key, f"expected a finite number, got {value!r}")
+    if limit is not None and abs(value) > limit:
+        _fail(path, key, f"{value!r} is beyond +-{limit:g} (expected mm for lengths, rad for angles)")
     if positive and value <= 0:
         _fail(path, key, f"expected a positive number, got {value!r}")
     if nonneg and value < 0:
@@ -249,12 +297,29 @@ def _number(path, key, value, positive=False, nonneg=False):
 
 
 def _vector(path, key, value):
+    """A direction: three finite numbers of norm >= MIN_DIRECTION_NORM, returned normalised to unit length."""
     if not isinstance(value, list) or len(value) != 3:
         _fail(path, key, f"expected a list of three numbers, got {value!r}")
     vec = tuple(_number(path, key, v) for v in value)
     if all(v == 0 for v in vec):
         _fail(path, key, "direction is zero (expected a non-zero vector such as [0, 0, 1])")
-    return vec
+    norm = math.hypot(*vec)
+    if not MIN_DIRECTION_NORM <= norm < math.inf:
+        _fail(path, key, f"direction {list(vec)} has norm {norm:.3g} (expected a vector of norm >= "
+                         f"{MIN_DIRECTION_NORM:g} such as [0, 0, 1]; it is normalised)")
+    return tuple(v / norm for v in vec)
+
+
+def _reserved_axis(path, key, name, kind):
+    """Axis names that would clash with measurement columns or with names in effect expressions."""
+    token = name.lower() if kind == "linear" else name
+    if name in RESERVED_COLUMNS or name.startswith(RESERVED_PREFIXES):
+        _fail(path, key, f"'{name}' is a column name of measurement files (reserved: "
+                         f"{', '.join(RESERVED_COLUMNS)} and names starting with {' or '.join(RESERVED_PREFIXES)})")
+    if token == "t" or token in expressions.FUNCTIONS or token in expressions.CONSTANTS \
+            or expressions.PARAMETER_RE.fullmatch(token) or keyword.iskeyword(token):
+        _fail(path, key, f"'{name}' would be read as '{token}' in effect expressions, which means time, a parameter, "
+                         f"a constant or a function there (choose another name)")
 
 
 def _offset(path, key, value):
@@ -306,8 +371,10 @@ def _pige_problem(pige: dict, axis_type, direction=None):
     """The first problem of the PIGEs at one place (an axis or a chain end): (error name, why), or None."""
     used = {}
     for err, pk in pige.items():
-        if not _NAME_RE.match(err):
+        if not isinstance(err, str) or not _NAME_RE.fullmatch(err) or len(err) > MAX_NAME:
             return err, "expected a name of letters and digits"
+        if err == "L":
+            return err, "'L' is the tool length in effect ids (choose another name)"
         why = _kind_problem(pk, axis_type, direction)
         if why:
             return err, why
@@ -351,14 +418,21 @@ def _parse_axis(path, where, d, seen_axes, seen_errors):
         if k not in d:
             _fail(path, f"{where}.{k}", "missing")
     name = d["axis"]
-    if not isinstance(name, str) or not _NAME_RE.match(name):
-        _fail(path, f"{where}.axis", f"expected a name of letters and digits such as 'X', got {name!r}")
+    if not isinstance(name, str) or not _NAME_RE.fullmatch(name) or len(name) > MAX_NAME:
+        _fail(path, f"{where}.axis", f"expected a name of letters and digits (at most {MAX_NAME}) such as 'X', got "
+                                     f"{_short(name)!r}")
     if name in seen_axes:
         _fail(path, f"{where}.axis", f"duplicate axis name '{name}'")
-    seen_axes.add(name)
     kind = d["type"]
     if kind not in ("linear", "rotary"):
         _fail(path, f"{where}.type", f"unknown axis type {kind!r} (expected 'linear' or 'rotary')")
+    _reserved_axis(path, f"{where}.axis", name, kind)
+    token = name.lower() if kind == "linear" else name
+    clash = [a for a, k in seen_axes.items() if (a.lower() if k == "linear" else a) == token]
+    if clash:
+        _fail(path, f"{where}.axis", f"'{name}' and axis '{clash[0]}' are both '{token}' in effect expressions "
+                                     f"(linear axes are lower-cased there)")
+    seen_axes[name] = kind
     direction = _vector(path, f"{where}.direction", d["direction"])
     stroke = d["stroke"]
     if not isinstance(stroke, list) or len(stroke) != 2:
@@ -366,9 +440,15 @@ def _parse_axis(path, where, d, seen_axes, seen_errors):
     lo, hi = (_number(path, f"{where}.stroke", v) for v in stroke)
     if not lo < hi:
         _fail(path, f"{where}.stroke", f"expected min < max, got [{lo}, {hi}]")
+    limit, unit = (MAX_LINEAR_STROKE, "mm") if kind == "linear" else (MAX_ROTARY_STROKE, "deg")
+    if max(abs(lo), abs(hi)) > limit:
+        _fail(path, f"{where}.stroke", f"[{lo:g}, {hi:g}] {unit} is beyond +-{limit:g} {unit} (expected the "
+                                       f"travel of the axis in {unit})")
+    if hi - lo < MIN_STROKE:
+        _fail(path, f"{where}.stroke", f"[{lo:g}, {hi:g}] {unit} is shorter than {MIN_STROKE:g} {unit}")
     suffix = d.get("errors", name.lower() if kind == "linear" else name)
-    if not isinstance(suffix, str) or not _NAME_RE.match(suffix):
-        _fail(path, f"{where}.errors", f"expected a name suffix such as 'x', got {suffix!r}")
+    if not isinstance(suffix, str) or not _NAME_RE.fullmatch(suffix) or len(suffix) > MAX_NAME:
+        _fail(path, f"{where}.errors", f"expected a name suffix such as 'x', got {_short(suffix)!r}")
     pige = _parse_pige(path, f"{where}.pige", d.get("pige", {}), kind, direction)
     offset = _offset(path, f"{where}.offset", d["offset"]) if "offset" in d else (0.0, 0.0, 0.0)
     axis = Axis(name, kind, direction, (lo, hi), suffix, pige, offset)
@@ -383,9 +463,8 @@ def parse_machine(data: dict, path: Path) -> Machine:
     """Check a parsed machine file (a dict) and build the Machine record."""
     _unknown(path, "", data, _TOP_KEYS)
     name = data.get("name", Path(path).stem)
-    if not isinstance(name, str) or not re.match(r"^[A-Za-z_][A-Za-z0-9_]*$", name):
-        _fail(path, "name", f"expected an identifier such as 'li2018', got {name!r}")
-    seen_axes, seen_errors = set(), set()
+    _module_name(path, "name" if "name" in data else "name (from the file name)", name, "li2018")
+    seen_axes, seen_errors = {}, set()
     chains = {}
     for key in ("tool_chain", "workpiece_chain"):
         raw = data.get(key, [])
@@ -403,8 +482,8 @@ def parse_machine(data: dict, path: Path) -> Machine:
     for k in _TOOL_REQUIRED:
         if k not in tool:
             _fail(path, f"tool.{k}", "missing")
-    length = _number(path, "tool.length", tool["length"], nonneg=True)
-    cutting = _number(path, "tool.cutting_length", tool["cutting_length"], positive=True)
+    length = _number(path, "tool.length", tool["length"], nonneg=True, limit=MAX_TOOL_LENGTH)
+    cutting = _number(path, "tool.cutting_length", tool["cutting_length"], positive=True, limit=MAX_TOOL_LENGTH)
     tdir = _vector(path, "tool.direction", tool["direction"])
     tool_end = _parse_end(path, "tool.", tool, seen_errors)
     workpiece = data.get("workpiece", {})
@@ -416,21 +495,24 @@ def parse_machine(data: dict, path: Path) -> Machine:
     if not isinstance(errs, dict):
         _fail(path, "errors", "expected a table")
     _unknown(path, "errors.", errs, _ERROR_KEYS)
-    lin = _number(path, "errors.linear", errs.get("linear", 1e-4))
-    ang = _number(path, "errors.angular", errs.get("angular", 1e-4))
+    lin = _number(path, "errors.linear", errs.get("linear", 1e-4), limit=MAX_LINEAR_ERROR)
+    ang = _number(path, "errors.angular", errs.get("angular", 1e-4), limit=MAX_ANGULAR_ERROR)
     values = errs.get("values", {})
+    pige_kinds = {n: k for c in chains.values() for a in c for n, k in a.pige.items()}
     if not isinstance(values, dict):
         _fail(path, "errors.values", "expected a table of error name = value")
     for k, v in values.items():
         if k not in seen_errors:
             _fail(path, f"errors.values.{k}", "unknown error name")
-        _number(path, f"errors.values.{k}", v)
+        angular = k in pige_kinds and pige_kinds[k].startswith("r") or k not in pige_kinds and k.startswith("e")
+        _number(path, f"errors.values.{k}", v, limit=MAX_ANGULAR_ERROR if angular else MAX_LINEAR_ERROR)
     conventions = {}
     raw_conv = data.get("conventions", {})
     if not isinstance(raw_conv, dict):
         _fail(path, "conventions", "expected a table of named conventions")
     for cname, conv in raw_conv.items():
         where = f"conventions.{cname}"
+        _module_name(path, where, cname, "printed")
         if cname == "equations":
             _fail(path, where, "'equations' is the file as written and cannot be redefined")
         if not isinstance(conv, dict):
@@ -453,6 +535,9 @@ def parse_machine(data: dict, path: Path) -> Machine:
                 moved = problem[0] if problem[0] in arriving else arriving[0]
                 _fail(path, f"{where}.move.{moved}", f"on axis {dest.name!r}: {problem[1]}")
         conventions[cname] = {"description": str(conv.get("description", "")), "move": dict(move)}
+    kinds = {a.name: a.type for c in chains.values() for a in c}
+    order = [n for n in CANONICAL_ORDER if n in kinds] + [n for n in kinds if n not in CANONICAL_ORDER]
+    tokens = [n.lower() if kinds[n] == "linear" else n for n in order] + ["t"]   # = Machine.expression_variables
     effects = data.get("effects", {})
     if not isinstance(effects, dict):
         _fail(path, "effects", "expected a table of custom effects")
@@ -461,12 +546,13 @@ def parse_machine(data: dict, path: Path) -> Machine:
         if not isinstance(eff, dict):
             _fail(path, where, "expected a table with error = \"<error name>\" and expr = \"<expression>\"")
         _unknown(path, where + ".", eff, _EFFECT_KEYS)
-        if not re.match(r"^[A-Za-z_][A-Za-z0-9_]*$", ename) or ename in seen_errors:
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", ename) or ename in seen_errors or len(ename) > MAX_NAME:
             _fail(path, where, "expected an identifier that is not an error name")
         if eff.get("error") not in seen_errors | {"L"}:
             _fail(path, where + ".error", f"expected an error name of this machine or L, got {eff.get('error')!r}")
         if not isinstance(eff.get("expr"), str) or not eff["expr"].strip():
             _fail(path, where + ".expr", "expected an expression such as \"p1*sin(2*pi*x/10)\"")
+        expressions.check(eff["expr"], tokens, f"{path}: {where}.expr")   # data, never code: see expressions
     model = data.get("model", {})
     if not isinstance(model, dict):
         _fail(path, "model", "expected a table such as [model] effects = [\"ex_x:x1\"]")
@@ -474,7 +560,6 @@ def parse_machine(data: dict, path: Path) -> Machine:
     added = model.get("effects", [])
     if not isinstance(added, list):
         _fail(path, "model.effects", f"expected a list of effect ids such as [\"ex_x:x1\"], got {added!r}")
-    tokens = {a.name.lower() if a.type == "linear" else a.name for c in chains.values() for a in c} | {"t"}
     for i, ident in enumerate(added):
         if isinstance(ident, str) and ident in effects:
             continue

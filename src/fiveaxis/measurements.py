@@ -557,38 +557,20 @@ def frame(meas: Measurements, machine):
     return pd.DataFrame(cols)
 
 
-def file_mode() -> int:
-    """Permissions of a new file under the current umask (mkstemp would leave 0600)."""
-    import os
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask
+from .outputs import file_mode  # noqa: E402,F401  (moved to fiveaxis.outputs; kept here for callers)
 
 
 def write(df, path, force: bool = False) -> Path:
-    """Write a DataFrame as CSV or Parquet (by suffix) through a temporary file and a rename.
+    """Write a DataFrame as CSV or Parquet (by suffix), atomically (`fiveaxis.outputs`).
 
     Refuses to replace an existing file unless force is True: nothing the user wrote is lost by accident."""
-    import os
-    import tempfile
+    from .outputs import write_with
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in (".csv", ".parquet", ".pq"):
         raise InputError(f"{path}: unknown output type '{suffix}' (expected .csv or .parquet)")
-    if path.exists() and not force:
-        raise InputError(f"{path}: exists; not overwriting it (use --force to replace it)")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=str(path.parent))
-    os.close(fd)
-    try:
-        if suffix == ".csv":
-            df.to_csv(tmp, index=False, float_format="%.10g")
-        else:
-            df.to_parquet(tmp, index=False)
-        os.chmod(tmp, file_mode())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    if suffix == ".csv":
+        write_with(path, lambda tmp: df.to_csv(tmp, index=False, float_format="%.10g"), force)
+    else:
+        write_with(path, lambda tmp: df.to_parquet(tmp, index=False), force)
     return path

@@ -39,6 +39,11 @@ def run_dask(args) -> int:
     from .. import distributed
     from ..kernels import load
     from .sensitivity import _print_ranking, _print_settings, parse_errors, workspace_grid
+    if args.scheduler is not None:
+        try:
+            distributed.scheduler_address(args.scheduler)     # before the model loads: a typo fails at once
+        except InputError as exc:
+            raise InputError(f"--scheduler: {exc}") from None
     model = load(args.machine, args.convention)
     errors = parse_errors(model, args.errors)
     grid = workspace_grid(model, args.axis)
@@ -48,12 +53,11 @@ def run_dask(args) -> int:
         raise InputError(f"--workers: expected a positive number of worker processes, got {args.workers}")
     distributed.warm(model)          # compile or load the cache here, before any local worker starts
     cluster = None
-    if args.scheduler:
-        from dask.distributed import Client
+    if args.scheduler is not None:
         try:
-            client = Client(args.scheduler, timeout="20s")
-        except (OSError, TimeoutError) as exc:
-            raise InputError(f"--scheduler {args.scheduler}: cannot connect ({exc})") from None
+            client = distributed.connect(args.scheduler)
+        except InputError as exc:
+            raise InputError(f"--scheduler: {exc}") from None
     else:
         cluster, client = distributed.local_cluster(args.workers, 1)
     try:

@@ -35,6 +35,10 @@ def run_derive(args) -> int:
     import tempfile
 
     from fiveaxis_derive.codegen import GENERATED, generate
+
+    from ..outputs import check_folder
+    if args.out is not None:
+        check_folder(args.out)          # before the derivation: `--out FILE/gen` is refused at once
     names = args.machine or sorted(str(p) for p in MACHINES_DIR.glob("*.toml"))
     stale = []
     for ref in names:

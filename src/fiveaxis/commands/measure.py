@@ -5,11 +5,7 @@ Angles in degrees in files and on the command line; everything else in mm and se
 from __future__ import annotations
 
 import json
-import os
-import re
 import sys
-import tempfile
-import tomllib
 from pathlib import Path
 
 from ..errors import InputError
@@ -184,6 +180,7 @@ def run_diagnose(args) -> int:
 def run_simulate(args) -> int:
     from ..kernels import load
     from ..measurements import in_frame, write
+    from ..outputs import write_text
     from ..simulate import simulate, to_frame
     if args.output.exists() and not args.force:
         raise InputError(f"{args.output}: exists; not overwriting it (use --force to replace it)")
@@ -232,7 +229,7 @@ def run_simulate(args) -> int:
         meas = in_frame(meas, model.machine, args.frame)
         sim.meas = meas
     path = write(to_frame(sim, model), args.output, force=args.force)
-    _write_text(truth_path, json.dumps(sim.truth_json(model, args.seed), indent=1) + "\n")
+    write_text(truth_path, json.dumps(sim.truth_json(model, args.seed), indent=1) + "\n", force=args.force)
     hidden = ", ".join(f"{k}={v}" for k, v in sim.effects.items()) or "none"
     print(f"fiveaxis: wrote {path}: {meas.n} poses ({sim.instrument}, {meas.frame} frame), noise {args.noise} mm, "
           f"hidden effects: {hidden}, {len(meas.setups)} setup(s), seed {args.seed}", file=sys.stderr)
@@ -260,7 +257,7 @@ def _plan_from_file(args, model, lengths):
 
 def run_model(args) -> int:
     from .. import effects as fx
-    from ..machine import load_machine, parse_machine
+    from ..machine import load_machine
     machine = load_machine(args.machine)
     ids = []
     for e in args.effects:
@@ -268,49 +265,8 @@ def run_model(args) -> int:
         if ident in machine.added_effects or ident in ids:
             raise InputError(f"model add: {machine.path}: effect '{ident}' is already in the model")
         ids.append(ident)
-    text = Path(machine.path).read_text(encoding="utf-8")
-    new = _with_effects(text, machine.path, list(machine.added_effects) + ids)
-    target = Path(machine.path) if args.in_place else args.output
-    if not args.in_place and target.exists() and not args.force:
-        raise InputError(f"{target}: exists; not overwriting it (use --force to replace it)")
-    if not args.in_place and target.resolve() == Path(machine.path).resolve():
-        raise InputError(f"{target}: is the machine file itself (use --in-place to rewrite it)")
-    parse_machine(tomllib.loads(new), target)         # the new file must read back
-    _write_text(target, new)
+    from ..machine_edit import write_model_effects
+    target = write_model_effects(machine, list(machine.added_effects) + ids, None if args.in_place else args.output,
+                                 force=args.force)
     print(f"fiveaxis: wrote {target}: model effects {', '.join(list(machine.added_effects) + ids)}", file=sys.stderr)
     return 0
-
-
-def _with_effects(text: str, path, effects) -> str:
-    """The machine file text with `[model] effects = [...]` set to effects (the rest of the text unchanged)."""
-    line = "effects = [" + ", ".join(json.dumps(e) for e in effects) + "]"
-    header = re.search(r"^\[model\][ \t]*(#.*)?$", text, flags=re.M)
-    if not header:
-        return text.rstrip("\n") + "\n\n# Effects added to the geometric model (fiveaxis model add)\n[model]\n" + line + "\n"
-    start = header.end()
-    nxt = re.search(r"^\[", text[start:], flags=re.M)
-    end = start + nxt.start() if nxt else len(text)
-    body = text[start:end]
-    m = re.search(r"^effects\s*=\s*\[[^\]]*\][ \t]*(#.*)?$", body, flags=re.M)
-    if m:
-        body = body[:m.start()] + line + body[m.end():]
-    elif re.search(r"^effects\s*=", body, flags=re.M):
-        raise InputError(f"{path}: model.effects: cannot rewrite this list (expected effects = [...] on one line)")
-    else:
-        body = "\n" + line + body
-    return text[:start] + body + text[end:]
-
-
-def _write_text(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=str(path.parent))
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        from ..measurements import file_mode
-        os.chmod(tmp, os.stat(path).st_mode & 0o777 if path.exists() else file_mode())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise

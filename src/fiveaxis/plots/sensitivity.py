@@ -1,11 +1,9 @@
 """PNG plots of the sensitivity analysis (matplotlib, Agg): pie charts of PL/PG (Fig. 10, 14), machining-error
 maps on the cone's side surface (Fig. 12-13), contour maps of the average tool errors over A and B (Fig. 17-18).
-Every file is written to a temporary name and renamed, so a failed run never leaves half a PNG.
+Every file is written atomically (`fiveaxis.outputs`), so a failed run never leaves half a PNG.
 """
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -19,18 +17,13 @@ def _pyplot():
 
 
 def _save(fig, path: Path) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}-", suffix=".png")
-    os.close(fd)
+    """Write fig as a PNG atomically (`fiveaxis.outputs`), replacing an earlier plot of that name."""
+    from ..outputs import write_with
     try:
-        fig.savefig(tmp, dpi=110, bbox_inches="tight")
-        os.replace(tmp, path)
+        write_with(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight"), force=True)
     finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    _pyplot().close(fig)
-    return path
+        _pyplot().close(fig)
+    return Path(path)
 
 
 def pie(names, proportions, path, title: str, top: int = 10) -> Path:
