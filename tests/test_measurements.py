@@ -134,3 +134,11 @@ def test_ragged_rows_and_wrong_separator(tmp_path, machine):
 def test_lines_follow_quoted_line_breaks(tmp_path, machine):
     msg = _error(_csv(tmp_path, f'{HEADER}\n100,-50,"10\n",5,-10,0,0,0\n100,-50,10,5,-10,0,0,x\n'), machine)
     assert "data row 2 (line 4)" in msg
+
+
+def test_every_measurement_column_is_a_reserved_axis_name():
+    """The reader's columns and the machine file's reserved axis names are one list (an axis named like a column
+    would be read twice)."""
+    from fiveaxis import measurements as M
+    from fiveaxis.machine import RESERVED_COLUMNS
+    assert set(M.READINGS + M.NUMERIC_OPTIONAL + M.TEXT_OPTIONAL) <= set(RESERVED_COLUMNS)

@@ -46,7 +46,7 @@ _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9]*$")
 _MODULE_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 #: Axis names that a measurement file uses as columns of its own (an axis of that name would be read twice).
 RESERVED_COLUMNS = ("L", "t", "dx", "dy", "dz", "di", "dj", "dk", "du", "ux", "uy", "uz", "sigma", "sigma_axis",
-                    "setup", "setup_kind", "frame")
+                    "setup", "setup_kind", "setup_frame", "frame")
 RESERVED_PREFIXES = ("dir_", "c_")
 #: Longest name of a machine, convention, axis, error or effect (they become file, module and variable names).
 MAX_NAME = 64

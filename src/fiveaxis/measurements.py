@@ -34,8 +34,6 @@ READINGS = DEVIATIONS + AXIS_DEVIATIONS + (LINE,)
 NUMERIC_OPTIONAL = ("L", "t", "sigma", "sigma_axis") + DIRECTION
 TEXT_OPTIONAL = ("setup", "setup_kind", "setup_frame", "frame")
 OPTIONAL = ("L", "t") + AXIS_DEVIATIONS + (LINE,) + DIRECTION + ("sigma", "sigma_axis") + TEXT_OPTIONAL
-#: Names of measurement columns: a machine axis may not be called like one of them (see fiveaxis.machine).
-RESERVED = READINGS + NUMERIC_OPTIONAL + TEXT_OPTIONAL
 FRAMES = ("workpiece", "machine")
 SETUP_KINDS = ("point", "rigid", "planar")
 #: A rotary column "looks like radians" when every |value| is at most this (degrees would be tiny angles) while
