@@ -45,7 +45,7 @@ def test_fit_json(capsys, data):
     rc, out, _ = run(capsys, "fit", data, "--add", "ex_x:x1", "--json")
     j = json.loads(out)
     assert rc == 0 and set(j) >= {"rms_mm", "parameters", "unidentifiable", "condition"}
-    assert j["parameters"]["Syz"]["value"] is None and ["ex_y", "Syz"] in j["unidentifiable"]
+    assert not j["parameters"]["Syz"]["determined"] and ["ex_y", "Syz"] in j["unidentifiable"]
     assert j["parameters"]["ex_x:x1"]["value"] == pytest.approx(2e-5 / 2500, rel=0.05)
     assert j["rms_mm"] < 1.1e-3
     rc, out, _ = run(capsys, "fit", data)

@@ -280,7 +280,129 @@ def dask_cases(rng: random.Random, work: Workspace) -> list[Case]:
     return cases
 
 
+# -- measurement files -------------------------------------------------------------------------------------------
+MEAS_BAD_CELLS = ["", " ", "nan", "NaN", "inf", "-inf", "1e300", "-1e300", "1e400", "abc", "1,5", "0x10", "--1",
+                  "1e-300", "é", "9" * 5000, "True", "None", "[1]", '"', "1;2"]
+
+
+def _base_measurements(work: Workspace) -> Path:
+    """A small simulated li2018 set with every kind of optional column the reader knows."""
+    p = work.root / "base.csv"
+    if not p.exists():
+        assert main(["simulate", "--n", "60", "--with-sigma", "--seed", "3", "-o", str(p)]) == 0
+    return p
+
+
+def _table(path: Path):
+    lines = path.read_text().splitlines()
+    return lines[0].split(","), [ln.split(",") for ln in lines[1:]]
+
+
+def _write_table(path: Path, header, rows, newline="\n") -> Path:
+    path.write_text(newline.join([",".join(header)] + [",".join(r) for r in rows]) + newline)
+    return path
+
+
+def measurement_file_cases(rng: random.Random, work: Workspace) -> list[Case]:
+    """fit and diagnose on measurement files with mutated cells, columns and headers (CSV and Parquet)."""
+    base = _base_measurements(work)
+    header, rows = _table(base)
+    cases = []
+    cmd = lambda p: [rng.choice(["fit", "diagnose"]), str(p), "--json"]  # noqa: E731
+    # harmless variants
+    out = work.new("reordered.csv")
+    order = list(range(len(header)))
+    rng.shuffle(order)
+    _write_table(out, [header[i] for i in order], [[r[i] for i in order] for r in rows])
+    cases.append(Case("columns reordered", ["fit", str(out), "--json"], OK))
+    out = work.new("extra.csv")
+    _write_table(out, header + ["comment"], [r + ["ok"] for r in rows])
+    cases.append(Case("an extra column", ["fit", str(out), "--json"], OK))
+    out = work.new("crlf.csv")
+    _write_table(out, header, rows, newline="\r\n")
+    cases.append(Case("CRLF line ends", ["fit", str(out), "--json"], OK))
+    out = work.new("spaces.csv")
+    _write_table(out, header, [[f" {c} " for c in r] for r in rows])
+    cases.append(Case("spaces around numbers", ["fit", str(out), "--json"], OK))
+    out = work.new("partial.csv")
+    k = header.index("dz")
+    _write_table(out, header, [[("" if j == k and i % 2 else c) for j, c in enumerate(r)] for i, r in enumerate(rows)])
+    cases.append(Case("every other dz not measured", ["diagnose", str(out), "--json"], OK))
+    # bad cells in every kind of column
+    for _ in range(60):
+        col = rng.randrange(len(header))
+        row = rng.randrange(len(rows))
+        value = rng.choice(MEAS_BAD_CELLS)
+        mutated = [list(r) for r in rows]
+        mutated[row][col] = value
+        out = work.new("cell.csv")
+        _write_table(out, header, mutated)
+        cases.append(Case(f"{header[col]} row {row + 1} = {value[:12]!r}", cmd(out), EITHER, (str(out),)))
+    # broken structure
+    for label, (h, r) in {
+        "missing pose column": ([c for c in header if c != "B"], [x[:header.index("B")] + x[header.index("B") + 1:]
+                                                                   for x in rows]),
+        "no readings": ([c for c in header if c not in ("dx", "dy", "dz")],
+                        [[c for j, c in enumerate(x) if header[j] not in ("dx", "dy", "dz")] for x in rows]),
+        "duplicate header": (header + ["dx"], [x + ["0"] for x in rows]),
+        "du without direction": (header + ["du"], [x + [""] for x in rows[:-1]] + [rows[-1] + ["0.001"]]),
+        "dir_X of 0": (header + ["dir_X"], [x + ["0"] for x in rows]),
+        "dir_Q": (header + ["dir_Q"], [x + ["1"] for x in rows]),
+        "setup of one row": (header + ["setup"], [x + ["a"] for x in rows[:-1]] + [rows[-1] + ["b"]]),
+        "setup_kind wrong": (header + ["setup", "setup_kind"], [x + ["a", "wobbly"] for x in rows]),
+        "frame column mixed": (header + ["frame"], [x + [rng.choice(["workpiece", "machine"])] for x in rows]),
+        "ragged row": (header, rows[:-1] + [rows[-1][:-2]]),
+    }.items():
+        out = work.new("bad.csv")
+        _write_table(out, h, r)
+        cases.append(Case(label, cmd(out), ERROR, (str(out),)))
+    # Parquet column types
+    import pandas as pd
+    df = pd.read_csv(base)
+    for label, change in {"bool dx": lambda d: d.assign(dx=d.dx > 0),
+                          "timestamp t": lambda d: d.assign(t=pd.date_range("2026-01-01", periods=len(d), freq="s")),
+                          "text X": lambda d: d.assign(X=d.X.astype(str)),
+                          "nan in X": lambda d: d.assign(X=d.X.where(d.index != 3)),
+                          "nan in dx": lambda d: d.assign(dx=d.dx.where(d.index != 3))}.items():
+        out = work.new("m.parquet")
+        change(df).to_parquet(out)
+        cases.append(Case(f"parquet {label}", cmd(out), EITHER, (str(out),)))
+    return cases
+
+
+def simulate_cases(rng: random.Random, work: Workspace) -> list[Case]:
+    """simulate with random good and bad option values (refused before anything is written)."""
+    options = {
+        "--n": ["30", "0", "-5", "1e3", "x", "10000000000", "40"],
+        "--noise": ["0.001", "0", "-1", "nan", "inf", "1e300", "x"],
+        "--seed": ["0", "-1", "x", "99999999999999999999"],
+        "--duration": ["3600", "0", "-1", "nan", "inf"],
+        "--tool-lengths": ["100,200", "200,100", "100,inf", "inf,inf", "nan,1", "x", "-1,2", "100"],
+        "--effect": ["ex_x:x1", "ex_x:x1=nan", "ex_x:x1=inf", "ex_x:x1=x", "zz:x1", "ex_x:q1", "dx_x:xr",
+                     "dx_x:xp800", "L:te900", "dx_x:xp0", "L:te-1"],
+        "--instrument": ["tip", "rtest", "ballbar", "interferometer", "tracker", "probe-sphere", "test-part", "gps"],
+        "--noise-axis": ["2e-6", "-1", "nan"],
+        "--frame": ["workpiece", "machine", "table"],
+        "--error": ["Sxy=5e-5", "Sxy=nan", "nope=1", "Sxy"],
+        "--setup-scale": ["1", "-1", "inf"],
+    }
+    cases = []
+    for _ in range(40):
+        argv = ["simulate", "-o", str(work.new("s.csv"))]
+        for opt in rng.sample(list(options), rng.randint(1, 4)):
+            argv += [opt, rng.choice(options[opt])]
+        if "--n" not in argv:
+            argv += ["--n", "30"]
+        cases.append(Case(" ".join(argv[3:])[:60], argv, EITHER, ()))
+    f = work.a_file
+    cases.append(Case("simulate -o FILE/x.csv", ["simulate", "--n", "20", "-o", f"{f}/x.csv"], ERROR, (str(f),)))
+    cases.append(Case("simulate over a file", ["simulate", "--n", "20", "-o", str(f)], ERROR, (str(f),)))
+    return cases
+
+
 CASE_CLASSES = {
+    "measurement files": measurement_file_cases,
+    "simulate": simulate_cases,
     "machine files": machine_file_cases,
     "derive and table2": derive_cases,
     "model add": model_add_cases,

@@ -389,7 +389,7 @@ def _diagnose(model, meas, added, top, fixed=None) -> Diagnosis:
         listed.append({"id": ce.name, "aliases": [], "rms_mm": _rms_mm(prob, r_after),
                        "explained": float(cgain[j] / rss) if rss > 0 else 0.0,
                        "delta_ebic": ebic_delta(rss, float(cgain[j]), N, M, known, max(cks[j], 1)),
-                       "description": ce.description, "coefficient": None, "unit": "", "_gain": float(cgain[j])})
+                       "description": ce.description, "_gain": float(cgain[j])})
     listed.sort(key=lambda c: c["delta_ebic"])
     listed = listed[:top]
     for c in listed:
@@ -439,7 +439,7 @@ def report(dg: Diagnosis) -> str:
                  f"{d['cv_sse_without']:.4g} -> {d['cv_sse_with']:.4g})")
     lines.append("[[Candidates]] best first: RMS after adding it, share of the residual it explains")
     for k, c in enumerate(j["candidates"], 1):
-        coef = "" if c["coefficient"] is None else f"coef {c['coefficient']:.3g} {c['unit']}: "
+        coef = f"coef {c['coefficient']:.3g} {c['unit']}: " if "coefficient" in c else ""
         lines.append(f"    {k:2d}. {c['id']:10s} -> {c['rms_mm'] * 1000:.4g} um ({c['explained']:.1%}) "
                      f"{coef}{c['description']}")
         if c["aliases"]:

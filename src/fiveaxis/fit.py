@@ -490,10 +490,13 @@ def _unit(prob: Problem, name: str) -> str:
 
 
 def _entry(value, std, unit) -> dict:
-    out = {"value": value, "std": std, "unit": unit}
-    if std is not None:
-        out["expanded_k2"] = K_EXPANDED * std
-    return out
+    """A determined parameter: value, standard uncertainty, expanded uncertainty (k = 2), unit."""
+    return {"determined": True, "value": value, "std": std, "expanded_k2": K_EXPANDED * std, "unit": unit}
+
+
+def _undetermined(unit, note) -> dict:
+    """A parameter the data does not determine alone: no number at all (never null or NaN), and why."""
+    return {"determined": False, "unit": unit, "note": note}
 
 
 def parameters(res: FitResult) -> dict:
@@ -508,14 +511,15 @@ def parameters(res: FitResult) -> dict:
         if su.is_setup_param(name):
             continue
         if name in prob.fixed:
-            out[name] = {"value": prob.fixed[name], "std": 0.0, "unit": _unit(prob, name), "fixed": True}
+            out[name] = {"determined": True, "value": prob.fixed[name], "std": 0.0, "unit": _unit(prob, name),
+                         "fixed": True}
         elif name in in_group:
             if res.idf.norms[fi[name]] == 0:
                 note = "no effect on the measured readings at these poses"
             else:
                 forms = [c.formula for c in res.combinations if name in c.terms]
                 note = "not determined alone by this data" + (f"; see {'; '.join(forms)}" if forms else "")
-            out[name] = {"value": None, "std": None, "unit": _unit(prob, name), "note": note}
+            out[name] = _undetermined(_unit(prob, name), note)
         else:
             out[name] = _entry(float(res.theta[i]), float(std[i]), _unit(prob, name))
     k = prob.n_errors
@@ -525,7 +529,7 @@ def parameters(res: FitResult) -> dict:
         stds = eff.physical(model.machine, std[idx], prob.scales)
         for j, nm in enumerate(eff.names):
             entry = out[nm]
-            if entry["value"] is not None and not entry.get("fixed"):
+            if entry["determined"] and not entry.get("fixed"):
                 entry.update(_entry(vals[j][0], abs(stds[j][0]), vals[j][1]))
             else:
                 entry["unit"] = vals[j][1]
@@ -548,12 +552,11 @@ def setup_results(res: FitResult) -> list[dict]:
             i = index[nm]
             unit = prob.setups.unit(nm.split("[")[0])
             if nm in prob.fixed:
-                params[nm] = {"value": prob.fixed[nm], "std": 0.0, "unit": unit, "fixed": True}
+                params[nm] = {"determined": True, "value": prob.fixed[nm], "std": 0.0, "unit": unit, "fixed": True}
             elif nm in in_group:
                 forms = [c.formula for c in res.combinations if nm in c.terms]
-                params[nm] = {"value": None, "std": None, "unit": unit,
-                              "note": "not determined alone by this data" + (f"; see {'; '.join(forms)}" if forms
-                                                                              else "")}
+                params[nm] = _undetermined(unit, "not determined alone by this data"
+                                           + (f"; see {'; '.join(forms)}" if forms else ""))
             else:
                 params[nm] = _entry(float(res.theta[i]), float(std[i]), unit)
         item["parameters"] = params
@@ -569,7 +572,7 @@ def placement_text(setup, params: dict) -> str:
     (-44.1, 79.3) um': the placement of a setup in words, from its determined unknowns."""
     def val(sym):
         p = params.get(f"{sym}[{setup.id}]")
-        return None if p is None or p["value"] is None else p
+        return p if p is not None and p["determined"] else None
     parts = []
     rot = [(sym[2:], val(sym)) for sym in ("w_x", "w_y", "w_z", "w_n") if val(sym) is not None]
     for axis, p in rot:
@@ -599,7 +602,6 @@ def to_json(res: FitResult) -> dict:
         "rms_first_order_mm": float(np.sqrt(np.mean(first[lg] ** 2))) if lg.any() else 0.0,
         "rank": res.idf.rank, "n_parameters": res.idf.n_params, "condition": res.idf.condition,
         "sigma": "sigma column" if res.known_sigma else "estimated from the residual",
-        "reduced_chi2": res.chi2 / max(res.dof, 1) if res.known_sigma else None,
         "uncertainty_scale": res.uncertainty_scale,
         "noise_mm": res.noise(ob.LENGTH),
         "effects": [e.id for e in prob.effects],
@@ -616,6 +618,8 @@ def to_json(res: FitResult) -> dict:
         "correlations": [{"a": a, "b": b, "r": r} for a, b, r in res.correlations],
         "iterations": res.iterations,
     }
+    if res.known_sigma:
+        out["reduced_chi2"] = res.chi2 / max(res.dof, 1)
     if res.rms_rad is not None:
         out["rms_rad"] = res.rms_rad
         out["noise_rad"] = res.noise(ob.ANGLE)
@@ -674,7 +678,7 @@ def report(res: FitResult) -> str:
         lines.append(f"    added effects:   {', '.join(j['effects'])}")
     lines.append("[[Parameters determined by this data]]  value +- expanded uncertainty (k = 2)")
     for name, p in j["parameters"].items():
-        if p["value"] is None:
+        if not p["determined"]:
             continue
         if p.get("fixed"):
             lines.append(f"    {name:12s} {human(p['value'], p['unit'])} (held fixed)")
@@ -688,7 +692,7 @@ def report(res: FitResult) -> str:
             vals = []
             for nm, p in s["parameters"].items():
                 short = nm.split("[")[0]
-                if p["value"] is None:
+                if not p["determined"]:
                     vals.append(f"{short} not determined alone")
                 elif p.get("fixed"):
                     vals.append(f"{short} {human(p['value'], p['unit'])} (fixed)")
