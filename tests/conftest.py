@@ -37,3 +37,14 @@ def worst_z(res, sim):
     for c in res.combinations:
         zs.append((c.value - sum(k * truth[idx[n]] for n, k in c.terms.items())) / c.std)
     return float(np.max(np.abs(zs))), len(zs)
+
+
+def run_cli(capsys, *argv):
+    """Run the command line in-process: (exit code, stdout, stderr); argparse's SystemExit gives its code."""
+    from fiveaxis.cli import main
+    try:
+        rc = main([str(a) for a in argv])
+    except SystemExit as exc:          # argparse usage errors and --help
+        rc = exc.code
+    out, err = capsys.readouterr()
+    return rc, out, err

@@ -10,11 +10,10 @@ from fiveaxis import diagnose as D
 from fiveaxis import fit as F
 from fiveaxis import frames, htm
 from fiveaxis import observations as ob
-from fiveaxis.cli import main
 from fiveaxis.measurements import in_frame, read
 from fiveaxis.simulate import simulate, to_frame
 
-from conftest import worst_z
+from conftest import worst_z, run_cli
 
 NOISE = 1e-3
 
@@ -179,28 +178,21 @@ def test_observation_rows_of_partial_and_1d_readings(models):
     assert np.allclose(ob.apply(obs, P, V), np.einsum("nk,nk->n", sim.meas.u, P))
 
 
-def _cli(capsys, *argv):
-    try:
-        rc = main([str(a) for a in argv])
-    except SystemExit as exc:
-        rc = exc.code
-    out, err = capsys.readouterr()
-    return rc, out, err
 
 
 def test_cli_rtest_on_ac_trunnion_end_to_end(capsys, tmp_path):
     out = tmp_path / "rtest.csv"
-    rc, _, err = _cli(capsys, "simulate", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "300",
+    rc, _, err = run_cli(capsys, "simulate", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "300",
                       "--effect", "dx_C:C1=0.01", "--seed", "4", "-o", out)
     assert rc == 0, err
     truth = json.loads((tmp_path / "rtest.csv.truth.json").read_text())
     assert truth["instrument"] == "rtest" and len(truth["setups"]) == 3 and "dx_C:C1" in truth["effects"]
-    rc, text, _ = _cli(capsys, "fit", out, "--machine", "ac_trunnion")
+    rc, text, _ = run_cli(capsys, "fit", out, "--machine", "ac_trunnion")
     assert rc == 0 and "[[Setups: placement of the artefacts" in text and "sphere1 (point" in text
-    rc, text, _ = _cli(capsys, "diagnose", out, "--machine", "ac_trunnion", "--json")
+    rc, text, _ = run_cli(capsys, "diagnose", out, "--machine", "ac_trunnion", "--json")
     j = json.loads(text)
     assert rc == 0 and j["missing_effect"]
-    rc, text, err = _cli(capsys, "simulate", "--machine", "ac_trunnion", "--poses", out, "-o", tmp_path / "again.csv")
+    rc, text, err = run_cli(capsys, "simulate", "--machine", "ac_trunnion", "--poses", out, "-o", tmp_path / "again.csv")
     assert rc == 0, err
 
 
@@ -233,9 +225,9 @@ def test_direction_within_tolerance_is_normalised_with_a_warning(tmp_path, model
 def test_setup_with_too_few_readings_and_unknown_frame(tmp_path, capsys, models):
     p = tmp_path / "s.csv"
     p.write_text("X,Y,Z,A,B,dx,dy,dz,setup\n" + "0,0,0,0,0,0.001,0,0,a\n" * 40 + "10,0,0,0,0,0.001,0,0,b\n")
-    rc, _, err = _cli(capsys, "fit", p)
+    rc, _, err = run_cli(capsys, "fit", p)
     assert rc == 2 and err.count("\n") == 1 and "setup 'b' (data rows 41-41)" in err and "at least 4" in err
-    rc, _, err = _cli(capsys, "fit", p, "--frame", "table")
+    rc, _, err = run_cli(capsys, "fit", p, "--frame", "table")
     assert rc == 2 and err.count("\n") == 1 and "invalid choice: 'table'" in err
     with pytest.raises(fiveaxis.InputError, match="unknown frame 'table'"):
         read(p, models["li2018"].machine, frame="table")

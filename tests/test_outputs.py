@@ -13,18 +13,11 @@ from fiveaxis.cli import main
 from fiveaxis.errors import InputError
 from fiveaxis.machine import MACHINES_DIR, load_machine
 
-from conftest import DATA, ROOT
+from conftest import DATA, ROOT, run_cli
 
 LI = (MACHINES_DIR / "li2018.toml").read_text()
 
 
-def run(capsys, *argv):
-    try:
-        rc = main([str(a) for a in argv])
-    except SystemExit as exc:
-        rc = exc.code
-    out, err = capsys.readouterr()
-    return rc, out, err
 
 
 def mode(path):
@@ -71,9 +64,9 @@ def test_written_files_follow_the_umask_and_keep_their_mode(tmp_path):
 
 
 def test_measurements_and_machine_copies_are_0644(capsys, tmp_path, umask022):
-    assert run(capsys, "simulate", "--n", "30", "--no-time", "-o", tmp_path / "s.csv")[0] == 0
+    assert run_cli(capsys, "simulate", "--n", "30", "--no-time", "-o", tmp_path / "s.csv")[0] == 0
     assert mode(tmp_path / "s.csv") == 0o644
-    assert run(capsys, "model", "add", "ex_x:x1", "-o", tmp_path / "m.toml")[0] == 0
+    assert run_cli(capsys, "model", "add", "ex_x:x1", "-o", tmp_path / "m.toml")[0] == 0
     assert mode(tmp_path / "m.toml") == 0o644
 
 
@@ -126,7 +119,7 @@ def test_model_add_in_place_follows_a_symbolic_link(capsys, tmp_path):
     real.write_text(LI)
     link = tmp_path / "link.toml"
     link.symlink_to(real)
-    rc, _, err = run(capsys, "model", "add", "ex_x:x1", "--machine", link, "--in-place")
+    rc, _, err = run_cli(capsys, "model", "add", "ex_x:x1", "--machine", link, "--in-place")
     assert rc == 0, err
     assert link.is_symlink() and os.readlink(link) == str(real)
     assert tomllib.loads(real.read_text())["model"]["effects"] == ["ex_x:x1"]
@@ -200,7 +193,7 @@ def test_output_under_an_existing_file_is_one_line(capsys, tmp_path, measured, a
     file = tmp_path / "FILE"
     file.write_text("keep me\n")
     argv = [a.format(file=file, tmp=tmp_path, data=measured) for a in argv]
-    rc, _, err = run(capsys, *argv)
+    rc, _, err = run_cli(capsys, *argv)
     assert rc == 2 and err.startswith("fiveaxis: error: ") and err.count("\n") == 1, err
     assert str(file) in err and "Traceback" not in err
     assert file.read_text() == "keep me\n"
@@ -230,7 +223,7 @@ def test_model_add_edits_the_toml_structurally(capsys, tmp_path, before, layout)
     text = before + LI if layout != "table" else LI + "\n" + before
     src.write_text(text)
     prior = tomllib.loads(text).get("model", {}).get("effects", [])
-    rc, _, err = run(capsys, "model", "add", "ex_x:x1", "--machine", src, "-o", tmp_path / "out.toml")
+    rc, _, err = run_cli(capsys, "model", "add", "ex_x:x1", "--machine", src, "-o", tmp_path / "out.toml")
     assert rc == 0, err
     new = (tmp_path / "out.toml").read_text()
     assert tomllib.loads(new)["model"]["effects"] == prior + ["ex_x:x1"]
