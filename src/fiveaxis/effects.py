@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import iso
 from .errors import InputError
 
 ID_RE = re.compile(r"^(?P<param>[A-Za-z_][A-Za-z0-9_]*):(?P<var>[A-Za-z][A-Za-z0-9]*?)(?P<deg>[1-3])$")
@@ -77,7 +78,10 @@ def scales(machine, t=None) -> dict[str, Scale]:
 
 
 def parse(effect_id: str, machine, errors, where: str = "effect") -> Effect:
-    """Check an effect id against a model's error names and variables; InputError naming `where` if bad."""
+    """Check an effect id against a model's error names and variables; InputError naming `where` if bad.
+
+    The parameter may be given by its ISO 230 name (`E_AX:x1` is `ex_x:x1`)."""
+    effect_id = iso.canonical_effect(machine, effect_id, where=where)
     m = ID_RE.match(effect_id.strip())
     tokens = [var_token(machine, v) for v in machine.variables] + [TIME]
     if not m:

@@ -119,16 +119,15 @@ class Model:
     def error_vector(self, errors=None) -> np.ndarray:
         """Error values in kernel order: None for the machine file's defaults, a dict by name, or an array.
 
-        A dict may omit errors (they are zero) but may not name unknown ones. Arrays may be (41,) or (n, 41).
+        A dict may omit errors (they are zero) but may not name unknown ones; keys are project names (ex_x) or
+        ISO 230 names (E_AX). Arrays may be (41,) or (n, 41).
         """
         if errors is None:
             defaults = self.machine.default_errors()
             return np.array([defaults[n] for n in self.errors], dtype=float)
         if isinstance(errors, dict):
-            unknown = sorted(set(errors) - set(self.errors))
-            if unknown:
-                raise InputError(f"unknown error name(s): {', '.join(unknown)} (expected names such as "
-                                 f"{', '.join(self.errors[:3])} ... {self.errors[-1]})")
+            from .iso import canonical_keys     # project names or ISO 230 names (E_AX)
+            errors = canonical_keys(self, errors, where="errors")
             return np.array([float(errors.get(n, 0.0)) for n in self.errors])
         arr = np.asarray(errors, dtype=float)
         if arr.shape[-1] != len(self.errors):

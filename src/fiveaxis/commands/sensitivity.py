@@ -64,14 +64,11 @@ def _setup(args, L0_default=None, LE_default=None):
 def parse_errors(model, specs) -> dict[str, float]:
     """The machine file's error values, overridden by --errors NAME=VALUE or files of such lines / JSON."""
     defaults = model.machine.default_errors()
+    from .. import iso
     values = {n: float(defaults[n]) for n in model.errors}
-    known = set(model.errors)
 
     def put(name, raw, where):
-        name = name.strip()
-        if name not in known:
-            raise InputError(f"{where}: unknown error name '{name}' (expected one of {', '.join(model.errors[:3])}"
-                             f" ... {model.errors[-1]})")
+        name = iso.canonical(model, name, where=where)     # a project name or its ISO 230 name (E_AX)
         try:
             v = float(raw)
         except (TypeError, ValueError):
