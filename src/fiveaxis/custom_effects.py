@@ -9,13 +9,13 @@ from __future__ import annotations
 import hashlib
 import sys
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from .errors import InputError
+from .machine import data_dir
 
-TEMPLATE = Path(__file__).resolve().parents[2] / "templates" / "effects" / "effect.py.j2"
+TEMPLATE = data_dir("fiveaxis_templates") / "effects" / "effect.py.j2"
 
 
 def _tokens(machine) -> list[str]:

@@ -245,9 +245,13 @@ def canonical(obj, error: str, convention: str | None = None, where: str = "erro
     project = _lookup(machine, convention or getattr(obj, "convention", None)).get(error)
     if project is not None:
         return project
-    pairs = ", ".join(f"{e.error}={e.iso}" if e.iso else e.error for e in table(machine, conv).values())
     raise InputError(f"{where}: unknown error name '{error}' for machine {machine.name} (expected a project or an "
-                     f"ISO 230 name: {pairs})")
+                     f"ISO 230 name: {_pairs(machine, conv)})")
+
+
+def _pairs(machine: Machine, convention: str) -> str:
+    """'ex_x=E_AX, ..., SAOB=E_C0B': every error in both spellings, for error messages."""
+    return ", ".join(f"{e.error}={e.iso}" if e.iso else e.error for e in table(machine, convention).values())
 
 
 def canonical_keys(obj, values: dict, convention: str | None = None, where: str = "errors") -> dict:
@@ -270,10 +274,14 @@ def canonical_effect(obj, effect_id: str, convention: str | None = None, where: 
     param, sep, rest = text.rpartition(":")
     if not sep or param == "L":
         return effect_id
-    machine, _ = _machine_and_convention(obj, convention)
+    machine, conv = _machine_and_convention(obj, convention)
     if param in machine.error_names:
         return effect_id
-    return canonical(obj, param, convention, where=f"{where}: '{text}'") + sep + rest
+    project = _lookup(machine, convention or getattr(obj, "convention", None)).get(param)
+    if project is None:
+        raise InputError(f"{where}: '{text}': unknown parameter '{param}' (expected L for the tool length or an error "
+                         f"of {machine.name}, by its project or ISO 230 name: {_pairs(machine, conv)})")
+    return project + sep + rest
 
 
 def to_json(obj, convention: str | None = None, describe=None) -> dict:

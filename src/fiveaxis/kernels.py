@@ -20,7 +20,8 @@ from types import ModuleType
 import numpy as np
 
 from .errors import InputError
-from .machine import Machine, load_machine, module_name
+from .machine import Machine, data_dir, load_machine, module_name
+from .numba_cache import ensure_writable
 
 
 def cache_dir() -> Path:
@@ -206,6 +207,7 @@ def load(machine="li2018", convention: str = "equations", derive: bool = True) -
     """
     machine = machine if isinstance(machine, Machine) else load_machine(machine)
     machine.with_convention(convention)   # checks that the convention exists
+    ensure_writable(data_dir("fiveaxis_generated"), cache_dir())    # a read-only install: numba's cache elsewhere
     key = (str(Path(machine.path).resolve()), convention, _sha256(machine.path))
     if key not in _LOADED:
         mod = _generated_module(machine, convention) or _cached_module(machine, convention, derive)
