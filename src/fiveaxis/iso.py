@@ -222,16 +222,25 @@ def spellings(entry: IsoName) -> tuple[str, ...]:
     return tuple(out)
 
 
+_LOOKUPS: dict = {}
+
+
 def _lookup(machine: Machine, convention: str | None) -> dict[str, str]:
     """Accepted ISO spelling -> project name; with no convention given, those of every convention of the file
-    that do not contradict each other."""
+    that do not contradict each other. Kept per machine record (they are immutable)."""
+    key = (id(machine), convention)
+    hit = _LOOKUPS.get(key)
+    if hit is not None and hit[0] is machine:
+        return hit[1]
     convs = [convention] if convention else ["equations", *machine.conventions]
     found: dict[str, set] = {}
     for conv in convs:
         for entry in table(machine, conv).values():
             for s in spellings(entry):
                 found.setdefault(s, set()).add(entry.error)
-    return {s: next(iter(errs)) for s, errs in found.items() if len(errs) == 1}
+    out = {s: next(iter(errs)) for s, errs in found.items() if len(errs) == 1}
+    _LOOKUPS[key] = (machine, out)
+    return out
 
 
 def canonical(obj, error: str, convention: str | None = None, where: str = "error name") -> str:
