@@ -86,11 +86,11 @@ def test_an_axis_off_the_machine_axes_has_no_iso_name():
     assert t["dx_C"].iso == "E_XC"
 
 
-def _at(machine, entry, moved=None):
-    """J, K (3,) of one error at the zero pose (with one axis moved by 100 mm if asked), tool length L0."""
+def _at(machine, entry, moved=None, by=100.0):
+    """J, K (3,) of one error at the zero pose (with one axis moved by `by`, mm or rad, if asked), tool length L0."""
     q = np.zeros((1, len(machine.variables)))
     if moved:
-        q[0, machine.variables.index(moved)] = 100.0
+        q[0, machine.variables.index(moved)] = by
     J, K = htm.jk_finite_differences(machine, q, machine.tool_length)
     i = machine.error_names.index(entry)
     return J[0, i], K[0, i]
@@ -106,10 +106,19 @@ def test_every_iso_letter_is_the_geometry_of_the_error(name):
     t = np.asarray(m.tool_direction, float) / np.linalg.norm(m.tool_direction)
     workpiece = {a.name for a in m.workpiece_chain}
     for err, e in iso.table(m).items():
+        if e.iso is None:         # no ISO name (a chain end, an axis off the machine axes): nothing to check
+            continue
         s = -1.0 if e.axis in workpiece else 1.0
         J, K = _at(m, err)
         letter = "XYZABC".index(e.iso[2])
-        if letter < 3:
+        if e.kind.startswith("l"):
+            # the line of a rotary axis moved along T: nothing at the zero angle; turned by q, the tip moves by
+            # (1 - cos q) along T and not along the axis (tool or workpiece side alike)
+            np.testing.assert_allclose(J, 0, atol=1e-6)
+            J1, _ = _at(m, err, e.axis, np.radians(37.0))
+            assert J1[letter] == pytest.approx(1 - np.cos(np.radians(37.0)), abs=1e-6), (name, err, e.iso)
+            assert abs(J1 @ np.asarray(m.axis(e.axis).direction, float)) < 1e-6
+        elif letter < 3:
             np.testing.assert_allclose(J, s * unit[letter], atol=1e-6, err_msg=f"{name} {err} {e.iso}")
             np.testing.assert_allclose(K, 0, atol=1e-6)
         else:

@@ -148,7 +148,12 @@ def _pige(axis, rotated: list[str]) -> list[IsoName]:
             if comp == along[0]:
                 extra = (f"zero position of {axis.name} (a rotation about its own line)" if angular else
                          f"axial position of {axis.name}'s line, which only shifts the chain after it")
-                note = (note + "; " if note else "") + extra
+            elif kind[0] == "t":
+                extra = (f"a translation before {axis.name}: it moves {axis.name}'s line and, unlike ISO's position "
+                         f"of the line, also the chain after it (a constant offset)")
+            else:
+                extra = ""
+            note = "; ".join(x for x in (note, extra) if x)
             out.append(IsoName(name, iso, axis.name, kind, unit, standard, 1, frame, note))
             continue
         if not angular:
@@ -168,11 +173,22 @@ def _pige(axis, rotated: list[str]) -> list[IsoName]:
     return out
 
 
+def _chain_end(machine: Machine, error: str, rotated: dict) -> IsoName:
+    """A location error after the last joint of a chain (the spindle in its head, the workpiece holder): ISO 230
+    names location errors of axes, not of these."""
+    kind = getattr(machine, "pige_kinds", {}).get(error, "")
+    place = machine.pige_place(error) if hasattr(machine, "pige_place") else ""
+    what = {"tool": "the spindle", "workpiece": "the workpiece holder"}.get(place, "the end of a chain")
+    unit = "rad" if machine.is_angular(error) else "mm"
+    return IsoName(error, None, place, kind, unit, "", 1, _frame(rotated.get(place, [])),
+                   f"a location error of {what} after the last axis of its chain, not of an axis: no ISO 230 name")
+
+
 def table(machine: Machine, convention: str | None = "equations") -> dict[str, IsoName]:
     """ISO names of every error of a machine (in a convention of its file), by project name, in model order."""
     m = machine.with_convention(convention)
-    entries = {}
-    for chain in (m.tool_chain, m.workpiece_chain):
+    entries, ends = {}, {}
+    for place, chain in (("tool", m.tool_chain), ("workpiece", m.workpiece_chain)):
         rotated: list[str] = []
         for axis in chain:
             for e in _pige(axis, list(rotated)):
@@ -182,7 +198,8 @@ def table(machine: Machine, convention: str | None = "equations") -> dict[str, I
                 rotated.append(axis.name)
             for e in _pdge(axis, list(rotated), own_rotation_only=not before):
                 entries[e.error] = e
-    return {n: entries[n] for n in m.error_names}
+        ends[place] = rotated
+    return {n: entries[n] if n in entries else _chain_end(m, n, ends) for n in m.error_names}
 
 
 def _machine_and_convention(obj, convention):
