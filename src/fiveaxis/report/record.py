@@ -101,11 +101,16 @@ def _round_record(obj, k: int, j: dict) -> dict:
 
 
 def _concat(a, b):
-    """Two measurement sets as one (for 'what if we also measured ...' designs)."""
-    cat = (lambda x, y: None if x is None or y is None else np.concatenate([x, y]))
-    return dataclasses.replace(a, poses=np.vstack([a.poses, b.poses]), L=np.concatenate([a.L, b.L]),
-                               d=np.vstack([a.d, b.d]), t=cat(a.t, b.t), sigma=cat(a.sigma, b.sigma), dv=None,
-                               warnings=[])
+    """Two measurement sets of the same structure as one (for 'what if we also measured ...' designs): every
+    array field is stacked along its first axis (rows, readings), lists are emptied, the rest is a's."""
+    changes = {}
+    for f in dataclasses.fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if isinstance(x, np.ndarray) and isinstance(y, np.ndarray):
+            changes[f.name] = np.concatenate([x, y])
+        elif isinstance(x, list):
+            changes[f.name] = []
+    return dataclasses.replace(a, **changes)
 
 
 def _options(model, meas, seed: int = 1):
@@ -154,7 +159,7 @@ def separation(model, meas, effects, groups: list[list[str]], names: list[str]) 
         for text, extra in _options(model, meas):
             try:
                 prob = F.build(model, _concat(meas, extra), effects)
-            except (InputError, ValueError, TypeError) as exc:     # an unusual data set: say so, do not guess
+            except (InputError, ValueError, TypeError, IndexError) as exc:   # an unusual data set: say so
                 for row in pending:
                     row["separate_by"].append({"measure": text, "determines": [], "error": str(exc)})
                 continue
