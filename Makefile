@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 MACHINE ?= li2018
 
-.PHONY: install run test derive bench lint clean
+.PHONY: install system-deps run test derive bench lint clean
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -16,12 +16,22 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
-## the main job on the paper's machine and on the bundled example measurements
-run: install
+## Debian packages some tests need: headless Chromium for the report's browser test and PDF. Installed with
+## apt-get when missing (as root); harmless when present; where apt-get is unavailable those tests skip.
+system-deps:
+	@if command -v chromium >/dev/null 2>&1 && command -v chromedriver >/dev/null 2>&1; then :; \
+	elif command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" -eq 0 ]; then \
+	  echo "installing the Debian packages chromium and chromium-driver (apt-get)"; \
+	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver; } \
+	    >/dev/null 2>&1 || echo "system-deps: apt-get could not install chromium (browser tests will skip)"; \
+	else echo "system-deps: chromium missing and apt-get unavailable as this user (browser tests will skip)"; fi
+
+## the main job on the paper's machine and on the bundled example measurements; writes the reports in out/
+run: install system-deps
 	$(BIN)/fiveaxis table2 --machine li2018 --convention printed --reconcile
 	@scripts/run-main.sh $(BIN)
 
-test: install
+test: install system-deps
 	$(BIN)/python -m pytest -q
 	$(BIN)/lint-imports
 

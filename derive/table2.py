@@ -45,24 +45,39 @@ def latex_name(name: str) -> str:
     return rf"S_{{{name[1:]}}}"
 
 
-def to_json(model) -> dict:
-    """The `fiveaxis table2 --json` document."""
-    return {"machine": model.machine.name, "convention": model.convention,
-            "groups": [{"errors": list(g.errors), "J": [str(x) for x in g.J], "K": [str(x) for x in g.K]}
-                       for g in groups(model)]}
+def to_json(model, iso: dict | None = None) -> dict:
+    """The `fiveaxis table2 --json` document; iso (error name -> ISO 230 name or None) adds each group's ISO names.
+
+    The ISO names come from the runtime (`fiveaxis.iso`), which the derivation does not import."""
+    out = []
+    for g in groups(model):
+        row = {"errors": list(g.errors)}
+        if iso is not None:
+            row["iso"] = [iso.get(n) for n in g.errors]
+        out.append(dict(row, J=[str(x) for x in g.J], K=[str(x) for x in g.K]))
+    return {"machine": model.machine.name, "convention": model.convention, "groups": out}
 
 
-def to_latex(model) -> str:
-    """Table 2 as a LaTeX tabular (booktabs)."""
+def _latex_iso(name) -> str:
+    """E_C(0X)Y -> $E_{C(0X)Y}$; None -> --."""
+    return "--" if name is None else f"$E_{{{name[2:]}}}$"
+
+
+def to_latex(model, iso: dict | None = None) -> str:
+    """Table 2 as a LaTeX tabular (booktabs); iso (error name -> ISO 230 name or None) adds a column."""
     rows = []
     for i, g in enumerate(groups(model), 1):
         names = ", ".join(f"${latex_name(n)}$" for n in g.errors)
+        if iso is not None:
+            names += " & " + ", ".join(_latex_iso(iso.get(n)) for n in g.errors)
         cells = " & ".join(f"${sp.latex(x)}$" for x in (*g.J, *g.K))
         rows.append(f"{i} & {names} & {cells} \\\\")
+    iso_col, iso_head, iso_skip = ("l", " & ISO 230", " &") if iso is not None else ("", "", "")
     head = (f"% Table 2 of {model.machine.name} ({model.convention} convention), derived by fiveaxis\n"
-            "\\begin{tabular}{rlllllll}\n\\toprule\n"
-            "No. & Geometric errors & \\multicolumn{3}{c}{$\\boldsymbol{J}$} & \\multicolumn{3}{c}{$\\boldsymbol{K}$} \\\\\n"
-            " & & X & Y & Z & I & J & K \\\\\n\\midrule\n")
+            f"\\begin{{tabular}}{{rl{iso_col}llllll}}\n\\toprule\n"
+            f"No. & Geometric errors{iso_head} & \\multicolumn{{3}}{{c}}{{$\\boldsymbol{{J}}$}} & "
+            "\\multicolumn{3}{c}{$\\boldsymbol{K}$} \\\\\n"
+            f" &{iso_skip} & X & Y & Z & I & J & K \\\\\n\\midrule\n")
     return head + "\n".join(rows) + "\n\\bottomrule\n\\end{tabular}\n"
 
 

@@ -54,3 +54,21 @@ say "An R-test on the A/C trunnion machine (3 sphere placements, unknown): simul
 "$BIN/fiveaxis" fit "$RTEST" --machine ac_trunnion | sed '/Combinations determined/,$d'
 loop "$RTEST" ac_trunnion
 # --- end section: measurements
+
+# --- section: report (issue 11)
+# The calibration report: one self-contained HTML page (and a PDF printed by headless Chromium) per data set.
+OUT=out/report
+PDF=(--pdf)
+command -v chromium >/dev/null 2>&1 || { PDF=(); echo "(no chromium: HTML reports only; see make system-deps)"; }
+say "ISO 230 names of the trunnion machine's errors: fiveaxis names --machine ac_trunnion"
+"$BIN/fiveaxis" names --machine ac_trunnion | head -8
+say "Calibration report of the example measurements: fiveaxis report $MEAS -o $OUT/li2018_example.html ${PDF[*]}"
+"$BIN/fiveaxis" report "$MEAS" -o "$OUT/li2018_example.html" "${PDF[@]}" --force
+say "Calibration report of an R-test-like simulation of the A/C trunnion (tool tip relative to the table)"
+"$BIN/fiveaxis" simulate --machine ac_trunnion --effect E_BA:A1=2e-5 --n 400 --seed 2 --with-sigma \
+    -o "$OUT/ac_trunnion_rtest.csv" --force
+"$BIN/fiveaxis" report "$OUT/ac_trunnion_rtest.csv" --machine ac_trunnion -o "$OUT/ac_trunnion_rtest.html" \
+    "${PDF[@]}" --force
+say "Reports written (open in a browser):"
+for f in "$OUT"/*.html "$OUT"/*.pdf; do [ -e "$f" ] && echo "    $(cd "$(dirname "$f")" && pwd)/$(basename "$f")"; done
+# --- end section: report

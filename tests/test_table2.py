@@ -65,7 +65,10 @@ def test_latex_table():
 def test_cli_table2_json_end_to_end():
     out = subprocess.run([sys.executable, "-m", "fiveaxis.cli", "table2", "--machine", "li2018", "--json"],
                          capture_output=True, text=True, check=True).stdout
-    assert json.loads(out) == to_json(model("equations"))
+    from fiveaxis.iso import table
+    iso = {n: e.iso for n, e in table(load_machine("li2018")).items()}
+    assert json.loads(out) == to_json(model("equations"), iso)
+    assert json.loads(out)["groups"][0]["iso"] == ["E_AX"]
     out = subprocess.run([sys.executable, "-m", "fiveaxis.cli", "table2", "--convention", "printed", "--reconcile"],
                          capture_output=True, text=True, check=True).stdout
     assert "17 of 18 printed rows match" in out and "row  8 differs" in out

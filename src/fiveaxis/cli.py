@@ -22,6 +22,8 @@ COMMANDS = {
     "diagnose": ("fiveaxis.commands.measure", "where the fitted model fails and which effect is missing, ranked"),
     "simulate": ("fiveaxis.commands.measure", "simulated measurements from the exact model with hidden effects"),
     "model": ("fiveaxis.commands.measure", "model add EFFECT: write effects into a copy of a machine file"),
+    "report": ("fiveaxis.commands.report", "the calibration report of a measurement file: one HTML page (and PDF)"),
+    "names": ("fiveaxis.commands.names", "the errors' project names beside their ISO 230 names, kind, unit, meaning"),
     "dask": ("fiveaxis.commands.dask", "GSIL of a workspace grid on Dask: local worker processes or --scheduler"),
 }
 

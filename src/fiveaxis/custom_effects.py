@@ -9,12 +9,12 @@ from __future__ import annotations
 import hashlib
 import sys
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from . import provenance
 from .errors import InputError
+from .machine import data_dir
 
 
 def effect_hash(machine, name: str) -> str:

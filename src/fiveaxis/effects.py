@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import effect_ids as ids
+from . import iso
 from .errors import InputError
 
 DEGREES = (1, 2, 3)
@@ -190,7 +191,10 @@ class Effect:
 
 
 def parse(effect_id: str, machine, errors, where: str = "effect") -> Effect:
-    """Check an effect id against a model's error names and variables; InputError naming `where` if bad."""
+    """Check an effect id against a model's error names and variables; InputError naming `where` if bad.
+
+    The parameter may be given by its ISO 230 name (`E_AX:x1` is `ex_x:x1`)."""
+    effect_id = iso.canonical_effect(machine, effect_id, where=where)
     toks = tokens(machine)
     e = ids.split(effect_id, toks)
     if e is None:

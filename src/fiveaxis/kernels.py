@@ -22,7 +22,8 @@ import numpy as np
 
 from . import provenance
 from .errors import InputError
-from .machine import Machine, load_machine, module_name
+from .machine import Machine, data_dir, load_machine, module_name
+from .numba_cache import ensure_writable
 
 
 def cache_dir() -> Path:
@@ -152,17 +153,15 @@ class Model:
     def error_vector(self, errors=None) -> np.ndarray:
         """Error values in kernel order: None for the machine file's defaults, a dict by name, or an array.
 
-        A dict may omit errors (they are zero) but may not name unknown ones. Arrays may be (ne,) or (n, ne),
-        ne = len(self.errors) (41 for li2018).
+        A dict may omit errors (they are zero) but may not name unknown ones; keys are project names (ex_x) or
+        ISO 230 names (E_AX). Arrays may be (ne,) or (n, ne), ne = len(self.errors) (41 for li2018).
         """
         if errors is None:
             defaults = self.machine.default_errors()
             return np.array([defaults[n] for n in self.errors], dtype=float)
         if isinstance(errors, dict):
-            unknown = sorted(set(errors) - set(self.errors))
-            if unknown:
-                raise InputError(f"unknown error name(s): {', '.join(unknown)} (expected names such as "
-                                 f"{', '.join(self.errors[:3])} ... {self.errors[-1]})")
+            from .iso import canonical_keys     # project names or ISO 230 names (E_AX)
+            errors = canonical_keys(self, errors, where="errors")
             return np.array([float(errors.get(n, 0.0)) for n in self.errors])
         arr = np.asarray(errors, dtype=float)
         if arr.shape[-1] != len(self.errors):
@@ -241,6 +240,7 @@ def load(machine="li2018", convention: str = "equations", derive: bool = True) -
     """
     machine = machine if isinstance(machine, Machine) else load_machine(machine)
     machine.with_convention(convention)   # checks that the convention exists
+    ensure_writable(data_dir("fiveaxis_generated"), cache_dir())    # a read-only install: numba's cache elsewhere
     key = (str(Path(machine.path).resolve()), convention, _sha256(machine.path),
            _expected_hash(machine, convention))
     if key not in _LOADED:

@@ -27,7 +27,18 @@ PDGE_PREFIXES = ("ex", "ey", "ez", "dx", "dy", "dz")
 #: Pose variables are ordered X Y Z, then A B C; other names follow in chain order.
 CANONICAL_ORDER = ("X", "Y", "Z", "A", "B", "C")
 
-MACHINES_DIR = Path(__file__).resolve().parents[2] / "machines"
+
+
+def data_dir(package: str) -> Path:
+    """The folder of one of fiveaxis' data packages, found with importlib.resources: `fiveaxis_machines`
+    (machines/), `fiveaxis_templates` (templates/), `fiveaxis_generated` (generated/) -- the source tree's
+    folders in an editable install, the installed copies in site-packages otherwise."""
+    from importlib.resources import files
+    return Path(str(files(package)))
+
+
+#: The shipped machine files (machines/ in the source tree).
+MACHINES_DIR = data_dir("fiveaxis_machines")
 
 _TOP_KEYS = {"name", "title", "description", "tool", "tool_chain", "workpiece_chain", "errors",
              "conventions", "effects", "model", "workpiece", "fit"}

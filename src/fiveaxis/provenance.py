@@ -8,10 +8,13 @@ import functools
 import hashlib
 from pathlib import Path
 
+from .machine import data_dir
+
 #: Version of the code generator; raise it when the derivation changes what it writes for the same inputs.
 GENERATOR_VERSION = "1"
-#: The jinja2 templates of the generated modules (`*.j2`; custom effects in `effects/`).
-TEMPLATES = Path(__file__).resolve().parents[2] / "templates"
+#: The jinja2 templates of the generated modules (`*.j2`; custom effects in `effects/`): templates/ of the source
+#: tree, or its installed copy (the data package fiveaxis_templates).
+TEMPLATES = data_dir("fiveaxis_templates")
 
 
 @functools.lru_cache(maxsize=1)

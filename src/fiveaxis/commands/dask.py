@@ -71,7 +71,7 @@ def run_dask(args) -> int:
     if args.json:
         print(json.dumps(res.to_json(), indent=1))
         return 0
-    _print_ranking(res, args.top, "GSIL proportions PG_i (Eq. 14, 16), largest first")
+    _print_ranking(model, res, args.top, "GSIL proportions PG_i (Eq. 14, 16), largest first")
     _print_settings(res.settings)
     d = res.settings["dask"]
     print(f"dask: {d['workers']} workers, {d['threads']} threads, {d['tasks']} tasks of {d['chunk']} poses, "

@@ -63,17 +63,20 @@ def run_derive(args) -> int:
 def run_table2(args) -> int:
     from fiveaxis_derive.model import derive_model
     from fiveaxis_derive.table2 import reconcile, to_json, to_latex
+
+    from ..iso import table as iso_table
     machine = load_machine(args.machine)
     machine.with_convention(args.convention)
     model = derive_model(machine, args.convention)
+    iso = {n: e.iso for n, e in iso_table(machine, args.convention).items()}
     if args.json:
-        print(json.dumps(to_json(model), indent=1))
+        print(json.dumps(to_json(model, iso), indent=1))
     elif args.reconcile:
         if machine.name != "li2018":
             raise InputError(f"{machine.path}: the printed Table 2 belongs to li2018; nothing to reconcile")
         rows = reconcile(model)
         for r in rows:
-            print(f"row {r['no']:2d} {r['status']:8s} {', '.join(r['errors'])}")
+            print(f"row {r['no']:2d} {r['status']:8s} {', '.join(f'{n} ({iso[n]})' if iso.get(n) else n for n in r['errors'])}")
             for d in r["differences"]:
                 print(f"         {d}")
             if r["status"] != "matches" and r["note"]:
@@ -81,5 +84,5 @@ def run_table2(args) -> int:
         n_ok = sum(r["status"] == "matches" for r in rows)
         print(f"{n_ok} of {len(rows)} printed rows match the derivation ({args.convention} convention)")
     else:
-        print(to_latex(model), end="")
+        print(to_latex(model, iso), end="")
     return 0

@@ -64,14 +64,11 @@ def _setup(args, L0_default=None, LE_default=None):
 def parse_errors(model, specs) -> dict[str, float]:
     """The machine file's error values, overridden by --errors NAME=VALUE or files of such lines / JSON."""
     defaults = model.machine.default_errors()
+    from .. import iso
     values = {n: float(defaults[n]) for n in model.errors}
-    known = set(model.errors)
 
     def put(name, raw, where):
-        name = name.strip()
-        if name not in known:
-            raise InputError(f"{where}: unknown error name '{name}' (expected one of {', '.join(model.errors[:3])}"
-                             f" ... {model.errors[-1]})")
+        name = iso.canonical(model, name, where=where)     # a project name or its ISO 230 name (E_AX)
         try:
             v = float(raw)
         except (TypeError, ValueError):
@@ -123,16 +120,19 @@ def workspace_grid(model, specs):
     return grid_from_specs(base, specs, model.machine.rotary)
 
 
-def _print_ranking(result, top: int, title: str):
+def _print_ranking(model, result, top: int, title: str):
+    """The largest proportions with each error's ISO 230 name."""
+    from .. import iso
     p = result.proportions
     idx = {n: i for i, n in enumerate(result.names)}
+    names = iso.names(model)
     print(title)
-    print(f"{'rank':>4}  {'error':<6} {'proportion':>10}")
+    print(f"{'rank':>4}  {'error':<6} {'ISO 230':<9} {'proportion':>10}")
     prev = None
     for r, name in enumerate(result.ranking[:top], 1):
         v = p[idx[name]]
         tie = "  (tied: same J)" if prev is not None and abs(v - prev) <= 1e-12 * max(abs(v), 1e-300) else ""
-        print(f"{r:>4}  {name:<6} {100 * v:>9.2f}%{tie}")
+        print(f"{r:>4}  {name:<6} {names[name].iso or '-':<9} {100 * v:>9.2f}%{tie}")
         prev = v
 
 
@@ -226,7 +226,7 @@ def run_gsa(args) -> int:
     if args.json:
         print(json.dumps(out, indent=1))
         return 0
-    _print_ranking(res, args.top, "GSIL proportions PG_i (Eq. 14, 16), largest first")
+    _print_ranking(model, res, args.top, "GSIL proportions PG_i (Eq. 14, 16), largest first")
     _print_settings(res.settings)
     if comp:
         _print_compensation(comp["position_mm"], f"Fig. 16a: average position error at the nine points "
@@ -287,8 +287,8 @@ def run_lsa(args) -> int:
     if args.json:
         print(json.dumps(out, indent=1))
         return 0
-    _print_ranking(res, args.top, f"LSIL proportions PL_i at cone position {args.cone} (normal mode "
-                                  f"{args.normal_mode}), largest first")
+    _print_ranking(model, res, args.top, f"LSIL proportions PL_i at cone position {args.cone} (normal mode "
+                                         f"{args.normal_mode}), largest first")
     _print_settings(res.settings)
     if comp:
         _print_compensation(comp, f"Fig. 11: average machining error of the side surface, vital = "

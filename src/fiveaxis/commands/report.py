@@ -1,0 +1,59 @@
+"""`fiveaxis report`: the calibration report of a measurement file as one self-contained HTML page (and PDF)."""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from ..errors import InputError
+
+
+def register_report(p):
+    p.add_argument("file", type=Path, help="measurements: CSV or Parquet, one row per pose (as for `fiveaxis fit`)")
+    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
+    p.add_argument("--convention", default="equations", help="convention of the machine file (default: equations)")
+    p.add_argument("--frame", default=None, choices=("workpiece", "machine"),
+                   help="frame of the deviations (default: the file's frame column, else workpiece)")
+    p.add_argument("--add", action="append", default=[], metavar="EFFECT",
+                   help="add an effect to the model before the first round, e.g. ex_x:x1 or E_AX:x1 (repeatable)")
+    p.add_argument("--rounds", type=int, default=4,
+                   help="diagnosis rounds at most: diagnose, add the top candidate, repeat (default 4)")
+    p.add_argument("--compensation", type=Path, default=None, metavar="DIR",
+                   help="folder of a compensation run: summary.json (predicted error before/after, mm) and maps")
+    p.add_argument("--no-sensitivity", action="store_true", help="leave out the machine's GSIL section")
+    p.add_argument("--title", default=None, help="title of the report (default: from the machine file)")
+    p.add_argument("-o", "--output", type=Path, required=True, help="the HTML file to write")
+    p.add_argument("--pdf", nargs="?", const=True, default=None, metavar="PDF",
+                   help="also print a PDF with headless Chromium (default name: the HTML file's, .pdf)")
+    p.add_argument("--json", action="store_true", help="also print the report's record (without figures) as JSON")
+    p.add_argument("--force", action="store_true", help="replace output files that exist")
+    p.set_defaults(func=run_report)
+
+
+def run_report(args) -> int:
+    from ..outputs import target, write_text
+    from ..report import html, record
+    if args.output.suffix.lower() not in (".html", ".htm"):
+        raise InputError(f"-o {args.output}: expected an .html file")
+    pdf = None
+    if args.pdf is not None:
+        pdf = args.output.with_suffix(".pdf") if args.pdf is True else Path(args.pdf)
+        if pdf.suffix.lower() != ".pdf":
+            raise InputError(f"--pdf {pdf}: expected a .pdf file")
+        target(pdf, args.force)
+    target(args.output, args.force)
+    if args.rounds < 1:
+        raise InputError(f"--rounds: expected a positive number, got {args.rounds}")
+    rep = record.build(args.file, args.machine, args.convention, args.add, args.compensation, args.rounds,
+                       sensitivity=not args.no_sensitivity, title=args.title, frame=args.frame)
+    write_text(args.output, html.render(rep), force=args.force)
+    path = args.output
+    print(f"fiveaxis: wrote {path} ({path.stat().st_size / 1e6:.2f} MB): {rep.record['verdict']['headline']}",
+          file=sys.stderr)
+    if pdf is not None:
+        from ..report.pdf import print_pdf
+        out = print_pdf(path, pdf, force=args.force)
+        print(f"fiveaxis: wrote {out} (PDF printed by headless Chromium)", file=sys.stderr)
+    if args.json:
+        print(json.dumps(rep.record, indent=1))
+    return 0

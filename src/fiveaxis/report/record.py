@@ -1,0 +1,363 @@
+"""The report's record: run the diagnosis rounds, the fit and the sensitivity, and keep what a reader needs.
+
+`build(data, machine, ...)` returns a `Report`: `record`, a plain JSON-able dict (values for people in um and urad,
+every key with its unit), and `figures`, PNG bytes by name. The record is made from the documents the analyses
+already produce (`fit.to_json`, `Diagnosis.to_json`, `SensitivityResult`, the compensation summary), so the HTML
+never reaches into the analyses' objects:
+
+- fit.to_json: rms_mm, rank, n_parameters, condition, sigma, effects, parameters {name: {value, std, unit,
+  note?, description?}} (mm, rad; effect coefficients per unit of their variable), unidentifiable [[names]],
+  combinations [{formula, terms, value, std}], correlations [{a, b, r}];
+- Diagnosis.to_json: rms_mm, noise_mm, noise_source, missing_effect, added, decision, candidates [{id, aliases,
+  rms_mm, explained, description, separate_by?}];
+- compensation.read: before_mm / after_mm {max, rms, p95}, maps, method, files.
+"""
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import iso
+from ..errors import InputError
+
+#: Rounds of diagnose -> add the top candidate, at most (as scripts/run-main.sh).
+MAX_ROUNDS = 4
+#: Candidates kept per round.
+TOP = 5
+#: GSIL grid: points per axis over the strokes (X of li2018 is reduced exactly: it appears in no J_i).
+GSIL_POINTS = 9
+#: Largest GSIL proportions listed.
+GSIL_TOP = 10
+#: A residual RMS up to this multiple of a known noise counts as explained.
+EXPLAINED_RATIO = 1.2
+#: An axis covered over less than this share of its stroke gets "measure the full stroke" advice.
+FULL_STROKE = 0.9
+#: Extra tool length tried by the separation advice (mm above the median measured tool length).
+EXTRA_TOOL_MM = 100.0
+
+
+@dataclass
+class Report:
+    """The record (JSON-able) and its figures (PNG bytes by name)."""
+    record: dict
+    figures: dict = field(default_factory=dict)
+
+
+def people(value, unit: str):
+    """A value in mm or rad (or per unit of a variable: 'rad/mm') in um or urad for people; None stays None."""
+    head, sep, rest = unit.partition("/")
+    factor, new = {"mm": (1e3, "um"), "rad": (1e6, "urad")}.get(head, (1.0, head))
+    return (None if value is None else value * factor), new + sep + rest
+
+
+def _iso_formula(obj, terms: dict) -> str:
+    from ..fit import formula
+    return formula({(iso.name(obj, n) or n): c for n, c in terms.items()})
+
+
+def _machine_record(model) -> dict:
+    m = model.machine
+    return {"name": m.name, "title": m.title, "file": str(m.path), "convention": model.convention,
+            "tool_length_mm": m.tool_length,
+            "axes": [{"name": a.name, "type": a.type, "direction": list(a.direction), "stroke": list(a.stroke),
+                      "unit": "deg" if a.type == "rotary" else "mm",
+                      "chain": "tool" if a in m.tool_chain else "workpiece"} for a in m.axes]}
+
+
+def _data_record(model, meas) -> dict:
+    ranges = []
+    for i, v in enumerate(meas.variables):
+        ax = model.machine.axis(v)
+        vals = meas.poses[:, i]
+        if ax.type == "rotary":
+            vals = np.degrees(vals)
+        lo, hi = ax.stroke
+        ranges.append({"variable": v, "unit": "deg" if ax.type == "rotary" else "mm",
+                       "min": float(vals.min()), "max": float(vals.max()), "stroke": [lo, hi],
+                       "coverage": float((vals.max() - vals.min()) / (hi - lo))})
+    return {"file": str(meas.path), "n": meas.n, "variables": list(meas.variables), "ranges": ranges,
+            "instrument": _readings_text(model, meas),
+            "setups": list(meas.setups),
+            "tool_length_mm": [float(meas.L.min()), float(meas.L.max())],
+            "time_s": None if meas.t is None else [float(meas.t.min()), float(meas.t.max())],
+            "sigma_um": None if meas.sigma is None else float(np.sqrt(np.mean(meas.sigma ** 2)) * 1e3)}
+
+
+def _readings_text(model, meas) -> str:
+    """What the file measures, in words: the kinds of readings, their frame and the setups."""
+    from .. import observations as ob
+    obs = ob.build(meas, model.machine)
+    kinds = {ob.TIP: "tool-tip deviations (dx, dy, dz; mm, actual minus nominal)",
+             ob.AXIS: "tool-axis deviations (di, dj, dk)",
+             ob.LINE: "1-D deviations du along a direction (mm; ballbar, interferometer or tracker)"}
+    parts = [f"{int(np.sum(obs.kind == k))} {text}" for k, text in kinds.items() if (obs.kind == k).any()]
+    text = "; ".join(parts) + f", in the {meas.frame} frame, at {meas.n} poses"
+    if meas.setups:
+        text += (f"; {len(meas.setups)} setup(s) whose placement is fitted beside the machine's errors "
+                 f"({', '.join(meas.setups[:6])}{', ...' if len(meas.setups) > 6 else ''})")
+    return text
+
+
+def _round_record(obj, k: int, j: dict) -> dict:
+    cands = []
+    for c in j["candidates"]:
+        cands.append({"id": c["id"], "iso": iso.name(obj, c["id"]), "aliases": list(c["aliases"]),
+                      "aliases_iso": [iso.name(obj, a) for a in c["aliases"]],
+                      "rms_um": c["rms_mm"] * 1e3, "explained": c["explained"], "description": c["description"],
+                      "separate_by": c.get("separate_by", [])})
+    return {"round": k, "added": list(j["added"]), "added_iso": [iso.name(obj, a) for a in j["added"]],
+            "rms_um": j["rms_mm"] * 1e3, "noise_um": j["noise_mm"] * 1e3, "noise_source": j["noise_source"],
+            "ratio": j["rms_mm"] / j["noise_mm"] if j["noise_mm"] > 0 else None,
+            "missing_effect": j["missing_effect"], "decision": j["decision"], "candidates": cands}
+
+
+def _concat(a, b):
+    """Two measurement sets of the same structure as one (for 'what if we also measured ...' designs): every
+    array field is stacked along its first axis (rows, readings), lists are emptied, the rest is a's."""
+    changes = {}
+    for f in dataclasses.fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if isinstance(x, np.ndarray) and isinstance(y, np.ndarray):
+            changes[f.name] = np.concatenate([x, y])
+        elif isinstance(x, list):
+            changes[f.name] = []
+    return dataclasses.replace(a, **changes)
+
+
+def _options(model, meas, seed: int = 1):
+    """Extra measurements to try: another tool length; the full stroke of each axis covered less than 90 %."""
+    rng = np.random.default_rng(seed)
+    L0 = float(np.median(meas.L))
+    out = [(f"another tool length (L = {L0 + EXTRA_TOOL_MM:g} mm besides {L0:g} mm)",
+            dataclasses.replace(meas, L=np.full(meas.n, L0 + EXTRA_TOOL_MM), warnings=[]))]
+    for i, v in enumerate(meas.variables):
+        lo, hi = model.machine.axis(v).model_stroke
+        vals = meas.poses[:, i]
+        if vals.max() - vals.min() < FULL_STROKE * (hi - lo):
+            poses = meas.poses.copy()
+            poses[:, i] = rng.uniform(lo, hi, meas.n)
+            out.append((f"the full stroke of {v}", dataclasses.replace(meas, poses=poses, warnings=[])))
+    return out
+
+
+def separation(model, meas, effects, groups: list[list[str]], names: list[str]) -> list[dict]:
+    """For each group of parameters the data does not separate: why, and which extra measurement would.
+
+    Errors with the same J_i and K_i at every pose (a row of Table 2) are never separated by the tool tip; an
+    error whose J_i is zero at every pose has no effect at all; otherwise the design is rebuilt with the data plus
+    the extra poses of each option and the members that become determined are listed."""
+    from .. import fit as F
+    table2 = [set(g) for g in model.groups]
+    probe = model.machine.random_poses(64, 7)
+    J, _ = model.jk(probe, np.linspace(0.5, 1.5, 64) * (model.machine.tool_length or 100.0))
+    silent = {n for k, n in enumerate(model.errors) if not np.any(np.abs(J[:, k]) > 1e-12)}
+    out = [{"members": list(g), "iso": [iso.name(model, n) for n in g], "why": "", "separate_by": []} for g in groups]
+    pending = []
+    for row, g in zip(out, groups):
+        members = set(g)
+        same = next((k for k, t in enumerate(table2, 1) if members <= t), None)
+        if members <= silent:
+            row["why"] = "no effect on the tool tip at any pose (e.g. a rotation about the tool axis): no " \
+                         "measurement of the tool tip determines it"
+        elif same is not None and len(members) > 1:
+            row["why"] = (f"the same effect on the tool tip and tool axis at every pose and tool length (group "
+                          f"{same} of Table 2): no measurement separates them; only the combination matters, for "
+                          f"compensation too")
+        else:
+            pending.append(row)
+    if pending:
+        index = {n: i for i, n in enumerate(names)}
+        for text, extra in _options(model, meas):
+            try:
+                prob = F.build(model, _concat(meas, extra), effects)
+            except (InputError, ValueError, TypeError, IndexError) as exc:   # an unusual data set: say so
+                for row in pending:
+                    row["separate_by"].append({"measure": text, "determines": [], "error": str(exc)})
+                continue
+            idf = F.identify(prob.A * prob.w[:, None])
+            for row in pending:
+                now = [n for n in row["members"] if n in index and idf.determined[index[n]] and idf.norms[index[n]] > 0]
+                if now:
+                    row["separate_by"].append({"measure": text, "determines": now})
+        for row in pending:
+            if not row["separate_by"]:
+                row["why"] = "neither another tool length nor a wider range of an axis separates them on these poses"
+            else:
+                row["why"] = "the measured poses do not separate them; an extra measurement would (below)"
+    return out
+
+
+def _fit_record(model, res, groups_advice) -> dict:
+    from .. import fit as F
+    from ..effects import describe_param
+    placed = model.machine.with_convention(model.convention)
+    j = F.to_json(res)
+    params = []
+    for name, p in j["parameters"].items():
+        value, unit = people(p.get("value"), p["unit"])
+        std, _ = people(p.get("std"), p["unit"])
+        entry = iso.names(model).get(name)
+        params.append({"name": name, "iso": iso.name(model, name),
+                       "kind": entry.kind if entry else "effect coefficient",
+                       "description": p.get("description") or (describe_param(placed, name) if entry else ""),
+                       "value": value, "u_k2": None if std is None else 2 * std, "unit": unit,
+                       "determined": p["determined"], "note": p.get("note", "")})
+    combos = []
+    for c in j["combinations"]:
+        first = next(iter(c["terms"]))
+        value, unit = people(c["value"], j["parameters"][first]["unit"])
+        std, _ = people(c["std"], j["parameters"][first]["unit"])
+        combos.append({"formula": c["formula"], "formula_iso": _iso_formula(model, c["terms"]), "value": value,
+                       "u_k2": 2 * std, "unit": unit, "note": c.get("note", "")})
+    return {"rms_um": j["rms_mm"] * 1e3, "rms_first_order_um": j["rms_first_order_mm"] * 1e3, "rank": j["rank"],
+            "n_parameters": j["n_parameters"], "condition": j["condition"], "sigma": j["sigma"],
+            "reduced_chi2": j.get("reduced_chi2"), "effects": j["effects"],
+            "effects_iso": [iso.name(model, e) for e in j["effects"]], "parameters": params,
+            "combinations": combos, "groups": groups_advice,
+            "correlations": [dict(c, a_iso=iso.name(model, c["a"]), b_iso=iso.name(model, c["b"]))
+                             for c in j["correlations"]]}
+
+
+def _sensitivity(model) -> tuple[dict, list]:
+    from ..grid import Grid
+    from ..sensitivity import gsil
+    grid = Grid.from_strokes(model.machine, {v: GSIL_POINTS for v in model.variables})
+    res = gsil(model, grid, check=False, progress=False)
+    p = res.proportions
+    index = {n: i for i, n in enumerate(res.names)}
+    from ..effects import describe_param
+    placed = model.machine.with_convention(model.convention)
+    top = [{"name": n, "iso": iso.name(model, n), "proportion": float(p[index[n]]),
+            "description": describe_param(placed, n)} for n in res.ranking[:GSIL_TOP]]
+    return {"kind": "GSIL", "top": top, "points_per_axis": GSIL_POINTS, "poses": grid.size,
+            "grid": grid.describe(model.machine.rotary), "L0_mm": res.settings["L0_mm"],
+            "LE_mm": res.settings["LE_mm"], "errors": "the machine file's error values"}, top
+
+
+def _verdict(obj, rounds: list[dict], fit: dict, max_rounds: int) -> dict:
+    last = rounds[-1]
+    base = set(rounds[0]["added"])
+    found = [a for a in last["added"] if a not in base]
+    known = last["noise_source"] == "sigma column"
+    ratio = last["ratio"]
+    explained = not last["missing_effect"] and (not known or (ratio is not None and ratio <= EXPLAINED_RATIO))
+    unexplained = []
+    if last["missing_effect"]:
+        best = last["candidates"][0] if last["candidates"] else None
+        unexplained.append(f"an effect is still missing after {len(rounds)} rounds (the limit is {max_rounds})"
+                           + (f"; the best candidate is {best['id']}: {best['description']}" if best else ""))
+    elif known and ratio is not None and ratio > EXPLAINED_RATIO:
+        unexplained.append(f"the residual is {ratio:.2g} times the noise, but no effect of the vocabulary explains "
+                           f"it: the cause may lie outside the model (instrument setup, an effect of another form)")
+    if not known:
+        unexplained.append("the data has no sigma column: the noise is estimated from the residual itself, so the "
+                           "ratio of residual to noise cannot reveal a misfit; the decision rests on the candidate "
+                           "test alone")
+    if fit["groups"]:
+        unexplained.append(f"{len(fit['groups'])} groups of parameters cannot be told apart by this data (their "
+                           f"combinations are determined; see the fit)")
+    if explained:
+        headline = (f"The model explains the measurements to the noise level: residual RMS {last['rms_um']:.3g} um "
+                    f"against noise {last['noise_um']:.3g} um"
+                    + (f", after adding {len(found)} effect(s) the data showed." if found else "."))
+    else:
+        headline = (f"The model does not yet explain the measurements: residual RMS {last['rms_um']:.3g} um against "
+                    f"noise {last['noise_um']:.3g} um.")
+    return {"explained": explained, "headline": headline, "rms_um": last["rms_um"], "noise_um": last["noise_um"],
+            "noise_source": last["noise_source"], "ratio": ratio, "rms_first_um": rounds[0]["rms_um"],
+            "effects_found": [{"id": a, "iso": iso.name(obj, a),
+                               "description": next((c["description"] for r in rounds for c in r["candidates"]
+                                                    if c["id"] == a), "")} for a in found],
+            "unexplained": unexplained}
+
+
+def build(data, machine="li2018", convention: str = "equations", added=(), compensation=None,
+          max_rounds: int = MAX_ROUNDS, sensitivity: bool = True, title: str | None = None,
+          frame: str | None = None) -> Report:
+    """Run the analyses of a measurement file and collect the report's record and figures.
+
+    added: effect ids added to the model before the first round (project or ISO names); compensation: a folder
+    with summary.json (see report.compensation) or None. Rounds: diagnose, add the top candidate, repeat while
+    the decision says an effect is missing, at most max_rounds diagnoses; frame: of the readings (None: the
+    file's, else workpiece)."""
+    from .. import diagnose as D
+    from .. import fit as F
+    from ..kernels import load
+    from ..measurements import read
+    from ..plots.residuals import for_people, residual_figure
+    from . import compensation as C
+    from . import figures
+    if max_rounds < 1:
+        raise InputError(f"rounds: expected at least 1, got {max_rounds}")
+    model = load(machine, convention)
+    comp = C.read(compensation, model.machine.name) if compensation is not None else None
+    meas = read(data, model.machine, min_rows=2, frame=frame)
+    effects = F.resolve_effects(model, F.machine_effects(model) + list(added))
+    rounds, diags = [], []
+    for k in range(1, max_rounds + 1):
+        dg = D.diagnose(model, meas, effects, top=TOP)
+        diags.append(dg)
+        rounds.append(_round_record(model, k, dg.to_json()))
+        if not (dg.missing_effect and dg.candidates) or k == max_rounds:
+            break
+        effects = effects + F.resolve_effects(model, [dg.candidates[0]["id"]])
+    final = diags[-1]
+    j = F.to_json(final.fit)
+    advice = separation(model, meas, final.fit.problem.effects, j["unidentifiable"], list(final.fit.problem.names))
+    fit = _fit_record(model, final.fit, advice)
+    record = {
+        "title": title or f"Calibration report: {model.machine.title}",
+        "generated": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        "fiveaxis_version": _version(),
+        "machine": _machine_record(model), "data": _data_record(model, meas), "rounds": rounds, "fit": fit,
+        "residuals": {"before": {"effects": rounds[0]["added"], "rms_um": rounds[0]["rms_um"]},
+                      "after": {"effects": rounds[-1]["added"], "rms_um": rounds[-1]["rms_um"]}},
+        "sensitivity": None, "compensation": None}
+    record["verdict"] = _verdict(model, rounds, fit, max_rounds)
+    figs = {"coverage": figures.coverage(model, meas), "rounds": figures.rounds(rounds)}
+    series = [(f"{_model_label(rounds[0]['added'])} (RMS {rounds[0]['rms_um']:.3g} um)",
+               for_people(diags[0].fit.problem.obs, diags[0].fit.residual))]
+    if len(diags) > 1:
+        series.append((f"{_model_label(rounds[-1]['added'])} (RMS {rounds[-1]['rms_um']:.3g} um)",
+                       for_people(final.fit.problem.obs, final.fit.residual)))
+    figs["residuals"] = figures.png(residual_figure(
+        model, meas, final.fit.problem.obs, series, "Fit residual (measured minus modelled reading, um; urad for "
+                                                    "the tool axis) against each axis "
+                             "position and time" + (", before and after the effects found" if len(diags) > 1 else "")))
+    if sensitivity:
+        record["sensitivity"], top = _sensitivity(model)
+        figs["sensitivity"] = figures.sensitivity(top)
+    if comp is not None:
+        record["compensation"] = {k: v for k, v in comp.items() if k != "maps"}
+        record["compensation"]["maps"] = [{"file": m["file"], "caption": m["caption"]} for m in comp["maps"]]
+        for i, m in enumerate(comp["maps"]):
+            figs[f"compensation_{i}"] = m["png"]
+    _check_finite(record)
+    return Report(record, figs)
+
+
+def _model_label(added) -> str:
+    return "geometric model" + (f" + {', '.join(added)}" if added else "")
+
+
+def _version() -> str:
+    from .. import __version__
+    return __version__
+
+
+def _check_finite(obj, where="record"):
+    """No NaN or inf where a number is promised (the HTML and the JSON would carry it silently)."""
+    if isinstance(obj, float) and not math.isfinite(obj):
+        if ".decision" in where:         # the decision's statistics are shown as computed (an inf is meaningful)
+            return
+        raise ValueError(f"report: {where} is {obj}")
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            _check_finite(v, f"{where}.{k}")
+    elif isinstance(obj, (list, tuple)):
+        for i, v in enumerate(obj):
+            _check_finite(v, f"{where}[{i}]")

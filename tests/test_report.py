@@ -1,0 +1,187 @@
+"""`fiveaxis report`: the record against the example's known truth, the page self-contained, the compensation
+section, the command line's file handling. The browser and PDF checks are in test_report_browser.py."""
+import json
+import re
+from html.parser import HTMLParser
+
+import numpy as np
+import pytest
+
+from fiveaxis.cli import main
+from fiveaxis.errors import InputError
+from fiveaxis.report import compensation as C
+from fiveaxis.report import html, record
+
+from conftest import ROOT
+
+EXAMPLE = ROOT / "examples" / "li2018_measurements.csv"
+
+
+@pytest.fixture(scope="module")
+def example():
+    return record.build(EXAMPLE)
+
+
+class _Tables(HTMLParser):
+    """Rows of every table by id, img sources, scripts and external references of a page."""
+
+    def __init__(self):
+        super().__init__()
+        self.rows, self.imgs, self.scripts, self.refs = {}, [], 0, []
+        self._table = []
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "table":
+            self._table.append(a.get("id"))
+            self.rows.setdefault(a.get("id"), 0)
+        elif tag == "tr" and self._table and self._in_body:
+            self.rows[self._table[-1]] += 1
+        elif tag == "tbody":
+            self._in_body = True
+        elif tag == "img":
+            self.imgs.append(a.get("src", ""))
+        elif tag == "script":
+            self.scripts += 1
+        for k in ("src", "href"):
+            if k in a and not a[k].startswith(("data:", "#")):
+                self.refs.append(a[k])
+
+    _in_body = False
+
+    def handle_endtag(self, tag):
+        if tag == "tbody":
+            self._in_body = False
+        elif tag == "table":
+            self._table.pop()
+
+
+def test_example_record_finds_the_hidden_effects(example):
+    """examples/README.md: the example hides ex_x:x1 (2e-5 rad at the end of X's 2500 mm) and L:t1, 1 um noise."""
+    rec = example.record
+    v = rec["verdict"]
+    # L:t1 (the tool growing) and dz_A:t1 (A's axial drift) are the same column (a translation along the tool axis):
+    # either is the hidden effect, the other is listed as its alias
+    tops = [r["candidates"][0] for r in rec["rounds"] if r["missing_effect"]]
+    found = [{t["id"], *t["aliases"]} for t in tops]
+    assert v["explained"] and len(v["effects_found"]) == 2 and len(found) == 2
+    assert "ex_x:x1" in found[0] and "L:t1" in found[1]
+    assert {f["id"] for f in v["effects_found"]} == {t["id"] for t in tops}
+    assert "E_AX:x1" in {f["iso"] for f in v["effects_found"]}
+    assert v["noise_source"] == "sigma column" and v["ratio"] == pytest.approx(1.0, abs=0.05)
+    rms = [r["rms_um"] for r in rec["rounds"]]
+    assert rms == sorted(rms, reverse=True) and rms[0] > 3 * rms[-1]
+    assert [r["missing_effect"] for r in rec["rounds"]] == [True, True, False]
+    p = {q["name"]: q for q in rec["fit"]["parameters"]}
+    assert len(rec["fit"]["parameters"]) == rec["fit"]["n_parameters"] == 43
+    coef = p["ex_x:x1"]
+    assert coef["unit"] == "urad/mm" and coef["iso"] == "E_AX:x1"
+    assert abs(coef["value"] - 2e-5 / 2500 * 1e6) < 2 * coef["u_k2"]          # truth within U (k = 2)
+    assert p["ex_x"]["iso"] == "E_AX" and p["ex_x"]["unit"] == "urad" and p["ex_x"]["determined"]
+    assert p["SAOB"]["iso"] == "E_C0B" and not p["SAOB"]["determined"] and p["SAOB"]["value"] is None
+
+
+def test_expanded_uncertainty_is_twice_the_fit_standard_uncertainty(example):
+    from fiveaxis import fit as F
+    from fiveaxis.kernels import load
+    from fiveaxis.measurements import read
+    model = load("li2018")
+    res = F.fit(model, read(EXAMPLE, model.machine), ["ex_x:x1", "L:t1"])
+    j = F.to_json(res)["parameters"]
+    p = {q["name"]: q for q in example.record["fit"]["parameters"]}
+    assert p["ex_x"]["value"] == pytest.approx(j["ex_x"]["value"] * 1e6, rel=1e-6)
+    assert p["ex_x"]["u_k2"] == pytest.approx(2 * j["ex_x"]["std"] * 1e6, rel=1e-6)
+    assert p["dz_A"]["u_k2"] == pytest.approx(2 * j["dz_A"]["std"] * 1e3, rel=1e-6)     # mm -> um
+
+
+def test_groups_say_why_and_what_would_separate_them(example):
+    groups = {frozenset(g["members"]): g for g in example.record["fit"]["groups"]}
+    assert "group 7 of Table 2" in groups[frozenset({"ex_y", "Syz"})]["why"]
+    assert "no effect on the tool tip" in groups[frozenset({"ez_A"})]["why"]
+    # ex_B + ex_A + 0.005*dy_A: dy_A enters with the tool length (J = a + L k), so another length separates it
+    tips = groups[frozenset({"ex_B", "ex_A", "dy_A"})]["separate_by"]
+    assert tips and tips[0]["measure"].startswith("another tool length") and "dy_A" in tips[0]["determines"]
+
+
+def test_page_is_self_contained_with_one_row_per_parameter(example):
+    page = html.render(example)
+    t = _Tables()
+    t.feed(page)
+    assert t.scripts == 0 and t.refs == [], t.refs
+    assert not re.search(r"https?://", page)
+    assert len(t.imgs) == len(example.figures) == 4 and all(s.startswith("data:image/png;base64,") for s in t.imgs)
+    assert t.rows["parameters"] == example.record["fit"]["n_parameters"]
+    assert t.rows["gsil"] == 10 and "E_C(0X)Y" in page and "&mu;" not in page and "\u00b5m" in page
+    for section in ("verdict", "terms", "data", "fit", "residuals", "rounds", "sensitivity", "compensation"):
+        assert f'id="{section}"' in page
+    assert "No compensation was evaluated" in page
+
+
+def _png(path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(2, 1.5))
+    ax.plot([0, 1], [0, 1])
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def test_compensation_folder(tmp_path, example):
+    d = tmp_path / "comp"
+    d.mkdir()
+    _png(d / "before.png")
+    summary = {"machine": "li2018", "method": "per-axis tables", "before_mm": {"max": 0.012, "rms": 0.0045,
+               "p95": 0.009}, "after_mm": {"max": 0.002, "rms": 0.0008, "p95": 0.0015},
+               "maps": [{"file": "before.png", "caption": "predicted error before (um)"}], "files": ["x.comp"]}
+    (d / "summary.json").write_text(json.dumps(summary))
+    comp = C.read(d, "li2018")
+    assert comp["after_mm"]["rms"] == 0.0008 and comp["maps"][0]["png"].startswith(C.PNG_MAGIC)
+    rep = record.Report(dict(example.record, compensation={k: v for k, v in comp.items() if k != "maps"}
+                             | {"maps": [{"file": "before.png", "caption": "predicted error before (um)"}]}),
+                        dict(example.figures, compensation_0=comp["maps"][0]["png"]))
+    page = html.render(rep)
+    assert 'id="compensation-summary"' in page and "<td class=\"num\">0.8</td>" in page and "x.comp" in page
+    bad = dict(summary, after_mm={"max": 0.002, "rms": float("nan"), "p95": 1})
+    (d / "summary.json").write_text(json.dumps(bad))
+    with pytest.raises(InputError, match=r"summary.json: after_mm.rms: expected a length >= 0 in mm"):
+        C.read(d, "li2018")
+    (d / "summary.json").write_text(json.dumps(dict(summary, machine="ac_trunnion")))
+    with pytest.raises(InputError, match="the compensation is for 'ac_trunnion'"):
+        C.read(d, "li2018")
+
+
+def test_people_units():
+    assert record.people(2e-6, "mm") == pytest.approx((2e-3, "um"))
+    v, u = record.people(8e-9, "rad/mm")
+    assert u == "urad/mm" and v == pytest.approx(8e-3)
+    assert record.people(None, "rad") == (None, "urad") and record.people(3.0, "") == (3.0, "")
+
+
+def run(capsys, *argv):
+    try:
+        rc = main([str(a) for a in argv])
+    except SystemExit as exc:
+        rc = exc.code
+    out, err = capsys.readouterr()
+    return rc, out, err
+
+
+def test_cli_writes_once_and_refuses_to_overwrite(capsys, tmp_path):
+    small = tmp_path / "small.csv"
+    assert main(["simulate", "--effect", "E_AX:x1=2e-5", "--n", "200", "--seed", "5", "--with-sigma",
+                 "-o", str(small)]) == 0
+    out = tmp_path / "r.html"
+    rc, stdout, err = run(capsys, "report", small, "-o", out, "--rounds", "2", "--no-sensitivity", "--json")
+    assert rc == 0 and f"wrote {out}" in err and out.stat().st_mode & 0o044 == 0o044
+    rec = json.loads(stdout)
+    assert rec["sensitivity"] is None and len(rec["rounds"]) <= 2
+    before = out.read_bytes()
+    rc, _, err = run(capsys, "report", small, "-o", out)
+    assert rc == 2 and err.count("\n") == 1 and "--force" in err and out.read_bytes() == before
+    rc, _, err = run(capsys, "report", small, "-o", tmp_path / "r.txt")
+    assert rc == 2 and "expected an .html file" in err
+    rc, _, err = run(capsys, "report", small, "-o", tmp_path / "q.html", "--add", "E_QX:x1")
+    assert rc == 2 and err.count("\n") == 1 and "unknown parameter 'E_QX'" in err
+    rc, _, err = run(capsys, "report", small, "-o", tmp_path / "q.html", "--compensation", tmp_path / "nope")
+    assert rc == 2 and "compensation folder not found" in err and not (tmp_path / "q.html").exists()
