@@ -210,3 +210,13 @@ def test_effects_by_iso_name_equal_the_project_name(capsys, measured):
     assert a["parameters"]["ex_x:x1"]["value"] == pytest.approx(2e-5 / 2500, rel=0.1)
     rc, _, err = run(capsys, "fit", measured, "--add", "E_QX:x1")
     assert rc == 2 and err.count("\n") == 1 and "E_QX" in err and "ex_x=E_AX" in err
+
+
+def test_iso_effect_and_project_effect_are_the_same_added_twice():
+    """--add E_AX:x1 --add ex_x:x1 names one effect twice: refused like the same id twice."""
+    import fiveaxis
+    from fiveaxis import fit as F
+    model = fiveaxis.load("li2018")
+    assert [e.id for e in F.resolve_effects(model, ["E_AX:x1"])] == ["ex_x:x1"]
+    with pytest.raises(fiveaxis.InputError, match="given twice"):
+        F.resolve_effects(model, ["E_AX:x1", "ex_x:x1"])

@@ -392,6 +392,11 @@ def _diagnose(model, meas, added, top, fixed=None) -> Diagnosis:
                        "description": ce.description, "_gain": float(cgain[j])})
     listed.sort(key=lambda c: c["delta_ebic"])
     listed = listed[:top]
+    from . import iso
+    for c in listed:
+        name = iso.name(model, c["id"]) if ":" in c["id"] else None
+        if name:
+            c["iso"] = name
     for c in listed:
         del c["_gain"]
     dg = Diagnosis(res, meas.n, res.rms_mm, noise, source, missing, listed, decision,
@@ -440,7 +445,8 @@ def report(dg: Diagnosis) -> str:
     lines.append("[[Candidates]] best first: RMS after adding it, share of the residual it explains")
     for k, c in enumerate(j["candidates"], 1):
         coef = f"coef {c['coefficient']:.3g} {c['unit']}: " if "coefficient" in c else ""
-        lines.append(f"    {k:2d}. {c['id']:10s} -> {c['rms_mm'] * 1000:.4g} um ({c['explained']:.1%}) "
+        shown = f"{c['id']} ({c['iso']})" if c.get("iso") else c["id"]
+        lines.append(f"    {k:2d}. {shown:18s} -> {c['rms_mm'] * 1000:.4g} um ({c['explained']:.1%}) "
                      f"{coef}{c['description']}")
         if c["aliases"]:
             lines.append(f"        aliases on this data: {', '.join(c['aliases'])}")

@@ -117,11 +117,14 @@ class Problem:
 
 def resolve_effects(model, ids, where="--add"):
     """Effects from ids: the vocabulary (`ex_x:x1`) or custom effects of the machine file (by name)."""
+    from . import iso
     out, seen = [], set()
     for ident in ids:
         if not isinstance(ident, str):
             out.append(ident)
             continue
+        if ident not in model.machine.effects:
+            ident = iso.canonical_effect(model, ident, where=where)   # E_AX:x1 is ex_x:x1
         if ident in seen:
             raise InputError(f"{where}: effect '{ident}' given twice (or already in the machine file's "
                              f"[model] effects)")
@@ -591,6 +594,7 @@ def placement_text(setup, params: dict) -> str:
 
 
 def to_json(res: FitResult) -> dict:
+    from . import iso
     prob = res.problem
     obs = prob.obs
     counts = {ob.KIND_NAMES[k]: int(np.sum(obs.kind == k)) for k in range(3) if (obs.kind == k).any()}
@@ -606,7 +610,8 @@ def to_json(res: FitResult) -> dict:
         "noise_mm": res.noise(ob.LENGTH),
         "effects": [e.id for e in prob.effects],
         "fixed": dict(prob.fixed),
-        "parameters": parameters(res),
+        "parameters": {k: dict(v, iso=iso.name(prob.model, k)) if iso.name(prob.model, k) else v
+                       for k, v in parameters(res).items()},
         "setups": setup_results(res),
         "unidentifiable": res.groups,
         "combinations": [dict({"formula": c.formula, "terms": c.terms, "value": c.value, "std": c.std,
@@ -676,14 +681,16 @@ def report(res: FitResult) -> str:
         lines.append(f"    noise estimate:  {', '.join(noise)} (no sigma column: from the residual)")
     if j["effects"]:
         lines.append(f"    added effects:   {', '.join(j['effects'])}")
-    lines.append("[[Parameters determined by this data]]  value +- expanded uncertainty (k = 2)")
+    lines.append("[[Parameters determined by this data]]  value +- expanded uncertainty (k = 2); ISO 230 names in "
+                 "brackets")
     for name, p in j["parameters"].items():
         if not p["determined"]:
             continue
+        shown = f"{name} ({p['iso']})" if p.get("iso") else name
         if p.get("fixed"):
-            lines.append(f"    {name:12s} {human(p['value'], p['unit'])} (held fixed)")
+            lines.append(f"    {shown:18s} {human(p['value'], p['unit'])} (held fixed)")
             continue
-        lines.append(f"    {name:12s} {human(p['value'], p['unit'])} +- {human(p['expanded_k2'], p['unit'])}"
+        lines.append(f"    {shown:18s} {human(p['value'], p['unit'])} +- {human(p['expanded_k2'], p['unit'])}"
                      + (f"   {p['description']}" if "description" in p else ""))
     if j["setups"]:
         lines.append("[[Setups: placement of the artefacts (not machine errors)]]  value +- expanded uncertainty "
