@@ -21,10 +21,15 @@ PDGE_PREFIXES = ("ex", "ey", "ez", "dx", "dy", "dz")
 #: Pose variables are ordered X Y Z, then A B C; other names follow in chain order.
 CANONICAL_ORDER = ("X", "Y", "Z", "A", "B", "C")
 
+#: Grid points per axis of the workspace when the machine file's [workspace] table does not name the axis.
+WORKSPACE_COUNT = 5
+#: Largest number of grid points of one axis in a [workspace] table (the run's size is checked separately).
+WORKSPACE_MAX_COUNT = 10 ** 6
+
 MACHINES_DIR = Path(__file__).resolve().parents[2] / "machines"
 
 _TOP_KEYS = {"name", "title", "description", "tool", "tool_chain", "workpiece_chain", "errors",
-             "conventions", "effects", "model"}
+             "conventions", "effects", "model", "workspace"}
 _AXIS_KEYS = {"axis", "type", "direction", "stroke", "errors", "pige", "description"}
 _TOOL_KEYS = {"length", "cutting_length", "direction"}
 _ERROR_KEYS = {"linear", "angular", "values"}
@@ -74,6 +79,7 @@ class Machine:
     effects: dict = field(default_factory=dict)       # custom effects: name -> {"error", "expr", ...}
     pige_order: tuple = ()                            # PIGE names as first declared: stable across conventions
     added_effects: tuple = ()                         # effects the model includes: ids (ex_x:x1) or custom names
+    workspace: dict = field(default_factory=dict)     # [workspace]: axis -> (lo, hi, count), mm or degrees
 
     @property
     def axes(self) -> tuple[Axis, ...]:
@@ -125,6 +131,14 @@ class Machine:
             out[n] = self.error_values.get(n, self.angular_error if self.is_angular(n) else self.linear_error)
         return out
 
+    def workspace_range(self, name: str) -> tuple[float, float, int]:
+        """(lo, hi, count) of an axis in the region that matters (`[workspace]`, else the whole stroke with
+        WORKSPACE_COUNT points): mm, or degrees for rotary axes (file units)."""
+        if name in self.workspace:
+            return self.workspace[name]
+        lo, hi = self.axis(name).stroke
+        return (lo, hi, WORKSPACE_COUNT)
+
     def random_poses(self, n: int, rng=None):
         """n poses drawn uniformly within the strokes, (n, nvar) in `variables` order, mm and rad."""
         import numpy as np
@@ -156,7 +170,7 @@ class Machine:
         return Machine(self.name, self.path, self.title, moved(self.tool_chain), moved(self.workpiece_chain),
                        self.tool_length, self.cutting_length, self.tool_direction, self.linear_error,
                        self.angular_error, self.error_values, self.conventions, self.effects,
-                       self.pige_names, self.added_effects)
+                       self.pige_names, self.added_effects, self.workspace)
 
 
 def module_name(machine_name: str, convention: str = "equations") -> str:
@@ -352,10 +366,43 @@ def parse_machine(data: dict, path: Path) -> Machine:
                                                f"or a custom effect name, got {ident!r}")
     if len(set(added)) != len(added):
         _fail(path, "model.effects", "an effect is listed twice")
+    workspace = _parse_workspace(path, data.get("workspace", {}), {a.name: a for c in chains.values() for a in c})
     return Machine(name=name, path=Path(path), title=str(data.get("title", name)),
                    tool_chain=chains["tool_chain"], workpiece_chain=chains["workpiece_chain"],
                    tool_length=length, cutting_length=cutting, tool_direction=tdir,
                    linear_error=lin, angular_error=ang, error_values={k: float(v) for k, v in values.items()},
                    conventions=conventions, effects=dict(effects),
                    pige_order=tuple(n for c in chains.values() for a in c for n in a.pige),
-                   added_effects=tuple(added))
+                   added_effects=tuple(added), workspace=workspace)
+
+
+def _parse_workspace(path, table, axes: dict) -> dict:
+    """[workspace]: per axis `[lo, hi, count]`, `[lo, hi]` (WORKSPACE_COUNT points) or a number (the axis fixed
+    there), mm or degrees, within the stroke. Returns {axis: (lo, hi, count)} in file units."""
+    if not isinstance(table, dict):
+        _fail(path, "workspace", "expected a table of axis = [lo, hi, count] (mm; degrees for rotary axes)")
+    out = {}
+    for name, spec in table.items():
+        key = f"workspace.{name}"
+        if name not in axes:
+            _fail(path, key, f"unknown axis (expected one of: {', '.join(sorted(axes))})")
+        unit = "deg" if axes[name].type == "rotary" else "mm"
+        if isinstance(spec, (int, float)) and not isinstance(spec, bool):
+            lo = hi = _number(path, key, spec)
+            count = 1
+        elif isinstance(spec, list) and len(spec) in (2, 3):
+            lo, hi = (_number(path, key, v) for v in spec[:2])
+            count = spec[2] if len(spec) == 3 else WORKSPACE_COUNT
+            if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= WORKSPACE_MAX_COUNT:
+                _fail(path, key, f"expected a whole number of points from 1 to {WORKSPACE_MAX_COUNT}, got {count!r}")
+            if count > 1 and not lo < hi:
+                _fail(path, key, f"expected lo < hi, got [{lo:g}, {hi:g}] {unit}")
+            if count == 1 and lo != hi:
+                lo = hi = 0.5 * (lo + hi)
+        else:
+            _fail(path, key, f"expected [lo, hi, count], [lo, hi] or a number ({unit}), got {spec!r}")
+        slo, shi = axes[name].stroke
+        if lo < slo or hi > shi:
+            _fail(path, key, f"[{lo:g}, {hi:g}] {unit} is outside the stroke [{slo:g}, {shi:g}] {unit}")
+        out[name] = (float(lo), float(hi), int(count))
+    return out
