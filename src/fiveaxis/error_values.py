@@ -87,7 +87,7 @@ class _Reader:
             text = path.read_text(encoding="utf-8")
         except UnicodeDecodeError:
             raise InputError(f"{path}: not a UTF-8 text file (expected NAME=VALUE lines or a JSON object)") from None
-        if text.lstrip().startswith("{"):
+        if text.lstrip()[:1] in ("{", "["):
             self.json_file(path, text)
         else:
             self.lines(path, text)

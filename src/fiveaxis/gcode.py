@@ -84,7 +84,7 @@ def tag_lines(text: str) -> str:
             continue
         m = _N_WORD.match(line)
         if m:
-            out.append(f"{m.group(1)}N{i} {line[m.end():]}")
+            out.append(f"{m.group(1)}N{i} {line[m.end():].lstrip()}")
         else:
             lead = re.match(r"^(\s*/?\s*)", line).group(1)
             out.append(f"{lead}N{i} {line[len(lead):]}")
@@ -133,9 +133,11 @@ def interpret(path, rs274: str = RS274, var_file=None, timeout: float = TIMEOUT)
     if var_file is not None:
         cmd += ["-v", str(Path(var_file).resolve())]
     with tempfile.TemporaryDirectory(prefix="fiveaxis-rs274-") as cwd:     # rs274 may write files next to it
+        tagged = Path(cwd) / "program.ngc"         # a file, not stdin: from stdin rs274 goes on after an error
+        tagged.write_text(tag_lines(text), encoding="utf-8")
         try:
-            proc = subprocess.run(cmd, input=tag_lines(text), capture_output=True, text=True, cwd=cwd,
-                                  timeout=timeout, errors="replace")
+            proc = subprocess.run(cmd + [str(tagged)], capture_output=True, text=True, cwd=cwd,
+                                  timeout=timeout, errors="replace", stdin=subprocess.DEVNULL)
         except subprocess.TimeoutExpired:
             raise InputError(f"{path}: rs274 did not finish within {timeout:g} s (an endless loop?)") from None
     if proc.returncode != 0:
@@ -170,7 +172,7 @@ def parse_canon(stdout: str, path, lines=()) -> Program:
                 scale, unit = 10.0, "cm"
             else:
                 scale, unit = 1.0, "mm"
-            if unit not in prog.units:
+            if line and unit not in prog.units:          # line 0: the interpreter's own start-up
                 prog.units.append(unit)
         elif name == "SET_G5X_OFFSET":
             g5x = conv(_numbers(args, where)[1:7])
