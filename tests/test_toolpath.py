@@ -217,7 +217,7 @@ def test_rejected_line_is_the_source_line_even_with_n_words_and_block_delete(rs2
     ("X,Y,Z,A,B\n0,0,0,0,0\n", "column B is not an axis of ac_trunnion"),              # li2018's axes
     ("X,Y,Z,A\n0,0,0,0\n", "column C is missing"),
     ("X,Y,Z,A,C,nx,ny,nz\n0,0,0,0,0,0,0,0\n", "row 2: the surface normal (nx, ny, nz) has zero length"),
-    ("X,Y,Z,A,C,nx,ny\n0,0,0,0,0,0,1\n", "all three columns nx, ny, nz"),
+    ("X,Y,Z,A,C,nx,ny\n0,0,0,0,0,0,1\n", "a normal needs all three of nx, ny, nz"),
     ("X,Y,Z,A,C\n0,0,0,0,0\n0,0,0,-150,0\n", "row 3: A = -150 deg is outside the stroke [-120, 30] deg"),
     ("X,Y,Z,A,C\n0,0,nan,0,0\n", "row 2, column Z: expected a finite number"),
     ("X,Y,Z,A,C\n", "no poses"),

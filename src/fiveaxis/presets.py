@@ -14,14 +14,13 @@ spaced azimuths of each, which `cone_poses` reproduces to the printed rounding.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from .errors import InputError
 from .experiments import (SCENARIOS, CompensationRow, compensation, diagonal_points,  # noqa: F401 (the API)
                           point_errors, scenario_errors)
-from .grid import Grid, GridAxis, PoseList
+from .grid import Grid, GridAxis, PoseList, check_within_strokes
 
 SIN60 = math.sin(math.radians(60.0))
 COS60 = 0.5
@@ -159,7 +158,6 @@ def workspace_preset(name: str, model) -> Grid:
     if name not in WORKSPACE_PRESETS:
         raise InputError(f"unknown workspace preset {name!r} (expected one of: {', '.join(WORKSPACE_PRESETS)})")
     grid = workspace_grid(model)
-    from .grid import check_within_strokes
     check_within_strokes(grid, model.machine, f"preset {name}")
     return grid
 

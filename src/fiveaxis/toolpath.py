@@ -91,7 +91,7 @@ def read_csv(path, machine, max_rows: int | None = None) -> Toolpath:
             if header is None:
                 raise InputError(f"{path}: empty file (expected a header row {','.join(variables)}[,nx,ny,nz])")
             header = [h.strip() for h in header]
-            _check_header(path, header, machine)
+            _check_names(header, machine, str(path), "column ", ("segment",))
             rows = []
             for i, row in enumerate(reader, 2):
                 if not row or all(not c.strip() for c in row):
@@ -152,24 +152,26 @@ def _convert(col: np.ndarray, kind: str) -> np.ndarray:
     return np.radians(col) if kind == "rotary" else col
 
 
-def _check_header(path, header, machine):
+def _check_names(names, machine, where: str, label: str, extra=()) -> bool:
+    """The names of a CSV header (label "column ") or of a --pose (label ""): each a pose variable of the machine,
+    nx/ny/nz or one of `extra`, once; every pose variable; the normal's three or none. True when normals are given."""
     variables = machine.variables
     seen = set()
-    for h in header:
+    for h in names:
         if h in seen:
-            raise InputError(f"{path}: column {h} appears twice")
+            raise InputError(f"{where}: {label}{h} appears twice")
         seen.add(h)
-    unknown = [h for h in header if h not in variables and h not in NORMAL_COLUMNS and h != "segment"]
-    if unknown:
-        raise InputError(f"{path}: column {unknown[0]} is not an axis of {machine.name} (axes "
-                         f"{' '.join(variables)}; optional nx, ny, nz, segment)")
+        if h not in variables and h not in NORMAL_COLUMNS and h not in extra:
+            raise InputError(f"{where}: {label}{h} is not an axis of {machine.name} (axes {' '.join(variables)}; "
+                             f"optional {', '.join(NORMAL_COLUMNS + tuple(extra))})")
     missing = [v for v in variables if v not in seen]
     if missing:
-        raise InputError(f"{path}: column {missing[0]} is missing (a toolpath of {machine.name} has the axes "
+        raise InputError(f"{where}: {label}{missing[0]} is missing (a pose of {machine.name} gives the axes "
                          f"{' '.join(variables)}, mm and degrees)")
     given = [c for c in NORMAL_COLUMNS if c in seen]
     if given and len(given) != 3:
-        raise InputError(f"{path}: normals need all three columns nx, ny, nz (got {', '.join(given)})")
+        raise InputError(f"{where}: a normal needs all three of nx, ny, nz (got {', '.join(given)})")
+    return bool(given)
 
 
 def from_program(program, machine, step_mm: float = STEP_MM, step_deg: float = STEP_DEG,
@@ -247,31 +249,19 @@ def from_specs(specs, machine) -> Toolpath:
     rows, normals = [], []
     for s in specs:
         where = f"--pose {s!r}"
+        pairs = [part.partition("=") for part in s.split(",")]
+        if any(not sep or not name.strip() for name, sep, _ in pairs):
+            raise InputError(f"{where}: expected NAME=VALUE pairs separated by commas")
+        given = _check_names([name.strip() for name, _, _ in pairs], machine, where, "")
         vals = {}
-        for part in s.split(","):
-            name, sep, raw = part.partition("=")
-            name = name.strip()
-            if not sep or not name:
-                raise InputError(f"{where}: expected NAME=VALUE pairs separated by commas")
-            if name not in variables and name not in NORMAL_COLUMNS:
-                raise InputError(f"{where}: {name} is not an axis of {machine.name} (axes {' '.join(variables)}; "
-                                 f"optional nx, ny, nz)")
-            if name in vals:
-                raise InputError(f"{where}: {name} given twice")
+        for name, _, raw in pairs:
             try:
                 v = float(raw)
             except ValueError:
                 v = math.nan
             if not math.isfinite(v):
-                raise InputError(f"{where}: {name} must be a finite number, got {raw.strip()!r}")
-            vals[name] = v
-        missing = [v for v in variables if v not in vals]
-        if missing:
-            raise InputError(f"{where}: {missing[0]} is missing (a pose of {machine.name} gives "
-                             f"{' '.join(variables)})")
-        given = [c for c in NORMAL_COLUMNS if c in vals]
-        if given and len(given) != 3:
-            raise InputError(f"{where}: a normal needs nx, ny and nz")
+                raise InputError(f"{where}: {name.strip()} must be a finite number, got {raw.strip()!r}")
+            vals[name.strip()] = v
         rows.append([_convert(np.array(vals[v]), machine.axis(v).type) for v in variables])
         normals.append([vals[c] for c in NORMAL_COLUMNS] if given else None)
     if any(n is None for n in normals) and not all(n is None for n in normals):

@@ -251,6 +251,7 @@ def _compensate_gsa(args, model, errors, grid, L0, res):
 
 def run_gsa(args) -> int:
     from .. import presets
+    from ..experiments import scenario_errors
     from ..sensitivity import CHUNK, gsil
     model = _model(args)
     grid, source, L0d, LEd = _grid(args, model)
@@ -278,7 +279,7 @@ def run_gsa(args) -> int:
                            f"GSIL proportions PG_i (%), {model.machine.name} ({model.convention} convention)")]
         if args.compensate:
             maps = {"none": run(errors)}
-            maps["vital"] = run(presets.scenario_errors(errors, vital, "vital halved"))
+            maps["vital"] = run(scenario_errors(errors, vital, "vital halved"))
             if len(maps["none"]["rotary"]) == 2:
                 r0, r1 = maps["none"]["rotary"]
                 for key, name, unit in (("position_map", "position", "mm"), ("posture_map", "posture", "rad")):
@@ -451,7 +452,7 @@ def run_lsa(args) -> int:
     if args.json:
         _dump(out)
         return 0
-    what = f"at cone position {cone}" if cone else "along the path"
+    what = f"at cone position {cone}" if cone else ("at the given poses" if args.pose else "along the path")
     _print_ranking(res, args.top, f"LSIL proportions PL_i {what} (normal mode {mode}), largest first")
     _print_settings(res.settings)
     if tp is not None:
@@ -465,8 +466,7 @@ def run_lsa(args) -> int:
             _print_compensation(comp, f"Fig. 11: average machining error of the side surface, vital = "
                                 f"{', '.join(vital)} ({why})", "mm", presets.PAPER_COMPENSATION[f"cone{cone}"])
         else:
-            _print_compensation(comp, f"machining error along the path, {measure}, vital = {', '.join(vital)} "
-                                f"({why})", "mm")
+            _print_compensation(comp, f"machining error {measure}, vital = {', '.join(vital)} ({why})", "mm")
     return 0
 
 
@@ -476,8 +476,11 @@ def _ranking(names, proportions):
 
 
 def _print_segments(res, segs, shown):
-    print(f"per segment (which errors matter where): the three largest PL_i of each of {len(segs)} segments")
-    for s in segs[:shown]:
+    picked = range(len(segs)) if len(segs) <= shown else \
+        sorted(set(np.linspace(0, len(segs) - 1, shown).round().astype(int).tolist()))
+    every = "each of" if len(picked) == len(segs) else f"{len(picked)} evenly spread of"
+    print(f"per segment (which errors matter where): the three largest PL_i of {every} {len(segs)} segments")
+    for s in (segs[i] for i in picked):
         if s["proportions"] is None:
             top = "all indices zero"
         else:
@@ -485,19 +488,20 @@ def _print_segments(res, segs, shown):
             top = ", ".join(f"{n} {100 * p[n]:.1f}%" for n in _ranking(res.names, s["proportions"])[:3])
         span = f"poses {s['first_pose'] + 1}-{s['last_pose'] + 1}"
         print(f"  {s['label']:<14} {span:<16} {top}")
-    if len(segs) > shown:
-        print(f"  ... {len(segs) - shown} more segments (all in --json)")
+    if len(picked) < len(segs):
+        print(f"  ({len(segs) - len(picked)} more segments in --json; --segments N lists N of them)")
 
 
 def _lsa_plots(args, model, res, cone, tp, comp, errors, L0, LE, mode, vital):
     from .. import presets
+    from ..experiments import scenario_errors
     from ..plots import sensitivity as plots
     d = args.plot
     if cone:
         files = [plots.pie(res.names, res.proportions, d / f"lsa_cone{cone}_pie.png",
                            f"LSIL proportions PL_i (%), cone position {cone}, normal mode {mode}")]
         if comp:
-            maps = {sc: presets.cone_machining_error(model, cone, presets.scenario_errors(errors, vital, sc), L0, LE)
+            maps = {sc: presets.cone_machining_error(model, cone, scenario_errors(errors, vital, sc), L0, LE)
                     for sc in ("none", "vital halved")}
             vmax = float(max(m["map"].max() for m in maps.values()))
             for tag, sc in (("none", "none"), ("vital", "vital halved")):

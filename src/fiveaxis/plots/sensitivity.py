@@ -155,7 +155,7 @@ def path_shares(names, per_pose, segment, path, title: str, top: int = 6) -> Pat
         ax.stackplot(x, *[100 * b for b in bands + [rest]], colors=colours, labels=labels)
     seg = np.asarray(segment)
     starts = np.flatnonzero(np.diff(seg)) + 1.5
-    if 0 < len(starts) <= 60:
+    if 0 < len(starts) <= 25:                      # more would hide the bands
         for s in starts:
             ax.axvline(s, color="white", linewidth=0.5, alpha=0.8)
     ax.set_xlim(x[0] - 0.5, x[-1] + 0.5)
