@@ -136,6 +136,9 @@ def odd_files(tmp_path_factory):
     (["sobol", "--bound", "inf", "--samples", "32"], "--bound"),                          # Spearman nan
     (["gsa", "--l0", "1e308"], "the position error overflows"),                           # "are all errors zero?"
     (["gsa", "--axis", "A=5:1:3"], "inverted range 5:1 deg"),                             # was in radians
+    (["sobol", "--seed", "-1", "--samples", "16"], "--seed"),                             # was ValueError
+    (["gsa", "--max-poses", "0"], "--max-poses: expected a positive whole number"),
+    (["gsa", "--axis", "A=40"], "axis A range [40, 40] deg leaves the stroke [-30, 30] deg"),
 ])
 def test_issue13_sensitivity_inputs_are_one_line_errors(capsys, odd_files, argv, needle):
     argv = [a.replace("{d}", str(odd_files)) for a in argv]

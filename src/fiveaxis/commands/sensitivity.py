@@ -45,7 +45,8 @@ def _count(text: str) -> int:
     except ValueError:
         v = math.nan
     if not math.isfinite(v) or v < 1 or v != int(v):
-        raise InputError(f"--max-poses: expected a positive whole number such as 1e9, got {text!r}")
+        import argparse
+        raise argparse.ArgumentTypeError(f"expected a positive whole number such as 1e9, got {text!r}")
     return int(v)
 
 
@@ -360,7 +361,7 @@ def _path(args, model, L0):
         tp = toolpath.read_csv(args.toolpath, model.machine, max_rows=args.max_poses)
     else:
         if not args.toolpath.is_file():
-            raise InputError(f"{args.toolpath}: no such file")
+            raise InputError(f"{args.toolpath}: {'not a file' if args.toolpath.exists() else 'no such file'}")
         program = gcode.interpret(args.toolpath)
         tp = toolpath.from_program(program, model.machine, args.step_mm, args.step_deg, args.max_poses, how)
     if args.surface:
@@ -543,11 +544,13 @@ def run_sobol(args) -> int:
     model = _model(args)
     grid, source, L0d, LEd = _grid(args, model)
     model, ev, L0, LE = _setup(args, L0d, LEd)
+    if args.seed < 0:
+        raise InputError(f"--seed: expected a whole number >= 0, got {args.seed}")
     if not (math.isfinite(args.bound) and args.bound > 0):
         raise InputError(f"--bound: expected a positive finite error magnitude (mm, rad), got {args.bound}")
     if args.samples >= 2:
         evaluations = args.samples * (len(model.errors) + 2)
-        check_size(evaluations * min(grid.size, MAX_POSES) * 2, "pose evaluations", args.max_poses,
+        check_size(evaluations * min(grid.size, MAX_POSES) * 2, "poses", args.max_poses,
                    "--max-poses {n}", f"{evaluations} Saltelli samples x {min(grid.size, MAX_POSES)} poses x 2 "
                    f"tool lengths")
     s = sobol_total(model, grid, L0, LE, args.bound, args.samples, args.seed)
