@@ -137,7 +137,6 @@ def odd_files(tmp_path_factory):
     (["gsa", "--l0", "1e308"], "the position error overflows"),                           # "are all errors zero?"
     (["gsa", "--axis", "A=5:1:3"], "inverted range 5:1 deg"),                             # was in radians
     (["sobol", "--seed", "-1", "--samples", "16"], "--seed"),                             # was ValueError
-    (["gsa", "--max-poses", "0"], "--max-poses: expected a positive whole number"),
     (["gsa", "--axis", "A=40"], "axis A range [40, 40] deg leaves the stroke [-30, 30] deg"),
 ])
 def test_issue13_sensitivity_inputs_are_one_line_errors(capsys, odd_files, argv, needle):
@@ -163,6 +162,11 @@ def test_size_guard_says_how_large_and_how_to_ask(capsys):
     assert "evaluate 12 poses (Y 3 x A 4), more than the limit of 11; ask for it with --max-poses 12" in \
         capsys.readouterr().err
     assert main(argv + ["--max-poses", "1.2e1"]) == 0
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exc:                   # an argparse error: one line, exit 2
+        main(argv + ["--max-poses", "0"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and "--max-poses: expected a positive whole number" in err and err.count("\n") == 1
 
 
 def test_progress_in_logs_for_long_runs(capsys):
