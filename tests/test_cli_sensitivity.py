@@ -156,8 +156,8 @@ def test_size_guard_says_how_large_and_how_to_ask(capsys):
         with pytest.raises(InputError):
             check_size(bad, "things", 10)
     # asked for anyway: the same run goes ahead
-    argv = ["gsa", "--axis", "X=0", "--axis", "Y=-1000:1000:3", "--axis", "Z=0", "--axis", "A=-30:30:4", "--axis", "B=0",
-            "--json"]
+    argv = ["gsa", "--axis", "X=0", "--axis", "Y=-1000:1000:3", "--axis", "Z=0", "--axis", "A=-30:30:4",
+            "--axis", "B=0", "--json"]
     assert main(argv + ["--max-poses", "11"]) == 2
     assert "evaluate 12 poses (Y 3 x A 4), more than the limit of 11; ask for it with --max-poses 12" in \
         capsys.readouterr().err

@@ -53,7 +53,8 @@ def test_model_file_through_the_command(tmp_path, capsys, li):
 
 
 @pytest.mark.parametrize("data, needle", [
-    ({"machine": "ac_trunnion", "errors_mm_rad": {"ex_x": 1e-4}}, "key machine: a model of 'ac_trunnion', not of li2018"),
+    ({"machine": "ac_trunnion", "errors_mm_rad": {"ex_x": 1e-4}},
+     "key machine: a model of 'ac_trunnion', not of li2018"),
     ({"machine": "li2018", "convention": "printed", "errors_mm_rad": {}}, "fitted under the 'printed' convention"),
     ({"machine": "li2018", "errors_mm_rad": {"ex_x": True}}, "errors_mm_rad.ex_x: value of ex_x must be a number"),
     ({"machine": "li2018", "errors_mm_rad": {"ex_x": None}}, "got null"),

@@ -179,7 +179,8 @@ def workspace_grid(model, counts: dict | None = None) -> Grid:
 def paper_box(model) -> dict:
     """The Sect. 4.2 workspace as {axis: (lo, hi)} in mm and rad."""
     _require_li2018_kinematics(model)
-    return {n: ((math.radians(lo), math.radians(hi)) if n in _ROTARY else (lo, hi)) for n, (lo, hi) in WORKSPACE.items()}
+    return {n: ((math.radians(lo), math.radians(hi)) if n in _ROTARY else (lo, hi))
+            for n, (lo, hi) in WORKSPACE.items()}
 
 
 def nine_points(kind: str = "quarter") -> np.ndarray:
