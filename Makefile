@@ -16,15 +16,18 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
-## Debian packages some tests need: headless Chromium for the report's browser test and PDF. Installed with
-## apt-get when missing (as root); harmless when present; where apt-get is unavailable those tests skip.
+## Debian packages some tests need: headless Chromium (the report's browser test and PDF) and LinuxCNC (its G-code
+## interpreter rs274 for toolpaths and plans; the controller for `make test-linuxcnc`). Installed with apt-get when
+## missing (as root); harmless when present; where apt-get is unavailable those tests skip with the reason.
+SYSTEM_PACKAGES := chromium chromium-driver linuxcnc-uspace
 system-deps:
-	@if command -v chromium >/dev/null 2>&1 && command -v chromedriver >/dev/null 2>&1; then :; \
+	@if command -v chromium >/dev/null 2>&1 && command -v chromedriver >/dev/null 2>&1 && [ -x /usr/bin/rs274 ]; then :; \
 	elif command -v apt-get >/dev/null 2>&1 && [ "$$(id -u)" -eq 0 ]; then \
-	  echo "installing the Debian packages chromium and chromium-driver (apt-get)"; \
-	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver; } \
-	    >/dev/null 2>&1 || echo "system-deps: apt-get could not install chromium (browser tests will skip)"; \
-	else echo "system-deps: chromium missing and apt-get unavailable as this user (browser tests will skip)"; fi
+	  echo "installing the Debian packages $(SYSTEM_PACKAGES) (apt-get)"; \
+	  { DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(SYSTEM_PACKAGES) || \
+	    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(SYSTEM_PACKAGES); }; } \
+	    >/dev/null 2>&1 || echo "system-deps: apt-get could not install $(SYSTEM_PACKAGES) (those tests will skip)"; \
+	else echo "system-deps: $(SYSTEM_PACKAGES) missing and apt-get unavailable as this user (those tests will skip)"; fi
 
 ## the main job on the paper's machine and on the bundled example measurements; writes the reports in out/
 run: install system-deps

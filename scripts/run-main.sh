@@ -9,15 +9,22 @@ say "Table 2 of the paper's machine (equations convention, S_yz where Eq. 4 puts
 "$BIN/fiveaxis" table2 --machine li2018 --latex
 # --- end section: derive
 
-# --- section: sensitivity (issue 3)
-say "GSA of the paper's workspace (Sect. 4.2, Fig. 14), printed-table convention; Fig. 16 at the nine points"
-"$BIN/fiveaxis" gsa --machine li2018 --convention printed --compensate
+# --- section: sensitivity (issue 3, issue 14)
+say "GSA of the paper's workspace (preset paper: Sect. 4.2, Fig. 14), printed-table convention; Fig. 16 at the nine points"
+"$BIN/fiveaxis" gsa --machine li2018 --convention printed --preset paper --compensate
 for cone in 1 2; do
   say "LSA of the 1/4 cone at machining position $cone (Sect. 4.1, Tables 3-4, Fig. 10); Fig. 11"
   "$BIN/fiveaxis" lsa --machine li2018 --convention printed --cone "$cone" --compensate
 done
 say "Sobol' total indices over the same workspace, against the GSIL ranking"
-"$BIN/fiveaxis" sobol --machine li2018 --convention printed --top 8
+"$BIN/fiveaxis" sobol --machine li2018 --convention printed --preset paper --top 8
+TOOLPATH=examples/ac_trunnion_sphere.ngc
+say "A part program on another machine: LSA along $TOOLPATH (ac_trunnion, G-code read by LinuxCNC's rs274), halving its vital errors"
+if [ -x /usr/bin/rs274 ]; then
+  "$BIN/fiveaxis" lsa --machine ac_trunnion --toolpath "$TOOLPATH" --surface sphere:50,30,20 --compensate --top 6 --segments 6
+else
+  echo "skipped: /usr/bin/rs274 is missing (Debian: apt-get install linuxcnc-uspace)"
+fi
 # --- end section: sensitivity
 
 # --- section: measurements (issues 4, 8)

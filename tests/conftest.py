@@ -48,3 +48,20 @@ def run_cli(capsys, *argv):
         rc = exc.code
     out, err = capsys.readouterr()
     return rc, out, err
+
+
+@pytest.fixture(scope="session")
+def rs274():
+    """LinuxCNC's standalone G-code interpreter: installed with apt-get when missing (we are root in CI), else the
+    test is skipped with a one-line reason."""
+    import os
+    import shutil
+    import subprocess
+    from fiveaxis import gcode
+    if not gcode.available():
+        if shutil.which("apt-get") is None or os.geteuid() != 0:
+            pytest.skip("rs274 (Debian linuxcnc-uspace) is missing and apt-get is unavailable")
+        r = subprocess.run(["apt-get", "install", "-y", "linuxcnc-uspace"], capture_output=True, text=True)
+        if r.returncode != 0 or not gcode.available():
+            pytest.skip(f"rs274 missing: apt-get install linuxcnc-uspace failed ({r.stderr.strip()[-120:]})")
+    return gcode.RS274

@@ -4,6 +4,7 @@ import json
 import pytest
 
 from fiveaxis.cli import main
+from fiveaxis.errors import InputError
 from fiveaxis.presets import PAPER_VITAL
 
 
@@ -110,3 +111,116 @@ def test_progress_bar_on_request_and_off_otherwise(capsys):
     assert "GSIL" in err and "100%" in err
     assert main(argv) == 0                       # stderr is not a terminal under pytest: no bar
     assert capsys.readouterr().err == ""
+
+
+# -- issue 13: each case reproduced (it failed before: traceback, hang, NaN or a silent wrong answer) -------------
+@pytest.fixture(scope="module")
+def odd_files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("odd")
+    (d / "binary.dat").write_bytes(b"\x89PNG\r\n\x1a\n\xff\xfe\x00")
+    (d / "true.json").write_text('{"ex_x": true}')
+    return d
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["gsa", "--axis", "Y=0:1:inf"], "COUNT must be a whole number"),                     # was OverflowError
+    (["gsa", "--axis", "Y=0:1:1e300"], "1e+300 points on axis Y"),                        # was ValueError
+    (["gsa", "--axis", "Y=-1000:1000:1e9"], "8.45e+11 poses (Y 1000000000 x Z 5 x A 13 x B 13)"),   # hung
+    (["gsa", "--axis", "X=0", "--compensate", "--rot-count", "-1"], "--rot-count"),       # was ValueError
+    (["gsa", "--axis", "X=0", "--compensate", "--rot-count", "0"], "--rot-count"),        # printed NaN
+    (["lsa", "--positions", "100000000"], "ask for it with --max-poses 100000000"),       # ran for minutes
+    (["gsa", "--errors", "{d}/binary.dat"], "not a UTF-8 text file"),                     # UnicodeDecodeError
+    (["gsa", "--le", "500"], "LE = 500 mm is longer than the tool length L0 = 200 mm"),   # negative L, silently
+    (["gsa", "--top", "-3"], "--top"),                                                    # printed 38 rows
+    (["gsa", "--errors", "{d}/true.json"], "value of ex_x must be a number (mm or rad), got true"),  # read as 1.0
+    (["sobol", "--bound", "inf", "--samples", "32"], "--bound"),                          # Spearman nan
+    (["gsa", "--l0", "1e308"], "the position error overflows"),                           # "are all errors zero?"
+    (["gsa", "--axis", "A=5:1:3"], "inverted range 5:1 deg"),                             # was in radians
+    (["sobol", "--seed", "-1", "--samples", "16"], "--seed"),                             # was ValueError
+    (["gsa", "--axis", "A=40"], "axis A range [40, 40] deg leaves the stroke [-30, 30] deg"),
+])
+def test_issue13_sensitivity_inputs_are_one_line_errors(capsys, odd_files, argv, needle):
+    argv = [a.replace("{d}", str(odd_files)) for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("fiveaxis: error:") and needle in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_size_guard_says_how_large_and_how_to_ask(capsys):
+    from fiveaxis.guards import check_size
+    with pytest.raises(InputError, match=r"evaluate 12,000 things \(a x b\), more than the limit of 10,000; "
+                                         r"ask for it with max_size=12000 if you mean it"):
+        check_size(12000, "things", 10000, detail="a x b")
+    assert check_size(10000, "things", 10000) == 10000
+    for bad in (float("nan"), -1, True):
+        with pytest.raises(InputError):
+            check_size(bad, "things", 10)
+    # asked for anyway: the same run goes ahead
+    argv = ["gsa", "--axis", "X=0", "--axis", "Y=-1000:1000:3", "--axis", "Z=0", "--axis", "A=-30:30:4",
+            "--axis", "B=0", "--json"]
+    assert main(argv + ["--max-poses", "11"]) == 2
+    assert "evaluate 12 poses (Y 3 x A 4), more than the limit of 11; ask for it with --max-poses 12" in \
+        capsys.readouterr().err
+    assert main(argv + ["--max-poses", "1.2e1"]) == 0
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as exc:                   # an argparse error: one line, exit 2
+        main(argv + ["--max-poses", "0"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and "--max-poses: expected a positive whole number" in err and err.count("\n") == 1
+
+
+def test_progress_in_logs_for_long_runs(capsys):
+    """A run of more than 4 chunks reports progress also when stderr is not a terminal (pytest's is not)."""
+    argv = ["gsa", "--convention", "printed", "--axis", "X=-2500:2500:5", "--axis", "Y=-1000:1000:41",
+            "--axis", "Z=-250:250:11", "--axis", "A=-30:30:49", "--axis", "B=-30:30:45", "--no-reduce", "--top", "1"]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if "GSIL" in ln]
+    assert lines and "100%" in lines[-1] and "\r" not in err
+    assert main(argv + ["--no-progress"]) == 0 and capsys.readouterr().err == ""
+
+
+def test_json_has_no_nan_and_names_the_workspace(capsys):
+    out = run_json(capsys, ["gsa", "--axis", "X=0", "--compensate", "--rot-count", "1"])
+    assert out["settings"]["workspace"] == "[workspace] of li2018.toml; changed by --axis X=0"
+    assert out["compensation"]["rot_count"] == 1
+    assert all(isinstance(r["improvement_pct"], float) for r in out["compensation"]["posture_rad"])
+
+
+# -- issue 11 item 5: the sensitivity plots ---------------------------------------------------------------------
+def test_pie_slices_have_distinct_colours_and_others_is_grey(monkeypatch, tmp_path):
+    from matplotlib.colors import to_hex
+
+    from fiveaxis.plots import sensitivity as plots
+    seen = {}
+    real = plots._save
+
+    def keep(fig, path):
+        ax = fig.axes[0]
+        seen["faces"] = [to_hex(w.get_facecolor()) for w in ax.patches]
+        seen["legend"] = [t.get_text() for t in ax.get_legend().get_texts()]
+        return real(fig, path)
+
+    monkeypatch.setattr(plots, "_save", keep)
+    p = [0.2, 0.15, 0.1, 0.08, 0.07, 0.06, 0.05, 0.05, 0.04, 0.04, 0.03, 0.03, 0.1]
+    plots.pie([f"e{i}" for i in range(13)], p, tmp_path / "pie.png", "PG_i (%)")
+    assert len(seen["faces"]) == 11 and len(set(seen["faces"])) == 11          # 10 named + others, all distinct
+    assert seen["faces"][-1] == plots.OTHERS_COLOUR and seen["legend"][-1].startswith("others (3)")
+
+
+def test_plots_are_world_readable_and_every_path_is_printed(capsys, tmp_path):
+    import os
+    old = os.umask(0o022)
+    try:
+        assert main(["gsa", "--convention", "printed", "--axis", "X=0", "--axis", "Z=0", "--compensate",
+                     "--rot-count", "3", "--plot", str(tmp_path / "p"), "--top", "2"]) == 0
+    finally:
+        os.umask(old)
+    err = capsys.readouterr().err
+    files = sorted((tmp_path / "p").iterdir())
+    assert len(files) == 7 and not any(f.name.startswith(".") for f in files)
+    for f in files:
+        assert (f.stat().st_mode & 0o777) == 0o644 and f"fiveaxis: wrote {f}" in err
+    (tmp_path / "file").write_text("x")
+    assert main(["gsa", "--axis", "X=0", "--plot", str(tmp_path / "file")]) == 2
+    assert "exists and is not a directory" in capsys.readouterr().err

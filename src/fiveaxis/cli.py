@@ -15,8 +15,10 @@ from .errors import InputError, one_line
 COMMANDS = {
     "derive": ("fiveaxis.commands.derive", "derive a machine's error model and write its numba kernels"),
     "table2": ("fiveaxis.commands.derive", "print Table 2 (errors grouped by their J and K) as LaTeX or JSON"),
-    "gsa": ("fiveaxis.commands.sensitivity", "global sensitivity (GSIL, PG_i) over a workspace grid; Fig. 14, 16"),
-    "lsa": ("fiveaxis.commands.sensitivity", "local sensitivity (LSIL, PL_i) at the cone positions; Fig. 10-13"),
+    "gsa": ("fiveaxis.commands.sensitivity", "global sensitivity (GSIL, PG_i) over the machine's workspace; "
+                                             "Fig. 14, 16"),
+    "lsa": ("fiveaxis.commands.sensitivity", "local sensitivity (LSIL, PL_i) along a toolpath (CSV, G-code) or at the "
+                                             "paper's cone positions; Fig. 10-13"),
     "sobol": ("fiveaxis.commands.sensitivity", "Sobol' total indices (SALib) compared with the GSIL ranking"),
     "fit": ("fiveaxis.commands.measure", "fit the model's errors (and added effects) to measurements; identifiability"),
     "diagnose": ("fiveaxis.commands.measure", "where the fitted model fails and which effect is missing, ranked"),

@@ -15,7 +15,6 @@ the grid is the sum over the reduced grid times the number of points on those ax
 from __future__ import annotations
 
 import math
-import sys
 import time
 from pathlib import Path
 
@@ -122,7 +121,6 @@ def gsil(model, grid, client, errors=None, L0=None, LE=None, rel_tiny=1e-12, chu
     (default 4 per worker thread), so the client's memory stays bounded whatever the grid size.
     """
     from dask.distributed import as_completed
-    from tqdm import tqdm
 
     from .sensitivity import SensitivityResult
     if worker_kernel not in ("serial", "parallel"):
@@ -155,10 +153,8 @@ def gsil(model, grid, client, errors=None, L0=None, LE=None, rel_tiny=1e-12, chu
 
     it = iter(starts)
     pending = as_completed([submit(s) for _, s in zip(range(slots), it)])   # range first: no start lost
-    if progress is None:
-        progress = sys.stderr.isatty()
-    with tqdm(total=grid.size, disable=not progress, desc="GSIL (dask)", unit="pose", unit_scale=True,
-              mininterval=0.5) as bar:
+    from .progress import bar as progress_bar
+    with progress_bar(grid.size, progress, "GSIL (dask)", "pose", long=work.size >= 4 * int(chunk)) as bar:
         for fut in pending:
             W, s = fut.result()
             total += W

@@ -41,9 +41,17 @@ class GridAxis:
 
     def values(self) -> np.ndarray:
         """The axis values (count,), mm or rad."""
+        return self.values_at(np.arange(int(self.count), dtype=np.int64))
+
+    def values_at(self, index) -> np.ndarray:
+        """The values at the given point numbers (0 .. count-1), equal to np.linspace's to the last bit
+        (lo + i * step, the last point exactly hi) without building the whole axis."""
+        index = np.asarray(index, dtype=np.int64)
         if self.count == 1:
-            return np.array([float(self.lo)])
-        return np.linspace(float(self.lo), float(self.hi), int(self.count))
+            return np.full(index.shape, float(self.lo))
+        step = (float(self.hi) - float(self.lo)) / (int(self.count) - 1)
+        out = index * step + float(self.lo)
+        return np.where(index == int(self.count) - 1, float(self.hi), out)
 
 
 @dataclass(frozen=True)
@@ -75,7 +83,7 @@ class Grid:
             # along a C-order slice, axis j holds each value for runs of `stride` poses: build it by np.repeat
             a = self.axes[j]
             first, last = start // stride, (stop - 1) // stride
-            vals = a.values()[np.arange(first, last + 1, dtype=np.int64) % a.count]
+            vals = a.values_at(np.arange(first, last + 1, dtype=np.int64) % a.count)
             if stride == 1:
                 out[:, j] = vals
             else:
@@ -134,29 +142,39 @@ class Grid:
 
 
 def parse_axis_spec(spec: str, rotary: tuple[str, ...] | set[str] = ()) -> GridAxis:
-    """`X=-2500:2500:101` (lo:hi:count) or `A=0` (fixed) -> GridAxis; rotary axes are given in degrees."""
+    """`X=-2500:2500:101` (lo:hi:count) or `A=0` (fixed) -> GridAxis; rotary axes are given in degrees.
+
+    Ranges and counts are checked here, in the units typed (an inverted A range is reported in degrees); how
+    many poses a grid may have is checked by the caller (fiveaxis.guards)."""
     name, sep, rng = spec.partition("=")
     name = name.strip()
     if not sep or not name or not rng.strip():
         raise InputError(f"--axis {spec!r}: expected NAME=LO:HI:COUNT or NAME=VALUE")
     parts = rng.split(":")
+    unit = "deg" if name in rotary else "mm"
     try:
         if len(parts) == 1:
             lo = hi = float(parts[0])
-            count = 1
+            count = 1.0
         elif len(parts) == 3:
-            lo, hi = float(parts[0]), float(parts[1])
-            count = float(parts[2])
-            if count != int(count):
-                raise ValueError
-            count = int(count)
+            lo, hi, count = float(parts[0]), float(parts[1]), float(parts[2])
         else:
             raise ValueError
     except ValueError:
         raise InputError(f"--axis {spec!r}: expected NAME=LO:HI:COUNT (numbers, COUNT an integer) or "
                          f"NAME=VALUE") from None
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        raise InputError(f"--axis {spec!r}: the range must be finite numbers ({unit})")
+    if not math.isfinite(count) or count != int(count):
+        raise InputError(f"--axis {spec!r}: COUNT must be a whole number of points (COUNT an integer), got "
+                         f"{parts[-1].strip()}")
+    count = int(count)
     if count < 1:
         raise InputError(f"--axis {spec!r}: count must be at least 1, got {count}")
+    if count > 1 and not hi > lo:
+        kind = "empty" if hi == lo else "inverted"
+        raise InputError(f"--axis {spec!r}: {kind} range {lo:g}:{hi:g} {unit} with {count} points (expected "
+                         f"lo < hi, or a count of 1 for a fixed axis)")
     if name in rotary:
         lo, hi = math.radians(lo), math.radians(hi)
     return GridAxis(name, lo, hi, count)
@@ -171,6 +189,61 @@ def grid_from_specs(base: Grid, specs: list[str], rotary=()) -> Grid:
             raise InputError(f"--axis {s!r}: unknown axis '{ax.name}' (expected one of: {', '.join(base.names)})")
         new[ax.name] = ax
     return base.replace(**new)
+
+
+def from_workspace(machine) -> Grid:
+    """The machine's workspace as a grid: its `[workspace]` table, and the whole stroke with
+    machine.WORKSPACE_COUNT points for every axis the table does not name (never the axis names)."""
+    axes = []
+    for name in machine.variables:
+        lo, hi, count = machine.workspace_range(name)
+        conv = math.radians if machine.axis(name).type == "rotary" else float
+        lo, hi = conv(lo), conv(hi)
+        if count == 1 and lo != hi:
+            lo = hi = 0.5 * (lo + hi)
+        axes.append(GridAxis(name, lo, hi, int(count)))
+    return Grid(tuple(axes))
+
+
+def describe_source(machine) -> str:
+    """Where the default workspace of a machine comes from, for reports."""
+    named = [n for n in machine.variables if n in machine.workspace]
+    if not named:
+        from .machine import WORKSPACE_COUNT
+        return f"the strokes of {machine.name}, {WORKSPACE_COUNT} points per axis"
+    rest = [n for n in machine.variables if n not in machine.workspace]
+    tail = f"; {' '.join(rest)}: the strokes" if rest else ""
+    return f"[workspace] of {machine.path.name}{tail}"
+
+
+def check_within_strokes(grid: Grid, machine, where: str = "grid") -> None:
+    """InputError when an axis of the grid leaves the machine's stroke (reported in mm or degrees)."""
+    for a in grid.axes:
+        ax = machine.axis(a.name)
+        rot = ax.type == "rotary"
+        f = math.degrees if rot else float
+        unit = "deg" if rot else "mm"
+        slo, shi = ax.stroke
+        lo, hi = f(a.lo), f(a.hi)
+        tol = 1e-9 * max(1.0, abs(slo), abs(shi))          # degrees -> rad -> degrees rounding
+        if lo < slo - tol or hi > shi + tol:
+            raise InputError(f"{where}: axis {a.name} range [{lo:g}, {hi:g}] {unit} leaves the stroke "
+                             f"[{slo:g}, {shi:g}] {unit} of {machine.name}")
+
+
+def workspace_grid(machine, specs=(), base: Grid | None = None) -> Grid:
+    """The grid of a workspace integral (gsa, sobol, dask): `base` (a preset) or the machine's workspace
+    (`from_workspace`), changed by `--axis` specs (mm; degrees for rotary axes), checked against the strokes."""
+    base = from_workspace(machine) if base is None else base
+    grid = grid_from_specs(base, list(specs or ()), machine.rotary)
+    check_within_strokes(grid, machine, "--axis" if specs else "workspace")
+    return grid
+
+
+def size_detail(grid: Grid) -> str:
+    """How a grid's size arises, for size-guard messages: 'X 21 x Y 9 x ...'."""
+    return " x ".join(f"{a.name} {a.count:,}" if a.count < 10 ** 7 else f"{a.name} {float(a.count):.3g}"
+                      for a in grid.axes)
 
 
 @dataclass(frozen=True)

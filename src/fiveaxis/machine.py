@@ -37,11 +37,16 @@ def data_dir(package: str) -> Path:
     return Path(str(files(package)))
 
 
+#: Grid points per axis of the workspace when the machine file's [workspace] table does not name the axis.
+WORKSPACE_COUNT = 5
+#: Largest number of grid points of one axis in a [workspace] table (the run's size is checked separately).
+WORKSPACE_MAX_COUNT = 10 ** 6
+
 #: The shipped machine files (machines/ in the source tree).
 MACHINES_DIR = data_dir("fiveaxis_machines")
 
 _TOP_KEYS = {"name", "title", "description", "tool", "tool_chain", "workpiece_chain", "errors",
-             "conventions", "effects", "model", "workpiece", "fit"}
+             "conventions", "effects", "model", "workpiece", "fit", "workspace"}
 _AXIS_KEYS = {"axis", "type", "direction", "stroke", "errors", "pige", "offset", "description"}
 _TOOL_KEYS = {"length", "cutting_length", "direction", "pige", "offset"}
 _TOOL_REQUIRED = ("length", "cutting_length", "direction")
@@ -131,6 +136,7 @@ class Machine:
     fixed: dict = field(default_factory=dict)         # [fit] fixed: parameters held at known values (mm, rad)
     tool_end: ChainEnd = ChainEnd("tool")             # the spindle after the last tool-chain joint
     workpiece_end: ChainEnd = ChainEnd("workpiece")   # the workpiece holder after the last workpiece-chain joint
+    workspace: dict = field(default_factory=dict)     # [workspace]: axis -> (lo, hi, count), mm or degrees
 
     @property
     def axes(self) -> tuple[Axis, ...]:
@@ -202,6 +208,14 @@ class Machine:
         for n in self.error_names:
             out[n] = self.error_values.get(n, self.angular_error if self.is_angular(n) else self.linear_error)
         return out
+
+    def workspace_range(self, name: str) -> tuple[float, float, int]:
+        """(lo, hi, count) of an axis in the region that matters (`[workspace]`, else the whole stroke with
+        WORKSPACE_COUNT points): mm, or degrees for rotary axes (file units)."""
+        if name in self.workspace:
+            return self.workspace[name]
+        lo, hi = self.axis(name).stroke
+        return (lo, hi, WORKSPACE_COUNT)
 
     def random_poses(self, n: int, rng=None):
         """n poses drawn uniformly within the strokes, (n, nvar) in `variables` order, mm and rad."""
@@ -592,6 +606,7 @@ def parse_machine(data: dict, path: Path) -> Machine:
         if k not in seen_errors:
             _fail(path, f"fit.fixed.{k}", "unknown error name")
         _number(path, f"fit.fixed.{k}", v)
+    workspace = _parse_workspace(path, data.get("workspace", {}), {a.name: a for c in chains.values() for a in c})
     return Machine(name=name, path=Path(path), title=str(data.get("title", name)),
                    tool_chain=chains["tool_chain"], workpiece_chain=chains["workpiece_chain"],
                    tool_length=length, cutting_length=cutting, tool_direction=tdir,
@@ -601,4 +616,36 @@ def parse_machine(data: dict, path: Path) -> Machine:
                                + tuple(n for a in chains["workpiece_chain"] for n in a.pige)
                                + tuple(workpiece_end.pige)),
                    added_effects=tuple(added), tool_end=tool_end, workpiece_end=workpiece_end,
-                   fixed={k: float(v) for k, v in fixed.items()})
+                   fixed={k: float(v) for k, v in fixed.items()}, workspace=workspace)
+
+
+def _parse_workspace(path, table, axes: dict) -> dict:
+    """[workspace]: per axis `[lo, hi, count]`, `[lo, hi]` (WORKSPACE_COUNT points) or a number (the axis fixed
+    there), mm or degrees, within the stroke. Returns {axis: (lo, hi, count)} in file units."""
+    if not isinstance(table, dict):
+        _fail(path, "workspace", "expected a table of axis = [lo, hi, count] (mm; degrees for rotary axes)")
+    out = {}
+    for name, spec in table.items():
+        key = f"workspace.{name}"
+        if name not in axes:
+            _fail(path, key, f"unknown axis (expected one of: {', '.join(sorted(axes))})")
+        unit = "deg" if axes[name].type == "rotary" else "mm"
+        if isinstance(spec, (int, float)) and not isinstance(spec, bool):
+            lo = hi = _number(path, key, spec)
+            count = 1
+        elif isinstance(spec, list) and len(spec) in (2, 3):
+            lo, hi = (_number(path, key, v) for v in spec[:2])
+            count = spec[2] if len(spec) == 3 else WORKSPACE_COUNT
+            if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= WORKSPACE_MAX_COUNT:
+                _fail(path, key, f"expected a whole number of points from 1 to {WORKSPACE_MAX_COUNT}, got {count!r}")
+            if count > 1 and not lo < hi:
+                _fail(path, key, f"expected lo < hi, got [{lo:g}, {hi:g}] {unit}")
+            if count == 1 and lo != hi:
+                lo = hi = 0.5 * (lo + hi)
+        else:
+            _fail(path, key, f"expected [lo, hi, count], [lo, hi] or a number ({unit}), got {spec!r}")
+        slo, shi = axes[name].stroke
+        if lo < slo or hi > shi:
+            _fail(path, key, f"[{lo:g}, {hi:g}] {unit} is outside the stroke [{slo:g}, {shi:g}] {unit}")
+        out[name] = (float(lo), float(hi), int(count))
+    return out

@@ -14,12 +14,13 @@ spaced azimuths of each, which `cone_poses` reproduces to the printed rounding.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from .errors import InputError
-from .grid import Grid, GridAxis, PoseList
+from .experiments import (SCENARIOS, CompensationRow, compensation, diagonal_points,  # noqa: F401 (the API)
+                          point_errors, scenario_errors)
+from .grid import Grid, GridAxis, PoseList, check_within_strokes
 
 SIN60 = math.sin(math.radians(60.0))
 COS60 = 0.5
@@ -147,6 +148,20 @@ def _trapezoid_mean(a, axis):
 
 
 # -- the workspace -----------------------------------------------------------------------------------------------
+#: Named workspace presets (`--preset NAME`): name -> one-line description.
+WORKSPACE_PRESETS = {"paper": "Sect. 4.2 of Li et al. 2018: X +-2500, Y +-1000, Z +-250 mm, A and B +-30 deg, "
+                              "21 x 9 x 5 x 13 x 13 points, L0 200 mm, LE 30 mm"}
+
+
+def workspace_preset(name: str, model) -> Grid:
+    """The grid of a named workspace preset; the paper's needs the li2018 kinematics and strokes that hold it."""
+    if name not in WORKSPACE_PRESETS:
+        raise InputError(f"unknown workspace preset {name!r} (expected one of: {', '.join(WORKSPACE_PRESETS)})")
+    grid = workspace_grid(model)
+    check_within_strokes(grid, model.machine, f"preset {name}")
+    return grid
+
+
 def workspace_grid(model, counts: dict | None = None) -> Grid:
     """The workspace of Sect. 4.2 (X +-2500, Y +-1000, Z +-250 mm, A and B +-30 deg) as an evenly spaced grid."""
     _require_li2018_kinematics(model)
@@ -161,6 +176,13 @@ def workspace_grid(model, counts: dict | None = None) -> Grid:
     return Grid(tuple(axes))
 
 
+def paper_box(model) -> dict:
+    """The Sect. 4.2 workspace as {axis: (lo, hi)} in mm and rad."""
+    _require_li2018_kinematics(model)
+    return {n: ((math.radians(lo), math.radians(hi)) if n in _ROTARY else (lo, hi))
+            for n, (lo, hi) in WORKSPACE.items()}
+
+
 def nine_points(kind: str = "quarter") -> np.ndarray:
     """The nine points of Fig. 15 (X, Y, Z in mm): point 9 is the centre of the workspace.
 
@@ -168,15 +190,8 @@ def nine_points(kind: str = "quarter") -> np.ndarray:
     from the centre to each corner (+-1250, +-500, +-125); kind "corner": at the corners (+-2500, +-1000, +-250).
     The paper's words ("at the four equidistant distances of the body diagonals") fit the first reading.
     """
-    half = np.array([WORKSPACE[a][1] for a in ("X", "Y", "Z")])
-    if kind == "quarter":
-        f = 0.5
-    elif kind == "corner":
-        f = 1.0
-    else:
-        raise InputError(f"--points: expected 'quarter' or 'corner', got {kind!r}")
-    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=float)
-    return np.vstack([signs * half * f, np.zeros((1, 3))])
+    return diagonal_points([WORKSPACE[a][0] for a in ("X", "Y", "Z")], [WORKSPACE[a][1] for a in ("X", "Y", "Z")],
+                           kind)
 
 
 def nine_point_errors(model, errors, n_rot: int = 13, kind: str = "quarter", L: float = WORKSPACE_L0,
@@ -185,56 +200,7 @@ def nine_point_errors(model, errors, n_rot: int = 13, kind: str = "quarter", L: 
 
     For each (A, B) of an n_rot x n_rot grid: the mean over the nine points of |P_err| (tool tip at L, mm) and
     of |V_err| (tool axis, rad). Returns {"position_mm", "posture_rad"} (the means over the whole rotary grid,
-    the paper's Fig. 16 bars) and the maps (n_rot, n_rot) indexed [A, B] (Fig. 17-18), with "A_deg", "B_deg".
+    the paper's Fig. 16 bars) and the maps (n_rot, n_rot) indexed [A, B] (Fig. 17-18); see
+    experiments.point_errors.
     """
-    _require_li2018_kinematics(model)
-    pts = nine_points(kind)
-    ang = np.radians(np.linspace(-30.0, 30.0, n_rot))
-    A, B = np.meshgrid(ang, ang, indexing="ij")
-    q = np.concatenate([np.column_stack([np.full(A.size, x), np.full(A.size, y), np.full(A.size, z),
-                                         A.ravel(), B.ravel()]) for x, y, z in pts])
-    P, V = model.tool_errors(q, errors, L, exact=exact)
-    pos = np.linalg.norm(P, axis=1).reshape(len(pts), n_rot, n_rot).mean(axis=0)
-    post = np.linalg.norm(V, axis=1).reshape(len(pts), n_rot, n_rot).mean(axis=0)
-    return {"position_mm": float(pos.mean()), "posture_rad": float(post.mean()), "position_map": pos,
-            "posture_map": post, "A_deg": np.degrees(ang), "B_deg": np.degrees(ang)}
-
-
-# -- compensation experiments --------------------------------------------------------------------------------------
-SCENARIOS = ("none", "vital halved", "others halved", "all halved")
-
-
-def scenario_errors(base: dict[str, float], vital, scenario: str) -> dict[str, float]:
-    """Error values of one compensation scenario of Sect. 4.1: halve the vital errors, the others, or all."""
-    vital = set(vital)
-    unknown = sorted(vital - set(base))
-    if unknown:
-        raise InputError(f"unknown error name(s) in the vital set: {', '.join(unknown)}")
-    if scenario == "none":
-        return dict(base)
-    if scenario == "vital halved":
-        return {n: v * (0.5 if n in vital else 1.0) for n, v in base.items()}
-    if scenario == "others halved":
-        return {n: v * (1.0 if n in vital else 0.5) for n, v in base.items()}
-    if scenario == "all halved":
-        return {n: 0.5 * v for n, v in base.items()}
-    raise ValueError(scenario)
-
-
-@dataclass
-class CompensationRow:
-    scenario: str
-    value: float
-    improvement: float
-    improvement_pct: float
-
-
-def compensation(base: dict[str, float], vital, metric) -> list[CompensationRow]:
-    """metric(errors dict) -> float for the four scenarios, with the improvement against 'none'."""
-    ref = None
-    rows = []
-    for s in SCENARIOS:
-        v = float(metric(scenario_errors(base, vital, s)))
-        ref = v if ref is None else ref
-        rows.append(CompensationRow(s, v, ref - v, 100.0 * (ref - v) / ref if ref else float("nan")))
-    return rows
+    return point_errors(model, paper_box(model), errors, n_rot, kind, L, exact)

@@ -47,6 +47,10 @@ def quadrature(L0: float, LE: float, order: int) -> tuple[np.ndarray, np.ndarray
         raise InputError(f"--le: the effective cutting length must be a positive number of mm, got {LE}")
     if not (math.isfinite(L0) and L0 > 0):
         raise InputError(f"--l0: the tool length must be a positive number of mm, got {L0}")
+    if LE > L0:
+        raise InputError(f"the effective cutting length LE = {LE:g} mm is longer than the tool length L0 = {L0:g} "
+                         f"mm: the cutting edge would reach behind the gauge line (tool lengths L0 - LE = "
+                         f"{L0 - LE:g} mm < 0); expected LE <= L0")
     if int(order) != order or not 1 <= order <= 200:
         raise InputError(f"--order: the Gauss-Legendre order must be an integer from 1 to 200, got {order}")
     x, w = np.polynomial.legendre.leggauss(int(order))
@@ -147,11 +151,26 @@ class SensitivityResult:
 
 
 def _progress(total: int, enabled, desc: str):
-    from tqdm import tqdm
-    if enabled is None:
-        enabled = sys.stderr.isatty() and total >= 4 * CHUNK
-    return tqdm(total=total, disable=not enabled, desc=desc, unit="pose", unit_scale=True, file=sys.stderr,
-                mininterval=0.5)
+    """A bar for runs of more than 4 chunks (fiveaxis.progress: on a terminal, and in logs at a modest rate)."""
+    from .progress import bar
+    return bar(total, enabled, desc, "pose", long=total >= 4 * CHUNK, stream=sys.stderr)
+
+
+def why_zero(model, E, L0, LE, poses) -> str:
+    """Why every sensitivity index of a run is zero, in one line (the proportions are then undefined)."""
+    if not np.any(E):
+        return "all sensitivity indices are zero because all error values are zero (nothing to rank)"
+    Ls = np.array([L0 - LE, L0])
+    q = np.repeat(np.asarray(poses, dtype=float), 2, axis=0)
+    with np.errstate(all="ignore"):
+        P = model.position_error(q, E, np.tile(Ls, len(poses)))
+        sq = np.sum(P * P, axis=1)
+    if not np.all(np.isfinite(sq)):
+        big = np.nanmax(np.abs(P)) if np.any(np.isfinite(P)) else math.inf
+        return (f"the position error overflows (|P_err| ~ {big:.3g} mm, its square not finite) with the tool length "
+                f"L0 = {L0:g} mm and these error values: they are not physical, so no index can be computed")
+    return ("all sensitivity indices are zero: the position error P_err is zero (within 1e-12 of its parts) at "
+            "every pose, so the errors given cancel or do not act here")
 
 
 def _sample(source, k: int) -> np.ndarray:
@@ -229,7 +248,8 @@ def _validate(L0, LE, order):
 
 
 def gsil(model, grid, errors=None, L0=None, LE=None, order=None, rel_tiny=REL_TINY,
-         chunk=CHUNK, progress=None, check=True, reduce=True) -> SensitivityResult:
+         chunk=CHUNK, progress=None, check=True, reduce=True, max_size=None,
+         how: str = "max_size={n}") -> SensitivityResult:
     """GSIL_i (Eq. 14): the mean of W_i over every pose of a grid or pose list, in chunks of `chunk` poses.
 
     reduce: a grid axis that appears in no J_i (X for li2018) changes no W_i, so the grid is evaluated at one
@@ -237,7 +257,9 @@ def gsil(model, grid, errors=None, L0=None, LE=None, order=None, rel_tiny=REL_TI
 
     L0 and LE (mm) default to the machine file's tool data; errors as Model.error_vector (None = defaults).
     order: "exact" or a Gauss-Legendre order; None = exact when the kernels have it, else DEFAULT_ORDER.
-    progress: None = a bar on stderr for long runs when it is a terminal, True/False to force.
+    progress: None = a bar on stderr for long runs (fiveaxis.progress), True/False to force.
+    max_size: the most poses evaluated (after the reduction) and the most points of one axis
+    (fiveaxis.guards; None: its default); how: how the caller's user asks for more.
     """
     L0 = model.machine.tool_length if L0 is None else float(L0)
     LE = model.machine.cutting_length if LE is None else float(LE)
@@ -248,7 +270,13 @@ def gsil(model, grid, errors=None, L0=None, LE=None, order=None, rel_tiny=REL_TI
     if grid.size == 0:
         raise InputError("the grid has no poses")
     t0 = time.perf_counter()
+    from .guards import check_size
+    if isinstance(grid, Grid):
+        for a in grid.axes:
+            check_size(a.count, f"points on axis {a.name}", max_size, how)
     work, factor = reduce_grid(model, grid) if reduce else (grid, 1)
+    detail = " x ".join(f"{a.name} {a.count}" for a in work.axes if a.count > 1) if isinstance(work, Grid) else ""
+    check_size(work.size, "poses", max_size, how, detail)
     total = np.zeros(len(E))
     skipped = 0
     with _progress(work.size, progress, "GSIL") as bar:
@@ -258,7 +286,9 @@ def gsil(model, grid, errors=None, L0=None, LE=None, order=None, rel_tiny=REL_TI
             total += W
             skipped += s
             bar.update(stop - start)
-    values = total * factor / grid.size
+    values = total * float(factor) / float(grid.size)
+    if not np.sum(values) > 0:
+        raise InputError(why_zero(model, E, L0, LE, _sample(grid, 16)))
     settings = _settings(model, L0, LE, order, rel_tiny, label)
     settings.update(kind="GSIL", poses=grid.size, evaluated_poses=work.size, reduced_factor=factor,
                     seconds=round(time.perf_counter() - t0, 3))
@@ -293,6 +323,8 @@ def lsil(model, poses, errors=None, L0=None, LE=None, order=2 * DEFAULT_ORDER, m
     if len(q) == 0:
         raise InputError("the pose list is empty")
     W, skipped = kernel_w(model, q, E, L0, LE, order, rel_tiny, normals, mode, each=True)
+    if not np.sum(W) > 0:
+        raise InputError(why_zero(model, E, L0, LE, q[np.unique(np.linspace(0, len(q) - 1, 16).astype(int))]))
     settings = _settings(model, L0, LE, order, rel_tiny, label)
     settings.update(kind="LSIL", normal_mode=mode, poses=len(q))
     settings["skipped_poses" if order == "exact" else "skipped_nodes"] = int(skipped.sum())

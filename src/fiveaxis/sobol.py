@@ -18,6 +18,9 @@ import numpy as np
 from .errors import InputError
 from .sensitivity import quadrature
 
+#: Poses spread over the workspace at which J is computed (the sample behind every evaluation).
+MAX_POSES = 512
+
 
 def _sample_poses(grid, k: int) -> np.ndarray:
     n = grid.size
@@ -27,7 +30,7 @@ def _sample_poses(grid, k: int) -> np.ndarray:
     return np.concatenate([grid.poses(int(i), int(i) + 1) for i in idx])
 
 
-def workspace_jacobians(model, grid, L0, LE, order: int = 2, max_poses: int = 512) -> np.ndarray:
+def workspace_jacobians(model, grid, L0, LE, order: int = 2, max_poses: int = MAX_POSES) -> np.ndarray:
     """J at up to max_poses poses spread over the grid and `order` Gauss-Legendre nodes of [L0-LE, L0]:
     (m, 41, 3), mm per unit error."""
     q = _sample_poses(grid, max_poses)
@@ -48,7 +51,7 @@ def mean_abs_error(J: np.ndarray, E: np.ndarray, batch: int = 256) -> np.ndarray
 
 
 def sobol_total(model, grid, L0, LE, bound: float = 1e-4, n: int = 256, seed: int = 0, order: int = 2,
-                max_poses: int = 512) -> dict:
+                max_poses: int = MAX_POSES) -> dict:
     """Sobol' first-order and total indices of Y (see module docstring) by Saltelli sampling (SALib).
 
     n is the base sample (a power of 2); the model is evaluated n * (41 + 2) times.
@@ -56,8 +59,8 @@ def sobol_total(model, grid, L0, LE, bound: float = 1e-4, n: int = 256, seed: in
     """
     from SALib.analyze import sobol as sobol_analyze
     from SALib.sample import sobol as sobol_sample
-    if not bound > 0:
-        raise InputError(f"--bound: expected a positive error magnitude, got {bound}")
+    if not (bound > 0 and np.isfinite(bound)):
+        raise InputError(f"--bound: expected a positive finite error magnitude (mm, rad), got {bound}")
     if n < 2 or n & (n - 1):
         raise InputError(f"--samples: expected a power of 2 (SALib's Sobol' sequence), got {n}")
     names = list(model.errors)

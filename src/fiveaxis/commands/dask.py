@@ -5,14 +5,20 @@ import json
 import os
 
 from ..errors import InputError
+from .sensitivity import GSA_MAX_POSES as MAX_POSES, _count
 
 
 def register_dask(p):
     p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
     p.add_argument("--convention", default="equations", help="'equations' or a convention of the machine file")
+    p.add_argument("--preset", choices=("paper",), default=None,
+                   help="a named workspace instead of the machine's (as `fiveaxis gsa --preset`)")
     p.add_argument("--axis", action="append", default=[], metavar="NAME=LO:HI:COUNT",
                    help="grid of one axis (mm; degrees for rotary axes), or NAME=VALUE to fix it; repeatable "
                         "(default: as `fiveaxis gsa`)")
+    p.add_argument("--max-poses", type=_count, default=MAX_POSES, metavar="N",
+                   help=f"refuse a grid of more than N poses (after the reduction) before starting (default "
+                        f"{MAX_POSES:.0e})")
     p.add_argument("--l0", type=float, default=None, help="tool length L0, mm (default: the machine file's)")
     p.add_argument("--le", type=float, default=None, help="effective cutting length LE, mm (default: the file's)")
     p.add_argument("--errors", action="append", default=[], metavar="FILE|NAME=VALUE",
@@ -37,16 +43,25 @@ def register_dask(p):
 
 def run_dask(args) -> int:
     from .. import distributed
+    from ..error_values import read
+    from ..guards import check_size
     from ..kernels import load
-    from .sensitivity import _print_ranking, _print_settings, parse_errors, workspace_grid
+    from ..sensitivity import reduce_grid
+    from .sensitivity import _grid, _print_ranking, _print_settings
     if args.scheduler is not None:
         try:
             distributed.scheduler_address(args.scheduler)     # before the model loads: a typo fails at once
         except InputError as exc:
             raise InputError(f"--scheduler: {exc}") from None
     model = load(args.machine, args.convention)
-    errors = parse_errors(model, args.errors)
-    grid = workspace_grid(model, args.axis)
+    errors = read(model, args.errors).values
+    grid, source, L0, LE = _grid(args, model)
+    args.l0 = L0 if args.l0 is None else args.l0
+    args.le = LE if args.le is None else args.le
+    for a in grid.axes:
+        check_size(a.count, f"points on axis {a.name}", args.max_poses, "--max-poses {n}")
+    work = reduce_grid(model, grid)[0] if args.reduce else grid
+    check_size(work.size, "poses", args.max_poses, "--max-poses {n}")
     if args.chunk is not None and args.chunk < 1:
         raise InputError(f"--chunk: expected a positive number of poses, got {args.chunk}")
     if args.workers < 1:
@@ -68,6 +83,7 @@ def run_dask(args) -> int:
         client.close()
         if cluster is not None:
             cluster.close()
+    res.settings["workspace"] = source
     if args.json:
         print(json.dumps(res.to_json(), indent=1))
         return 0

@@ -1,18 +1,30 @@
-"""`fiveaxis gsa`, `fiveaxis lsa` and `fiveaxis sobol`: sensitivity indices and the paper's experiments.
+"""`fiveaxis gsa`, `fiveaxis lsa` and `fiveaxis sobol`: sensitivity indices and the compensation experiments,
+on any machine.
 
-gsa: GSIL over a workspace grid (default: Sect. 4.2 of the paper); `--compensate` adds Fig. 16 (nine points).
-lsa: LSIL at the cone positions of Tables 3-4 (Sect. 4.1); `--compensate` adds Fig. 11 (cone side surface).
+gsa: GSIL over the machine's workspace (its file's [workspace] table, else its strokes), or a named preset
+     (`--preset paper`: Sect. 4.2); `--compensate` halves the vital / other / all errors at the diagonal points
+     of the workspace (Fig. 16).
+lsa: LSIL along a toolpath (`--toolpath` CSV or G-code, `--pose`), or at the cone positions of Tables 3-4
+     (`--cone`, li2018); per segment too; `--compensate` the same experiment along the path (Fig. 11).
 sobol: Sobol' total indices (SALib) over the same workspace, compared with the GSIL ranking.
 """
 from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+
+#: Default most poses of one run (fiveaxis.guards): gsa and sobol evaluate and forget (10^9), lsa keeps 41
+#: indices per pose in memory (10^6).
+GSA_MAX_POSES = 10 ** 9
+LSA_MAX_POSES = 10 ** 6
+#: Segments listed in the text output of a toolpath (all are in --json).
+SEGMENTS_SHOWN = 20
 
 
 # -- shared options ----------------------------------------------------------------------------------------------
@@ -26,24 +38,39 @@ def _order(text):
         raise InputError(f"--order: expected an integer or 'exact', got {text!r}") from None
 
 
-def _common(p, le_default: str, order_default: str):
+def _count(text: str) -> int:
+    """--max-poses: a positive whole number, also written as 1e9."""
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not math.isfinite(v) or v < 1 or v != int(v):
+        import argparse
+        raise argparse.ArgumentTypeError(f"expected a positive whole number such as 1e9, got {text!r}")
+    return int(v)
+
+
+def _common(p, le_default: str, order_default: str, max_poses: int):
     p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
     p.add_argument("--convention", default="equations",
                    help="'equations' (errors where Eq. 1-6 place them) or a convention of the machine file "
                         "(li2018: 'printed', the placement behind the printed Table 2 and the paper's results)")
     p.add_argument("--json", action="store_true", help="print {indices, ranking, settings} as JSON")
-    p.add_argument("--plot", type=Path, metavar="DIR", help="write PNG plots into DIR")
+    p.add_argument("--plot", type=Path, metavar="DIR", help="write PNG plots into DIR (their paths go to stderr)")
     p.add_argument("--l0", type=float, default=None,
                    help="tool length L0, mm (default: the machine file's; li2018: 200, the paper's)")
-    p.add_argument("--le", type=float, default=None, help=f"effective cutting length LE, mm (default: {le_default})")
+    p.add_argument("--le", type=float, default=None,
+                   help=f"effective cutting length LE, mm, at most L0 (default: {le_default})")
     p.add_argument("--order", default=None, metavar="N|exact",
                    help="integral over [L0-LE, L0]: Gauss-Legendre of order N, or 'exact' (closed form; W_i only) "
                         f"(default: {order_default})")
     p.add_argument("--errors", action="append", default=[], metavar="FILE|NAME=VALUE",
-                   help="error values (mm, rad): NAME=VALUE, or a file of NAME=VALUE lines or a JSON object; "
-                        "repeatable; errors not named keep the machine file's values (li2018: all 1e-4, the "
-                        "value behind the paper's rankings)")
+                   help="error values (mm, rad): NAME=VALUE, a file of NAME=VALUE lines, a JSON object, or a fitted "
+                        "model (`fiveaxis fit ... -o model.json`); repeatable, applied in order; errors not named keep "
+                        "the machine file's values (li2018: all 1e-4, the value behind the paper's rankings)")
     p.add_argument("--top", type=int, default=10, help="rows of the printed ranking (default 10)")
+    p.add_argument("--max-poses", type=_count, default=max_poses, metavar="N",
+                   help=f"refuse a run of more than N pose evaluations before starting it (default {max_poses:.0e})")
 
 
 def _model(args):
@@ -52,72 +79,66 @@ def _model(args):
 
 
 def _setup(args, L0_default=None, LE_default=None):
-    """(model, error values, L0, LE) of a sensitivity command: L0 and LE (mm) from the options, else the given
-    defaults, else the machine file's tool data."""
+    """(model, ErrorValues, L0, LE) of a sensitivity command: L0 and LE (mm) from the options, else the given
+    defaults, else the machine file's tool data; both checked before anything runs."""
+    from ..error_values import read
+    from ..sensitivity import quadrature
+    if args.top < 1:
+        raise InputError(f"--top: expected a positive number of rows, got {args.top}")
     model = _model(args)
-    errors = parse_errors(model, args.errors)
+    ev = read(model, args.errors)
     L0 = args.l0 if args.l0 is not None else (L0_default if L0_default is not None else model.machine.tool_length)
     LE = args.le if args.le is not None else (LE_default if LE_default is not None else model.machine.cutting_length)
-    return model, errors, L0, LE
+    quadrature(L0, LE, 1)                    # L0 > 0, 0 < LE <= L0, finite
+    if args.plot is not None and args.plot.exists() and not args.plot.is_dir():
+        raise InputError(f"--plot {args.plot}: exists and is not a directory")
+    return model, ev, L0, LE
 
 
-def parse_errors(model, specs) -> dict[str, float]:
-    """The machine file's error values, overridden by --errors NAME=VALUE or files of such lines / JSON."""
-    defaults = model.machine.default_errors()
-    from .. import iso
-    values = {n: float(defaults[n]) for n in model.errors}
-
-    def put(name, raw, where):
-        name = iso.canonical(model, name, where=where)     # a project name or its ISO 230 name (E_AX)
-        try:
-            v = float(raw)
-        except (TypeError, ValueError):
-            raise InputError(f"{where}: value of {name} must be a number, got {raw!r}") from None
-        if not math.isfinite(v):
-            raise InputError(f"{where}: value of {name} must be finite, got {raw!r}")
-        values[name] = v
-
-    for spec in specs:
-        if "=" in spec and not Path(spec).exists():
-            name, _, raw = spec.partition("=")
-            put(name, raw, f"--errors {spec}")
-            continue
-        path = Path(spec)
-        if not path.is_file():
-            raise InputError(f"--errors {spec}: not NAME=VALUE and no such file")
-        text = path.read_text()
-        if text.lstrip().startswith("{"):
-            try:
-                data = json.loads(text)
-            except json.JSONDecodeError as exc:
-                raise InputError(f"{path}: line {exc.lineno} column {exc.colno}: invalid JSON ({exc.msg})") from None
-            for name, raw in data.items():
-                put(name, raw, f"{path}: key {name}")
-            continue
-        for i, line in enumerate(text.splitlines(), 1):
-            line = line.split("#", 1)[0].strip()
-            if not line:
-                continue
-            name, sep, raw = line.partition("=")
-            if not sep:
-                parts = line.split()
-                if len(parts) != 2:
-                    raise InputError(f"{path}: line {i}: expected NAME=VALUE, got {line!r}")
-                name, raw = parts
-            put(name, raw, f"{path}: line {i}")
-    return values
+def _error_settings(settings, ev):
+    settings["errors"] = ev.label()
+    if ev.kept:
+        settings["errors_undetermined_kept"] = list(ev.kept)
+    if ev.left_out:
+        settings["errors_left_out_parameters"] = list(ev.left_out)
 
 
-def workspace_grid(model, specs):
-    """The GSA grid of `gsa` and `dask`: the paper's workspace for X Y Z A B machines, else 5 points per
-    stroke, changed by the --axis specs (mm; degrees for rotary axes)."""
+def _print_error_notes(ev):
+    if ev.kept:
+        print(f"errors: {len(ev.kept)} undetermined in the fitted model keep the machine file's values: "
+              f"{', '.join(ev.kept)}")
+    if ev.left_out:
+        print(f"errors: fitted parameters that are not geometric errors are left out: {', '.join(ev.left_out)}")
+
+
+def _dump(out):
+    try:
+        print(json.dumps(out, indent=1, allow_nan=False))
+    except ValueError:
+        raise InputError("a computed number is not finite (NaN or inf): no JSON written; please report this "
+                         "with the command line") from None
+
+
+def _wrote(paths):
+    for p in paths:
+        print(f"fiveaxis: wrote {p}", file=sys.stderr)
+
+
+def _grid(args, model):
+    """(grid, description of where it comes from, L0 default, LE default) for gsa, sobol and dask."""
     from .. import presets
-    from ..grid import Grid, grid_from_specs
-    if tuple(model.variables) == ("X", "Y", "Z", "A", "B"):
-        base = presets.workspace_grid(model)
+    from ..grid import describe_source, workspace_grid
+    base, L0, LE = None, None, None
+    if getattr(args, "preset", None):
+        base = presets.workspace_preset(args.preset, model)
+        source = f"preset {args.preset} ({presets.WORKSPACE_PRESETS[args.preset]})"
+        L0, LE = presets.WORKSPACE_L0, presets.WORKSPACE_LE
     else:
-        base = Grid.from_strokes(model.machine, {n: 5 for n in model.variables})
-    return grid_from_specs(base, specs, model.machine.rotary)
+        source = describe_source(model.machine)
+    grid = workspace_grid(model.machine, args.axis, base)
+    if args.axis:
+        source += "; changed by --axis " + " ".join(args.axis)
+    return grid, source, L0, LE
 
 
 def _print_ranking(model, result, top: int, title: str):
@@ -147,6 +168,8 @@ def _print_settings(s):
     left = (f"{s['skipped_poses']} poses" if "skipped_poses" in s else f"{s['skipped_nodes']} nodes")
     line += f", {s['poses']} poses, {left} left out (|P_err| ~ 0)"
     print(line)
+    if "workspace" in s:
+        print(f"workspace: {s['workspace']}")
 
 
 def _print_compensation(rows, title, unit, paper: dict | None = None):
@@ -163,142 +186,354 @@ def _rows_json(rows):
              "improvement_pct": r.improvement_pct} for r in rows]
 
 
+def _vital(result, paper_vital=None):
+    """(vital errors, how they were chosen) for a compensation experiment."""
+    from ..experiments import VITAL_MAX_RANK, vital_set
+    if paper_vital is not None:
+        return list(paper_vital), "the paper's vital set"
+    v = vital_set(result.names, result.proportions)
+    p = dict(zip(result.names, result.proportions))
+    order = result.ranking
+    drop = (f", {100 * p[order[len(v) - 1]]:.2f}% -> {100 * p[order[len(v)]]:.2f}%"
+            if len(v) < len(order) else "")
+    return v, (f"this run's {len(v)} largest {'PG_i' if result.kind == 'GSIL' else 'PL_i'}: above the largest "
+               f"relative drop between consecutive proportions within the first {VITAL_MAX_RANK} ranks{drop}")
+
+
 # -- gsa -----------------------------------------------------------------------------------------------------------
-def register_gsa(p):
-    _common(p, "the machine file's; li2018: 30, Sect. 4.2", "exact when the kernels have it, else 8")
+def _workspace_options(p):
+    p.add_argument("--preset", choices=("paper",), default=None,
+                   help="a named workspace instead of the machine's: 'paper' = Sect. 4.2 (li2018 kinematics; X 21, "
+                        "Y 9, Z 5, A 13, B 13 points; L0 200 mm, LE 30 mm)")
     p.add_argument("--axis", action="append", default=[], metavar="NAME=LO:HI:COUNT",
-                   help="grid of one axis (mm; degrees for rotary axes), or NAME=VALUE to fix it; repeatable. "
-                        "Default: Sect. 4.2's workspace, X 21, Y 9, Z 5, A 13, B 13 points")
+                   help="grid of one axis (mm; degrees for rotary axes; within the stroke), or NAME=VALUE to fix it; "
+                        "repeatable. Default: the machine file's [workspace] table, else its strokes, 5 points each")
+
+
+def register_gsa(p):
+    _common(p, "the machine file's; li2018: 30, Sect. 4.2", "exact when the kernels have it, else 8", GSA_MAX_POSES)
+    _workspace_options(p)
     p.add_argument("--chunk", type=int, default=None, help="poses per chunk (bounded memory; default 2**20)")
     bar = p.add_mutually_exclusive_group()
-    bar.add_argument("--progress", action="store_true", default=None, help="always show the progress bar")
+    bar.add_argument("--progress", action="store_true", default=None,
+                     help="always show the progress bar (default: for long runs, also in logs)")
     bar.add_argument("--no-progress", dest="progress", action="store_false", help="never show the progress bar")
     p.add_argument("--compensate", action="store_true",
-                   help="also run Fig. 16: halve the vital / other / all errors and average the tool's position "
-                        "and posture error at the nine points of Fig. 15 over A, B in [-30, 30] deg")
+                   help="also halve the vital / other / all errors and average the tool's position and posture "
+                        "error at the diagonal points of the workspace over its rotary axes (Fig. 16); vital: the "
+                        "paper's four with --preset paper, else this run's own (see docs/sensitivity.md)")
     p.add_argument("--points", default="quarter", choices=("quarter", "corner"),
-                   help="the nine points: quarter marks of the body diagonals (default) or the corners")
-    p.add_argument("--rot-count", type=int, default=13, help="points per rotary axis for --compensate (default 13)")
+                   help="the points: quarter marks of the body diagonals of the linear axes (default) or the "
+                        "corners, and the centre")
+    p.add_argument("--rot-count", type=int, default=13,
+                   help="points per rotary axis for --compensate (default 13; 1: the middle of the range)")
     p.add_argument("--no-reduce", dest="reduce", action="store_false",
                    help="evaluate every grid pose, also along axes that appear in no J (X for li2018); "
                         "by default such an axis is evaluated once and weighted by its count (exact)")
     p.set_defaults(func=run_gsa)
 
 
+def _compensate_gsa(args, model, errors, grid, L0, res):
+    from .. import experiments, presets
+    from ..guards import check_size
+    if args.rot_count < 1:
+        raise InputError(f"--rot-count: expected at least 1 point per rotary axis, got {args.rot_count}")
+    check_size(experiments.point_count(model, args.rot_count) * 8, "poses", args.max_poses, "--max-poses {n}",
+               f"--compensate: points x {args.rot_count} per rotary axis x 4 scenarios x 2 measures")
+    paper = args.preset == "paper"
+    vital, why = _vital(res, presets.PAPER_VITAL["workspace"] if paper else None)
+    box = presets.paper_box(model) if paper else {a.name: (a.lo, a.hi) for a in grid.axes}
+
+    def run(e):
+        return experiments.point_errors(model, box, e, args.rot_count, args.points, L0)
+
+    comp = {key: experiments.compensation(errors, vital, lambda e: run(e)[key],
+                                          f"the average {key.split('_')[0]} error at the points")
+            for key in ("position_mm", "posture_rad")}
+    return vital, why, comp, run
+
+
 def run_gsa(args) -> int:
     from .. import presets
+    from ..experiments import scenario_errors
     from ..sensitivity import CHUNK, gsil
-    model, errors, L0, LE = _setup(args)
-    grid = workspace_grid(model, args.axis)
+    model = _model(args)
+    grid, source, L0d, LEd = _grid(args, model)
+    model, ev, L0, LE = _setup(args, L0d, LEd)
+    errors = ev.values
     chunk = CHUNK if args.chunk is None else args.chunk
     if chunk < 1:
         raise InputError(f"--chunk: expected a positive number of poses, got {chunk}")
     res = gsil(model, grid, errors, L0, LE, _order(args.order), chunk=chunk, progress=args.progress,
-               reduce=args.reduce)
+               reduce=args.reduce, max_size=args.max_poses, how="--max-poses {n}")
+    res.settings["workspace"] = source
+    _error_settings(res.settings, ev)
     out = res.to_json()
     comp = None
     if args.compensate:
-        vital = presets.PAPER_VITAL["workspace"]
-        comp = {}
-        for key in ("position_mm", "posture_rad"):
-            comp[key] = presets.compensation(
-                errors, vital, lambda e: presets.nine_point_errors(model, e, args.rot_count, args.points, L0)[key])
-        out["compensation"] = {"vital": list(vital), "points": args.points, "rot_count": args.rot_count,
+        vital, why, comp, run = _compensate_gsa(args, model, errors, grid, L0, res)
+        out["compensation"] = {"vital": list(vital), "vital_rule": why, "points": args.points,
+                               "rot_count": args.rot_count, "L_mm": L0,
                                "position_mm": _rows_json(comp["position_mm"]),
                                "posture_rad": _rows_json(comp["posture_rad"])}
+    paper = args.preset == "paper"
     if args.plot:
         from ..plots import sensitivity as plots
-        plots.pie(res.names, res.proportions, args.plot / "gsa_pie.png",
-                  f"PG_i, {model.machine.name} ({model.convention})")
+        files = [plots.pie(res.names, res.proportions, args.plot / "gsa_pie.png",
+                           f"GSIL proportions PG_i (%), {model.machine.name} ({model.convention} convention)")]
         if args.compensate:
-            maps = {tag: presets.nine_point_errors(model, presets.scenario_errors(
-                        errors, presets.PAPER_VITAL["workspace"], sc), args.rot_count, args.points, L0)
-                    for tag, sc in (("none", "none"), ("vital", "vital halved"))}
-            for key, name, unit in (("position_map", "position", "mm"), ("posture_map", "posture", "rad")):
-                both = np.concatenate([m[key].ravel() for m in maps.values()])
-                levels = np.linspace(both.min(), both.max(), 15)      # one scale for a and b, as Fig. 17-18
-                for tag, r in maps.items():
-                    plots.ab_contour(r["A_deg"], r["B_deg"], r[key], args.plot / f"gsa_{name}_{tag}.png",
-                                     f"average {name} error, {'none' if tag == 'none' else 'vital halved'}", unit,
-                                     levels)
-            plots.bars(comp["position_mm"], args.plot / "gsa_compensation_position.png", "Fig. 16a", "mm")
-            plots.bars(comp["posture_rad"], args.plot / "gsa_compensation_posture.png", "Fig. 16b", "rad")
+            maps = {"none": run(errors)}
+            maps["vital"] = run(scenario_errors(errors, vital, "vital halved"))
+            if len(maps["none"]["rotary"]) == 2:
+                r0, r1 = maps["none"]["rotary"]
+                for key, name, unit in (("position_map", "position", "mm"), ("posture_map", "posture", "rad")):
+                    both = np.concatenate([m[key].ravel() for m in maps.values()])
+                    levels = np.linspace(both.min(), both.max(), 15)      # one scale for both, as Fig. 17-18
+                    for tag, r in maps.items():
+                        files.append(plots.ab_contour(
+                            r["rotary_deg"][0], r["rotary_deg"][1], r[key], args.plot / f"gsa_{name}_{tag}.png",
+                            f"average {name} error at the {args.points} points, "
+                            f"{'no compensation' if tag == 'none' else 'vital errors halved'}",
+                            f"|{'P' if name == 'position' else 'V'}_err| ({unit})", levels, (r0, r1)))
+            fig = "Fig. 16a: " if paper else ""
+            files.append(plots.bars(comp["position_mm"], args.plot / "gsa_compensation_position.png",
+                                    f"{fig}average position error |P_err| at the points, {model.machine.name}",
+                                    "position error |P_err| (mm)"))
+            files.append(plots.bars(comp["posture_rad"], args.plot / "gsa_compensation_posture.png",
+                                    f"{'Fig. 16b: ' if paper else ''}average posture error |V_err| at the points, "
+                                    f"{model.machine.name}", "posture error |V_err| (rad)"))
+        _wrote(files)
     if args.json:
-        print(json.dumps(out, indent=1))
+        _dump(out)
         return 0
     _print_ranking(model, res, args.top, "GSIL proportions PG_i (Eq. 14, 16), largest first")
     _print_settings(res.settings)
+    _print_error_notes(ev)
     if comp:
-        _print_compensation(comp["position_mm"], f"Fig. 16a: average position error at the nine points "
-                            f"({args.points}), vital = {', '.join(presets.PAPER_VITAL['workspace'])}", "mm",
-                            presets.PAPER_COMPENSATION["workspace_position"])
-        _print_compensation(comp["posture_rad"], "Fig. 16b: average posture error", "rad",
-                            presets.PAPER_COMPENSATION["workspace_posture"])
+        fig = "Fig. 16a: " if paper else ""
+        where = f"the {args.points} points of Fig. 15" if paper else \
+            f"the {args.points} points of the workspace's body diagonals and its centre"
+        _print_compensation(comp["position_mm"], f"{fig}average position error at {where} (L = {L0:g} mm), "
+                            f"vital = {', '.join(vital)} ({why})", "mm",
+                            presets.PAPER_COMPENSATION["workspace_position"] if paper else None)
+        _print_compensation(comp["posture_rad"], f"{'Fig. 16b: ' if paper else ''}average posture error", "rad",
+                            presets.PAPER_COMPENSATION["workspace_posture"] if paper else None)
     return 0
 
 
 # -- lsa -----------------------------------------------------------------------------------------------------------
 def register_lsa(p):
-    _common(p, "34.6, Sect. 4.1", "16")
-    p.add_argument("--cone", type=int, default=1, choices=(1, 2), help="machining position of the 1/4 cone")
+    _common(p, "the machine file's; the cone: 34.6, Sect. 4.1", "16", LSA_MAX_POSES)
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--toolpath", type=Path, metavar="FILE",
+                       help="a CSV of tool poses (the machine's axes, mm and degrees; optional nx,ny,nz surface "
+                            "normals in the workpiece frame and a segment column) or a G-code program (LinuxCNC "
+                            "dialect, read by rs274; G1 moves sampled along the path)")
+    where.add_argument("--pose", action="append", default=None, metavar="X=..,Y=..,...",
+                       help="an explicit pose (mm, degrees; optional nx=,ny=,nz=); repeatable")
+    where.add_argument("--cone", type=int, default=None, choices=(1, 2),
+                       help="li2018 preset: the machining position of the paper's 1/4 cone (Tables 3-4); the "
+                            "default on li2018 when no path is given")
     p.add_argument("--positions", type=int, default=5, help="tool positions on the cone (default 5, Tables 3-4)")
-    p.add_argument("--normal-mode", type=int, default=0, choices=(0, 1),
-                   help="how the surface normal N enters LSIL: 0 = W_i alone (default), "
-                        "1 = int |P_err,i . N| / |P_err| dL (see docs/sensitivity.md)")
+    p.add_argument("--surface", default=None, metavar="KIND:NUMBERS",
+                   help="normals of a G-code path: sphere:CX,CY,CZ | plane:NX,NY,NZ | cylinder:PX,PY,PZ,UX,UY,UZ | "
+                        "cone:AX,AY,AZ,UX,UY,UZ,HALF_DEG (workpiece frame, mm, degrees)")
+    p.add_argument("--step-mm", type=float, default=1.0, help="G-code sampling step along the linear axes (mm)")
+    p.add_argument("--step-deg", type=float, default=1.0, help="G-code sampling step along the rotary axes (deg)")
+    p.add_argument("--segments", type=int, default=SEGMENTS_SHOWN,
+                   help=f"segments listed in the text output (default {SEGMENTS_SHOWN}; all are in --json)")
+    p.add_argument("--normal-mode", type=int, default=None, choices=(0, 1),
+                   help="how the surface normal N enters LSIL: 0 = W_i alone, 1 = int |P_err,i . N| / |P_err| dL "
+                        "(see docs/sensitivity.md). Default: 0 for the cone (the paper's reading) and for paths "
+                        "without normals, 1 for paths with normals")
     p.add_argument("--compensate", action="store_true",
-                   help="also run Fig. 11: halve the vital / other / all errors and average the machining error "
-                        "of the cone's side surface")
+                   help="also halve the vital / other / all errors and average the machining error along the path "
+                        "(Fig. 11; the cone: its side surface)")
     p.set_defaults(func=run_lsa)
+
+
+def _path(args, model, L0):
+    """The toolpath of an lsa run from --toolpath or --pose (fiveaxis.toolpath)."""
+    from .. import gcode, surfaces, toolpath
+    from ..guards import check_size
+    how = "--max-poses {n}"
+    if args.pose is not None:
+        check_size(len(args.pose), "poses", args.max_poses, how)
+        tp = toolpath.from_specs(args.pose, model.machine)
+    elif args.toolpath.suffix.lower() == ".csv":
+        tp = toolpath.read_csv(args.toolpath, model.machine, max_rows=args.max_poses)
+    else:
+        if not args.toolpath.is_file():
+            raise InputError(f"{args.toolpath}: {'not a file' if args.toolpath.exists() else 'no such file'}")
+        program = gcode.interpret(args.toolpath)
+        tp = toolpath.from_program(program, model.machine, args.step_mm, args.step_deg, args.max_poses, how)
+    if args.surface:
+        if tp.has_normals:
+            raise InputError(f"--surface: the toolpath already has normals ({tp.normals_source}); give one or the "
+                             f"other")
+        tp = toolpath.with_surface(tp, surfaces.parse(args.surface), model, L0)
+    return tp
 
 
 def run_lsa(args) -> int:
     from .. import presets
     from ..sensitivity import DEFAULT_ORDER, lsil
-    model, errors, L0, LE = _setup(args, presets.CONE_L0, presets.CONE_LE)
+    from ..guards import check_size
+    model = _model(args)
+    cone = args.cone
+    path_given = args.toolpath is not None or args.pose is not None
+    if not path_given and cone is None:
+        if tuple(model.variables) != ("X", "Y", "Z", "A", "B"):
+            raise InputError(f"lsa on {model.machine.name}: give a path with --toolpath FILE or --pose "
+                             f"{'=..,'.join(model.variables)}=.. (the cone of Sect. 4.1 is a preset of li2018)")
+        cone = 1
+    if args.surface and args.toolpath is None:
+        raise InputError("--surface gives the normals of a --toolpath; --pose takes nx=,ny=,nz= instead")
+    model, ev, L0, LE = _setup(args, *((presets.CONE_L0, presets.CONE_LE) if cone else (None, None)))
+    errors = ev.values
     order = 2 * DEFAULT_ORDER if args.order is None else _order(args.order)
-    if args.positions < 1:
-        raise InputError(f"--positions: expected at least 1, got {args.positions}")
-    poses = presets.cone_poses(model, args.cone, args.positions)
-    res = lsil(model, poses, errors, L0, LE, order, mode=args.normal_mode)
-    res.settings.update(cone=args.cone, positions=[[round(float(x), 3) for x in row[:3]] +
-                                                   [round(math.degrees(float(x)), 3) for x in row[3:]]
-                                                   for row in poses.array],
-                        positions_columns="X Y Z (mm) A B (deg); Z is -(ram extension of Tables 3-4)")
+    if args.segments < 0:
+        raise InputError(f"--segments: expected a number of segments >= 0, got {args.segments}")
+    tp = None
+    if cone:
+        if args.positions < 1:
+            raise InputError(f"--positions: expected at least 1, got {args.positions}")
+        check_size(args.positions, "cone positions", args.max_poses, "--max-poses {n}")
+        poses = presets.cone_poses(model, cone, args.positions)
+        mode = 0 if args.normal_mode is None else args.normal_mode
+    else:
+        tp = _path(args, model, L0)
+        poses = tp.poses
+        mode = (1 if tp.has_normals else 0) if args.normal_mode is None else args.normal_mode
+        if mode == 1 and not tp.has_normals:
+            raise InputError("normal mode 1 needs surface normals: give nx,ny,nz columns, --surface, or "
+                             "--normal-mode 0")
+    res = lsil(model, poses, errors, L0, LE, order, mode=mode)
+    _error_settings(res.settings, ev)
+    if cone:
+        res.settings.update(cone=cone, positions=[[round(float(x), 3) for x in row[:3]] +
+                                                  [round(math.degrees(float(x)), 3) for x in row[3:]]
+                                                  for row in poses.array],
+                            positions_columns="X Y Z (mm) A B (deg); Z is -(ram extension of Tables 3-4)")
+        res.settings["normals"] = "the cone's outward normals" + ("" if mode else " (normal mode 0: not used)")
+    else:
+        res.settings["path"] = tp.source
+        res.settings["normals"] = (tp.normals_source + ("" if mode else " (normal mode 0: not used)")
+                                   if tp.has_normals else "none: LSIL without the surface normal N (W_i alone)")
     out = res.to_json()
-    comp = None
-    vital = presets.PAPER_VITAL[f"cone{args.cone}"]
+    segs = None
+    if tp is not None:
+        from ..toolpath import segment_indices
+        segs = segment_indices(res, tp)
+        out["segments"] = [{"label": s["label"], "first_pose": s["first_pose"], "last_pose": s["last_pose"],
+                            "indices": None if s["proportions"] is None else
+                            {n: float(v) for n, v in zip(res.names, s["proportions"])},
+                            "ranking": None if s["proportions"] is None else
+                            _ranking(res.names, s["proportions"])[:5]} for s in segs]
+    comp = vital = None
     if args.compensate:
-        comp = presets.compensation(errors, vital,
-                                    lambda e: presets.cone_machining_error(model, args.cone, e, L0, LE)["mean_mm"])
-        out["compensation"] = {"vital": list(vital), "machining_error_mm": _rows_json(comp)}
+        from .. import experiments
+        if cone:
+            vital, why = _vital(res, presets.PAPER_VITAL[f"cone{cone}"])
+
+            def metric(e):
+                return presets.cone_machining_error(model, cone, e, L0, LE)["mean_mm"]
+            measure = "|N . P_err| over the cone's side surface (mm)"
+        else:
+            vital, why = _vital(res)
+            nrm = poses.normals if tp.has_normals else None       # the cut surface moves along N only
+
+            def metric(e):
+                return experiments.path_machining_error(model, poses.array, e, L0, LE, nrm)["mean_mm"]
+            measure = ("|N . P_err| along the path (mm)" if nrm is not None else
+                       "|P_err| along the path (mm; no surface normal)")
+        comp = experiments.compensation(errors, vital, metric, "the machining error")
+        out["compensation"] = {"vital": list(vital), "vital_rule": why, "measure": measure,
+                               "machining_error_mm": _rows_json(comp)}
     if args.plot:
-        from ..plots import sensitivity as plots
-        plots.pie(res.names, res.proportions, args.plot / f"lsa_cone{args.cone}_pie.png",
-                  f"PL_i, cone position {args.cone}, normal mode {args.normal_mode}")
-        if args.compensate:
-            maps = {sc: presets.cone_machining_error(model, args.cone, presets.scenario_errors(errors, vital, sc), L0, LE)
+        files = _lsa_plots(args, model, res, cone, tp, comp, errors, L0, LE, mode, vital)
+        _wrote(files)
+    if args.json:
+        _dump(out)
+        return 0
+    what = f"at cone position {cone}" if cone else ("at the given poses" if args.pose else "along the path")
+    _print_ranking(model, res, args.top, f"LSIL proportions PL_i {what} (normal mode {mode}), largest first")
+    _print_settings(res.settings)
+    if tp is not None:
+        print(f"path: {tp.source}")
+    print(f"normals: {res.settings['normals']}")
+    _print_error_notes(ev)
+    if segs is not None:
+        _print_segments(res, segs, args.segments)
+    if comp:
+        if cone:
+            _print_compensation(comp, f"Fig. 11: average machining error of the side surface, vital = "
+                                f"{', '.join(vital)} ({why})", "mm", presets.PAPER_COMPENSATION[f"cone{cone}"])
+        else:
+            _print_compensation(comp, f"machining error {measure}, vital = {', '.join(vital)} ({why})", "mm")
+    return 0
+
+
+def _ranking(names, proportions):
+    from ..sensitivity import ranking
+    return ranking(list(names), proportions)
+
+
+def _print_segments(res, segs, shown):
+    picked = range(len(segs)) if len(segs) <= shown else \
+        sorted(set(np.linspace(0, len(segs) - 1, shown).round().astype(int).tolist()))
+    every = "each of" if len(picked) == len(segs) else f"{len(picked)} evenly spread of"
+    print(f"per segment (which errors matter where): the three largest PL_i of {every} {len(segs)} segments")
+    for s in (segs[i] for i in picked):
+        if s["proportions"] is None:
+            top = "all indices zero"
+        else:
+            p = dict(zip(res.names, s["proportions"]))
+            top = ", ".join(f"{n} {100 * p[n]:.1f}%" for n in _ranking(res.names, s["proportions"])[:3])
+        span = f"poses {s['first_pose'] + 1}-{s['last_pose'] + 1}"
+        print(f"  {s['label']:<14} {span:<16} {top}")
+    if len(picked) < len(segs):
+        print(f"  ({len(segs) - len(picked)} more segments in --json; --segments N lists N of them)")
+
+
+def _lsa_plots(args, model, res, cone, tp, comp, errors, L0, LE, mode, vital):
+    from .. import presets
+    from ..experiments import scenario_errors
+    from ..plots import sensitivity as plots
+    d = args.plot
+    if cone:
+        files = [plots.pie(res.names, res.proportions, d / f"lsa_cone{cone}_pie.png",
+                           f"LSIL proportions PL_i (%), cone position {cone}, normal mode {mode}")]
+        if comp:
+            maps = {sc: presets.cone_machining_error(model, cone, scenario_errors(errors, vital, sc), L0, LE)
                     for sc in ("none", "vital halved")}
             vmax = float(max(m["map"].max() for m in maps.values()))
             for tag, sc in (("none", "none"), ("vital", "vital halved")):
-                plots.cone_map(maps[sc], args.plot / f"lsa_cone{args.cone}_map_{tag}.png",
-                               f"machining error, cone position {args.cone}, {sc}", vmax)
-            plots.bars(comp, args.plot / f"lsa_cone{args.cone}_compensation.png", f"Fig. 11, position {args.cone}",
-                       "mm")
-    if args.json:
-        print(json.dumps(out, indent=1))
-        return 0
-    _print_ranking(model, res, args.top, f"LSIL proportions PL_i at cone position {args.cone} (normal mode "
-                                         f"{args.normal_mode}), largest first")
-    _print_settings(res.settings)
+                files.append(plots.cone_map(maps[sc], d / f"lsa_cone{cone}_map_{tag}.png",
+                                            f"machining error |N . P_err|, cone position {cone}, "
+                                            f"{'no compensation' if sc == 'none' else 'vital errors halved'}", vmax))
+            files.append(plots.bars(comp, d / f"lsa_cone{cone}_compensation.png",
+                                    f"Fig. 11: machining error of the cone's side surface, position {cone}",
+                                    "machining error |N . P_err| (mm)"))
+        return files
+    files = [plots.pie(res.names, res.proportions, d / "lsa_path_pie.png",
+                       f"LSIL proportions PL_i (%) along the path, {model.machine.name}, normal mode {mode}"),
+             plots.path_shares(res.names, res.per_pose, tp.segment, d / "lsa_path_shares.png",
+                               f"share of the largest PL_i along the path, {model.machine.name}")]
     if comp:
-        _print_compensation(comp, f"Fig. 11: average machining error of the side surface, vital = "
-                            f"{', '.join(vital)}", "mm", presets.PAPER_COMPENSATION[f"cone{args.cone}"])
-    return 0
+        normal = tp.has_normals
+        files.append(plots.bars(comp, d / "lsa_path_compensation.png",
+                                f"machining error along the path, {model.machine.name}: mean of "
+                                f"{'|N . P_err|' if normal else '|P_err| (no surface normal)'} over the poses and "
+                                f"L in [L0-LE, L0]",
+                                f"machining error {'|N . P_err|' if normal else '|P_err|'} (mm)"))
+    return files
 
 
 # -- sobol ---------------------------------------------------------------------------------------------------------
 def register_sobol(p):
-    _common(p, "the machine file's; li2018: 30, Sect. 4.2", "exact when the kernels have it, else 8")
+    _common(p, "the machine file's; li2018: 30, Sect. 4.2", "exact when the kernels have it, else 8", GSA_MAX_POSES)
+    _workspace_options(p)
     p.add_argument("--samples", type=int, default=512, help="SALib base sample, a power of 2 (default 512)")
     p.add_argument("--bound", type=float, default=1e-4, help="errors uniform in [-bound, bound] (mm, rad)")
     p.add_argument("--seed", type=int, default=0)
@@ -306,24 +541,35 @@ def register_sobol(p):
 
 
 def run_sobol(args) -> int:
-    from .. import presets
-    from ..sensitivity import gsil
-    from ..sobol import compare, sobol_total
-    model, errors, L0, LE = _setup(args)
-    grid = presets.workspace_grid(model)
+    from ..guards import check_size
+    from ..sensitivity import gsil, ranking
+    from ..sobol import MAX_POSES, compare, sobol_total
+    model = _model(args)
+    grid, source, L0d, LEd = _grid(args, model)
+    model, ev, L0, LE = _setup(args, L0d, LEd)
+    if args.seed < 0:
+        raise InputError(f"--seed: expected a whole number >= 0, got {args.seed}")
+    if not (math.isfinite(args.bound) and args.bound > 0):
+        raise InputError(f"--bound: expected a positive finite error magnitude (mm, rad), got {args.bound}")
+    if args.samples >= 2:
+        evaluations = args.samples * (len(model.errors) + 2)
+        check_size(evaluations * min(grid.size, MAX_POSES) * 2, "poses", args.max_poses,
+                   "--max-poses {n}", f"{evaluations} Saltelli samples x {min(grid.size, MAX_POSES)} poses x 2 "
+                   f"tool lengths")
     s = sobol_total(model, grid, L0, LE, args.bound, args.samples, args.seed)
-    g = gsil(model, grid, errors, L0, LE, _order(args.order), progress=False)
+    g = gsil(model, grid, ev.values, L0, LE, _order(args.order), progress=False, max_size=args.max_poses,
+             how="--max-poses {n}")
     cmp = compare(model.errors, g.values, s["ST"])
+    s["settings"]["workspace"] = source
     out = {"indices": {n: float(v) for n, v in zip(s["names"], s["ST"])},
-           "ranking": __import__("fiveaxis.sensitivity", fromlist=["ranking"]).ranking(s["names"], s["ST"]),
-           "settings": s["settings"], "comparison": cmp,
+           "ranking": ranking(s["names"], s["ST"]), "settings": s["settings"], "comparison": cmp,
            "ST_conf": {n: float(v) for n, v in zip(s["names"], s["ST_conf"])}}
     if args.plot:
         from ..plots import sensitivity as plots
-        plots.pie(s["names"], np.clip(s["ST"], 0, None), args.plot / "sobol_total_pie.png",
-                  "Sobol' total indices (normalised)")
+        _wrote([plots.pie(s["names"], np.clip(s["ST"], 0, None), args.plot / "sobol_total_pie.png",
+                          f"Sobol' total indices S_T (normalised, %), {model.machine.name}")])
     if args.json:
-        print(json.dumps(out, indent=1))
+        _dump(out)
         return 0
     pg = dict(zip(model.errors, g.proportions))
     rank_g = {n: i + 1 for i, n in enumerate(g.ranking)}
@@ -336,4 +582,5 @@ def run_sobol(args) -> int:
               f"{rank_g[n]:>9}")
     print(f"Spearman rank correlation of S_T and GSIL: {cmp['spearman']:.3f}; top 4 in common: "
           f"{', '.join(cmp['top4_common'])}")
+    print(f"workspace: {source}")
     return 0

@@ -1,0 +1,199 @@
+"""G-code (LinuxCNC dialect) through LinuxCNC's own standalone interpreter, `rs274` (Debian `linuxcnc-uspace`).
+
+`interpret(path)` runs `/usr/bin/rs274 -g` on a program and reads the canonical machining commands it prints
+(`STRAIGHT_TRAVERSE(x, y, z, a, b, c)` for G0, `STRAIGHT_FEED(...)` for G1, with every axis, one per line),
+so nothing of G-code is parsed here: modal state, expressions, parameters, subroutines and loops are the
+interpreter's. What this module does with the canonical commands:
+
+* Units: rs274 prints positions in the program's units (`USE_LENGTH_UNITS(CANON_UNITS_INCHES)` after G20);
+  lengths are converted to mm (25.4 mm per inch); rotary axes are degrees whatever the units.
+* Offsets: positions are program coordinates; the machine's axis positions are obtained as LinuxCNC's motion
+  controller does (emccanon `from_prog`): G92 offset added, the XY rotation of G10 L2 R applied, then the
+  G54-G59.3 work offset and the tool length offset added, each offset converted to mm when it was set. Work
+  offsets stored in a controller's parameter file are not known here: the interpreter starts with zero offsets
+  (pass `var_file` to use one).
+* Line numbers: the interpreter echoes the text of a line it rejects but not its number, and the N field of its
+  output is the program's own N word. So the program is handed to rs274 with every line tagged by its line
+  number as an N word (an existing N word is replaced; N words have no effect on motion), which gives the line
+  of every canonical command and of a rejected block.
+* Rejected programs: rs274's message and the line, as a one-line InputError (`prog.ngc: line 3: rs274: ...`).
+
+Moves other than straight ones (G2/G3 arcs, probing, rigid tapping, splines) are refused with their line.
+Positions are printed by rs274 to 4 decimals (0.1 um in G21, 2.54 um in G20; 1e-4 deg).
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .errors import InputError
+
+#: The standalone interpreter of LinuxCNC (Debian package linuxcnc-uspace).
+RS274 = "/usr/bin/rs274"
+#: The axes of the canonical straight moves, in the order rs274 prints them (this build: six, no U V W).
+AXES = ("X", "Y", "Z", "A", "B", "C")
+LINEAR = ("X", "Y", "Z")
+MM_PER_INCH = 25.4
+#: Seconds rs274 may take before the run is abandoned (a program with an endless loop).
+TIMEOUT = 300.0
+
+_LINE = re.compile(r"^\s*\d+\s+N(\d+|\.\.\.\.\.)\s*([A-Z_0-9]+)\((.*)\)\s*$")
+_NUM = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?(?:nan|inf)", re.IGNORECASE)
+_N_WORD = re.compile(r"^(\s*/?\s*)[Nn](?:\s*\d)+")
+_OTHER_MOTION = {"ARC_FEED": "an arc (G2/G3)", "STRAIGHT_PROBE": "a probing move (G38)",
+                 "RIGID_TAP": "rigid tapping (G33.1)", "NURBS_FEED": "a NURBS move (G5.2)",
+                 "SPLINE_FEED": "a spline (G5/G5.1)"}
+
+
+@dataclass(frozen=True)
+class Move:
+    """One straight move: kind "traverse" (G0) or "feed" (G1), the program line it comes from (1-based; 0 if
+    rs274 gave none), and its end point in machine axis positions: mm for X Y Z, degrees for A B C."""
+    kind: str
+    line: int
+    end: dict
+
+
+@dataclass
+class Program:
+    """The interpreted program: its straight moves in order and the interpreter's starting position."""
+    path: Path
+    moves: list[Move] = field(default_factory=list)
+    start: dict = field(default_factory=lambda: {a: 0.0 for a in AXES})
+    units: list[str] = field(default_factory=list)          # length units the program used (mm, inch)
+
+
+def available(rs274: str = RS274) -> bool:
+    """True when the interpreter is installed (tests skip with a reason when it is not)."""
+    return shutil.which(rs274) is not None or os.access(rs274, os.X_OK)
+
+
+def tag_lines(text: str) -> str:
+    """The program with every line tagged by its number as an N word (see the module docstring)."""
+    out = []
+    for i, line in enumerate(text.splitlines(), 1):
+        bare = line.strip()
+        if not bare or bare.startswith("%"):
+            out.append(line)
+            continue
+        m = _N_WORD.match(line)
+        if m:
+            out.append(f"{m.group(1)}N{i} {line[m.end():].lstrip()}")
+        else:
+            lead = re.match(r"^(\s*/?\s*)", line).group(1)
+            out.append(f"{lead}N{i} {line[len(lead):]}")
+    return "\n".join(out) + "\n"
+
+
+def _numbers(args: str, where: str) -> list[float]:
+    vals = [float(x) for x in _NUM.findall(args)]
+    if not all(math.isfinite(v) for v in vals):
+        raise InputError(f"{where}: rs274 printed a position that is not finite ({args})")
+    return vals
+
+
+def _rejected(path: Path, stderr: str, lines: list[str]) -> InputError:
+    """rs274's own message and the line it rejected, as one line."""
+    msgs = [s.strip() for s in stderr.splitlines() if s.strip() and s.strip() != "executing"]
+    if not msgs:
+        return InputError(f"{path}: rs274 rejected the program (no message)")
+    message = msgs[0]
+    echoed = msgs[1] if len(msgs) > 1 else ""
+    m = re.match(r"^/?\s*N(\d+)\s?", echoed)
+    if m and 1 <= int(m.group(1)) <= len(lines):
+        n = int(m.group(1))
+        return InputError(f"{path}: line {n}: rs274: {message} ({_clip(lines[n - 1].strip())})")
+    if echoed:
+        return InputError(f"{path}: rs274: {message} ({_clip(echoed)})")
+    return InputError(f"{path}: rs274: {message}")
+
+
+def _clip(s: str, n: int = 80) -> str:
+    return s if len(s) <= n else s[:n] + "..."
+
+
+def interpret(path, rs274: str = RS274, var_file=None, timeout: float = TIMEOUT) -> Program:
+    """Run the interpreter on a G-code file; its straight moves in machine axis positions (mm, degrees)."""
+    path = Path(path)
+    if not available(rs274):
+        raise InputError(f"{path}: G-code needs LinuxCNC's interpreter {rs274} (Debian package linuxcnc-uspace: "
+                         f"apt-get install linuxcnc-uspace)")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a UTF-8 text file (expected a G-code program)") from None
+    lines = text.splitlines()
+    cmd = [rs274, "-g"]
+    if var_file is not None:
+        cmd += ["-v", str(Path(var_file).resolve())]
+    with tempfile.TemporaryDirectory(prefix="fiveaxis-rs274-") as cwd:     # rs274 may write files next to it
+        tagged = Path(cwd) / "program.ngc"         # a file, not stdin: from stdin rs274 goes on after an error
+        tagged.write_text(tag_lines(text), encoding="utf-8")
+        try:
+            proc = subprocess.run(cmd + [str(tagged)], capture_output=True, text=True, cwd=cwd,
+                                  timeout=timeout, errors="replace", stdin=subprocess.DEVNULL)
+        except subprocess.TimeoutExpired:
+            raise InputError(f"{path}: rs274 did not finish within {timeout:g} s (an endless loop?)") from None
+    if proc.returncode != 0:
+        raise _rejected(path, proc.stderr, lines)
+    return parse_canon(proc.stdout, path, lines)
+
+
+def parse_canon(stdout: str, path, lines=()) -> Program:
+    """The straight moves of rs274's canonical output (see interpret), in machine axis positions."""
+    path = Path(path)
+    prog = Program(path)
+    scale = 1.0                                   # mm per program length unit
+    g92 = [0.0] * 6
+    g5x = [0.0] * 6
+    tool = [0.0] * 6
+    rot = 0.0                                     # XY rotation, degrees
+
+    def conv(vals):                               # program units -> mm for X Y Z; degrees stay
+        return [v * scale if i < 3 else v for i, v in enumerate(vals)]
+
+    for raw in stdout.splitlines():
+        m = _LINE.match(raw)
+        if not m:
+            continue
+        nfield, name, args = m.groups()
+        line = int(nfield) if nfield.isdigit() else 0
+        where = f"{path}: line {line}" if line else str(path)
+        if name == "USE_LENGTH_UNITS":
+            if "INCHES" in args:
+                scale, unit = MM_PER_INCH, "inch"
+            elif "CM" in args:
+                scale, unit = 10.0, "cm"
+            else:
+                scale, unit = 1.0, "mm"
+            if line and unit not in prog.units:          # line 0: the interpreter's own start-up
+                prog.units.append(unit)
+        elif name == "SET_G5X_OFFSET":
+            g5x = conv(_numbers(args, where)[1:7])
+        elif name == "SET_G92_OFFSET":
+            g92 = conv(_numbers(args, where)[:6])
+        elif name == "SET_XY_ROTATION":
+            rot = _numbers(args, where)[0]
+        elif name == "USE_TOOL_LENGTH_OFFSET":
+            v = _numbers(args, where)          # x y z, a b c, u v w
+            tool = conv(v[:6])
+        elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
+            v = conv(_numbers(args, where)[:6])
+            x, y = v[0] + g92[0], v[1] + g92[1]
+            t = math.radians(rot)
+            x, y = x * math.cos(t) - y * math.sin(t), x * math.sin(t) + y * math.cos(t)
+            pos = [x, y] + [v[i] + g92[i] for i in range(2, 6)]
+            pos = [p + g5x[i] + tool[i] for i, p in enumerate(pos)]
+            prog.moves.append(Move("traverse" if name == "STRAIGHT_TRAVERSE" else "feed", line,
+                                   dict(zip(AXES, pos))))
+        elif name in _OTHER_MOTION:
+            text = f" ({_clip(lines[line - 1].strip())})" if line and line <= len(lines) else ""
+            raise InputError(f"{where}: {_OTHER_MOTION[name]} is not sampled; only straight moves G0/G1 "
+                             f"are{text}")
+    return prog
