@@ -80,6 +80,8 @@ def register_simulate(p):
     p.add_argument("--setup-kind", default=None, choices=SETUP_KINDS,
                    help="kind of the plan's setups (default: the instrument's; test-part: planar)")
     p.add_argument("--n", type=int, default=1500, help="number of poses (default 1500)")
+    p.add_argument("--max-poses", type=int, default=10_000_000,
+                   help="refuse --n above this (default 10^7: minutes and gigabytes); raise it if you mean it")
     p.add_argument("--noise", type=float, default=1e-3, help="measurement noise, mm (default 0.001)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--tool-lengths", default=None, metavar="MIN,MAX",
@@ -204,8 +206,10 @@ def run_simulate(args) -> int:
             raise InputError(f"{opt}: expected a finite number >= 0, got {v}")
     if args.seed < 0:
         raise InputError(f"--seed: expected a number >= 0, got {args.seed}")
-    if args.n < 1 or args.n > MAX_SIMULATED:
-        raise InputError(f"--n: expected 1 to {MAX_SIMULATED} poses, got {args.n}")
+    if args.n < 1:
+        raise InputError(f"--n: expected a positive number of poses, got {args.n}")
+    from ..guards import check_size
+    check_size(args.n, "simulated poses (--n)", args.max_poses, "--max-poses {n}")
     if args.noise == 0 and args.with_sigma:
         raise InputError("--with-sigma with --noise 0: a standard deviation of 0 is not a measurement (give a noise)")
     plan = None
@@ -235,10 +239,6 @@ def run_simulate(args) -> int:
           f"hidden effects: {hidden}, {len(meas.setups)} setup(s), seed {args.seed}", file=sys.stderr)
     print(f"fiveaxis: wrote {truth_path}: the true values", file=sys.stderr)
     return 0
-
-
-#: simulate --n above this is refused (it would take minutes and gigabytes).
-MAX_SIMULATED = 10_000_000
 
 
 def _plan_from_file(args, model, lengths):
