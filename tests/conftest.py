@@ -21,3 +21,21 @@ def poses_and_lengths(machine, n, seed=0):
 @pytest.fixture(scope="session")
 def li2018():
     return load_machine("li2018")
+
+
+def pytest_addoption(parser):
+    parser.addoption("--linuxcnc", action="store_true",
+                     help="run the tests against the real LinuxCNC (make test-linuxcnc)")
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "linuxcnc: runs the real LinuxCNC (only with --linuxcnc: make test-linuxcnc)")
+
+
+def pytest_collection_modifyitems(config, items):
+    if config.getoption("--linuxcnc"):
+        return
+    skip = pytest.mark.skip(reason="runs the real LinuxCNC: make test-linuxcnc")
+    for item in items:
+        if "linuxcnc" in item.keywords:
+            item.add_marker(skip)

@@ -22,6 +22,8 @@ COMMANDS = {
     "diagnose": ("fiveaxis.commands.measure", "where the fitted model fails and which effect is missing, ranked"),
     "simulate": ("fiveaxis.commands.measure", "simulated measurements from the exact model with hidden effects"),
     "model": ("fiveaxis.commands.measure", "model add EFFECT: write effects into a copy of a machine file"),
+    "compensate": ("fiveaxis.commands.compensate", "compensation table, LinuxCNC files and predicted error from a "
+                                                   "fitted model"),
     "dask": ("fiveaxis.commands.dask", "GSIL of a workspace grid on Dask: local worker processes or --scheduler"),
 }
 

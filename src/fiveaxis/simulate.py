@@ -54,9 +54,11 @@ def parse_effect(spec: str, model):
 
 def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 0, tool_lengths=None,
              duration: float | None = 3600.0, with_sigma: bool = False, base_scale: float = 1.0,
-             path="simulated") -> Simulation:
+             path="simulated", commands=None) -> Simulation:
     """A measurement set of n random poses. effects: specs (`ex_x:x1=2e-5`) or (effect, values) pairs.
 
+    commands: None, or a function of the poses (n, nvar; mm, rad) giving the positions the axes are actually sent
+    to (a compensation); the deviations are then those of the machine there from the nominal tool of the poses.
     tool_lengths: None (the machine's L0, no L column) or (min, max) mm for a random L per pose;
     duration: s over which the poses are measured in order (t column), None for no t column."""
     if n < 1:
@@ -77,8 +79,9 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
         t[-1] = duration          # the last pose ends the run: u = t / duration
     sd = np.array([BASE_ANGULAR_RAD if machine.is_angular(e) else BASE_LINEAR_MM for e in model.errors])
     base = rng.normal(0.0, 1.0, len(sd)) * sd * base_scale
+    at = poses if commands is None else commands(poses)    # where the axes go
     sc = fx.scales(machine, t)
-    u = fx.scaled_values(sc, poses, model.variables, t)
+    u = fx.scaled_values(sc, at, model.variables, t)
     E = np.tile(base, (n, 1))
     dL = np.zeros(n)
     truth = {}
@@ -89,12 +92,14 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
             dE, dl = fx.per_pose([eff], vals, u, model.errors, n)
             truth[eff.id] = float(vals[0])
         else:
-            dE, dl = eff.per_pose_raw(model, poses, t, L, vals)
+            dE, dl = eff.per_pose_raw(model, at, t, L, vals)
             truth[eff.name] = [float(x) for x in vals]
         E += dE
         dL += dl
-    P = model.position_error(poses, np.ascontiguousarray(E), L + dL, exact=True)
-    _, V = model.ideal_tool(poses, L)
+    P = model.position_error(at, np.ascontiguousarray(E), L + dL, exact=True)
+    P_at, V = model.ideal_tool(at, L)
+    if commands is not None:
+        P = P + P_at - model.ideal_tool(poses, L)[0]
     d = P + V * dL[:, None] + rng.normal(0.0, 1.0, (n, 3)) * noise
     sigma = np.full(n, noise) if with_sigma else None
     meas = Measurements(path, tuple(model.variables), poses, L, d, t, sigma, None, tool_lengths is not None, [])

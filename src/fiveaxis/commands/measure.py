@@ -29,6 +29,9 @@ def register_fit(p):
                    help="add an effect to the model, e.g. ex_x:x1 (repeatable)")
     p.add_argument("--first-order", action="store_true", help="skip the refinement on the exact model")
     p.add_argument("--json", action="store_true", help="print JSON instead of the report")
+    p.add_argument("-o", "--output", type=Path, default=None, metavar="MODEL.json",
+                   help="write the fitted model (for compensate, gsa --errors)")
+    p.add_argument("--force", action="store_true", help="replace the model file if it exists")
     p.set_defaults(func=run_fit)
 
 
@@ -58,6 +61,8 @@ def register_simulate(p):
     p.add_argument("--with-sigma", action="store_true", help="write a sigma column (the noise level)")
     p.add_argument("-o", "--output", type=Path, required=True, help="output file, .csv or .parquet")
     p.add_argument("--force", action="store_true", help="replace the output file if it exists")
+    p.add_argument("--compensation", type=Path, default=None, metavar="DIR",
+                   help="apply the compensation table of `fiveaxis compensate -o DIR` to the commands")
     p.set_defaults(func=run_simulate)
 
 
@@ -103,7 +108,13 @@ def _dump(obj):
 def run_fit(args) -> int:
     from .. import fit as F
     model, meas, effects = _load(args)
+    if args.output is not None and args.output.exists() and not args.force:
+        raise InputError(f"{args.output}: exists; not overwriting it (use --force to replace it)")
     res = F.fit(model, meas, effects, refine=not args.first_order)
+    if args.output is not None:
+        from ..model_file import from_fit, save
+        save(from_fit(res), args.output, force=args.force)
+        print(f"fiveaxis: wrote {args.output}", file=sys.stderr)
     if args.json:
         _dump(F.to_json(res))
     else:
@@ -146,12 +157,18 @@ def run_simulate(args) -> int:
         lengths = (lo, hi)
     if args.duration <= 0:
         raise InputError(f"--duration: expected a positive time in s, got {args.duration}")
+    commands, comp = None, ""
+    if args.compensation is not None:
+        from ..compensation import command_function
+        commands = command_function(args.compensation, model)
+        comp = f", compensated by {args.compensation}"
     sim = simulate(model, args.effect, n=args.n, noise=args.noise, seed=args.seed, tool_lengths=lengths,
-                   duration=None if args.no_time else args.duration, with_sigma=args.with_sigma)
+                   duration=None if args.no_time else args.duration, with_sigma=args.with_sigma, commands=commands)
     path = write(to_frame(sim, model), args.output, force=args.force)
     hidden = ", ".join(f"{k}={v}" for k, v in sim.effects.items()) or "none"
-    print(f"fiveaxis: wrote {path}: {args.n} poses, noise {args.noise} mm, hidden effects: {hidden}, seed {args.seed}",
-          file=sys.stderr)
+    rms = float((sim.meas.d ** 2).sum(axis=1).mean() ** 0.5)
+    print(f"fiveaxis: wrote {path}: {args.n} poses, noise {args.noise} mm, hidden effects: {hidden}, seed {args.seed}"
+          f"{comp}; measured tool-tip deviation RMS {rms * 1000:.4g} um", file=sys.stderr)
     return 0
 
 

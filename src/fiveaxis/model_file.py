@@ -1,0 +1,369 @@
+"""A fitted model as a record and a file: what a fit identified, for every consumer after the fit.
+
+`FittedModel` holds the machine it belongs to (name, machine file and its SHA-256, convention), the FULL vector of
+geometric error values by name (mm, rad), the added effects with their coefficients and what is needed to evaluate
+them at any pose (the scaling of each effect variable), standard uncertainties, and what the data did not determine.
+
+Policy for parameters the data does not determine alone (they sit in the null space of the fit's design): they carry
+the minimum-norm solution of the fit (least squares with unit-norm design columns: of all parameter vectors that
+explain the data equally well, the shortest), and they are listed by name under `undetermined`. Their individual
+values mean nothing; the tool-tip errors they predict at the measured tool lengths do (those depend only on the
+combinations the data determines, listed under `combinations`).
+
+The file is JSON, mm and rad, with the unit in every key that holds a number:
+    {"format": "fiveaxis fitted model", "version": 1,
+     "machine": {"name", "file", "sha256"}, "convention",
+     "errors_mm_rad": {name: value, ... all errors},  "error_units": {name: "mm" | "rad"},
+     "std_mm_rad": {name: standard uncertainty, ... determined parameters only},
+     "undetermined": [names], "policy": "...", "combinations": [{"formula", "terms", "value_mm_rad", "std_mm_rad"}],
+     "effects": [{"id", "kind", "param", "variable", "degree", "coefficients_mm_rad": {name: value},
+                  "std_mm_rad": {name: value}}],
+     "scales": {token: {"variable", "centre_<unit>", "half_range_<unit>"}},
+     "fit": {"n_poses", "rms_mm", "noise_mm", "rank", "n_parameters", "measured_tool_lengths_mm": [min, max]}}
+`errors_mm_rad` is also what `gsa --errors model.json` reads.
+
+Effects. A polynomial effect `<param>:<var><deg>` adds c * u^deg to param, u = (var - centre) / half_range (model
+units: mm, rad, s); its coefficient c is the change of param at u = 1 (mm or rad). A reversal effect `<param>:<var>r`
+adds c * s, s = +1 when the axis `var` approached its position moving in +, -1 moving in - (provisional: the
+direction-column issue defines it; with no directions given it contributes its mean over both directions, 0). A
+custom effect of the machine file adds its expression with parameters p_k. Time effects are evaluated at the times
+given; without times, at t = 0 (the start of the measurement run: u_t = 0).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import effects as fx
+from .errors import InputError
+from .outputs import write_text
+
+FORMAT = "fiveaxis fitted model"
+VERSION = 1
+POLICY = ("parameters not determined alone by the data carry the minimum-norm solution of the fit (least squares "
+          "with unit-norm design columns) and are listed under 'undetermined'; only the combinations the data "
+          "determines (and the tool-tip errors at the measured tool lengths) are meaningful for them")
+REVERSAL_RE = re.compile(r"^(?P<param>[A-Za-z_][A-Za-z0-9_]*):(?P<var>[A-Za-z][A-Za-z0-9]*?)r$")
+KINDS = ("polynomial", "reversal", "custom")
+_SCALE_UNIT = {"mm": "mm", "deg": "rad", "s": "s"}     # Scale.unit (interface) -> model unit of centre/half
+
+
+@dataclass(frozen=True)
+class EffectRecord:
+    """One added effect and its fitted coefficients (see the module docstring for the three kinds)."""
+    id: str
+    kind: str                       # polynomial | reversal | custom
+    param: str                      # error name, or L (tool length)
+    var: str | None                 # effect variable token (x, A, t), None for custom effects
+    deg: int | None                 # polynomial degree, None otherwise
+    names: tuple[str, ...]          # coefficient names (the fit's parameter names)
+    values: tuple[float, ...]       # coefficients, mm or rad (polynomial/reversal: at u = 1 or s = 1)
+    std: tuple[float | None, ...] = ()   # standard uncertainties (None where not determined alone)
+
+
+@dataclass
+class FittedModel:
+    """What a fit identified, in mm and rad; see the module docstring."""
+    machine: str                    # machine name
+    machine_file: str               # path of the machine file the fit used
+    machine_sha256: str             # its SHA-256: a model file belongs to one machine file
+    convention: str
+    errors: dict                    # every error name -> value (mm, rad), in the model's order
+    error_units: dict               # name -> "mm" | "rad"
+    undetermined: tuple = ()        # parameter names (errors and effect coefficients) not determined alone
+    std: dict = field(default_factory=dict)            # determined parameter -> standard uncertainty (mm, rad)
+    effects: tuple = ()             # EffectRecord
+    scales: dict = field(default_factory=dict)         # token -> effects.Scale (model units)
+    combinations: tuple = ()        # {"formula", "terms", "value_mm_rad", "std_mm_rad"}
+    fit: dict = field(default_factory=dict)            # n_poses, rms_mm, noise_mm, rank, ...
+    policy: str = POLICY
+
+    @property
+    def effect_ids(self) -> tuple[str, ...]:
+        return tuple(e.id for e in self.effects)
+
+    @property
+    def has_reversal(self) -> bool:
+        return any(e.kind == "reversal" for e in self.effects)
+
+    def reversal_variables(self) -> set:
+        """Effect variable tokens (x, A) that have a reversal effect."""
+        return {e.var for e in self.effects if e.kind == "reversal"}
+
+
+# -- from a fit --------------------------------------------------------------------------------------------------
+def sha256(path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _finite(x) -> float | None:
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def from_fit(res) -> FittedModel:
+    """The FittedModel of a fit.FitResult (theta: minimum-norm along undetermined directions, names, problem.effects,
+    problem.scales, idf.determined, std())."""
+    prob = res.problem
+    model = prob.model
+    machine = model.machine
+    ne = prob.n_errors
+    theta = np.asarray(res.theta, dtype=float)
+    std = res.std()
+    determined = np.asarray(res.idf.determined, bool) & (np.asarray(res.idf.norms) > 0)
+    names = list(prob.names)
+    errors = {n: float(theta[i]) for i, n in enumerate(names[:ne])}
+    units = {n: ("rad" if machine.is_angular(n) else "mm") for n in names[:ne]}
+    effects = []
+    k = ne
+    for eff in prob.effects:
+        cnames = tuple(eff.names)
+        idx = range(k, k + len(cnames))
+        vals = tuple(float(theta[i]) for i in idx)
+        sd = tuple(_finite(std[i]) if determined[i] else None for i in idx)
+        if isinstance(eff, fx.Effect):
+            effects.append(EffectRecord(eff.id, "polynomial", eff.param, eff.var, eff.deg, cnames, vals, sd))
+        elif getattr(eff, "kind", None) == "reversal":           # the direction-column issue's effects
+            effects.append(EffectRecord(eff.id, "reversal", eff.param, eff.var, None, cnames, vals, sd))
+        else:
+            effects.append(EffectRecord(eff.id, "custom", eff.error, None, None, cnames, vals, sd))
+        k += len(cnames)
+    combos = tuple({"formula": c.formula, "terms": dict(c.terms), "value_mm_rad": float(c.value),
+                    "std_mm_rad": float(c.std)} for c in res.combinations)
+    meas = prob.meas
+    fit = {"n_poses": int(meas.n), "rms_mm": float(res.rms_mm), "rank": int(res.idf.rank),
+           "n_parameters": int(res.idf.n_params),
+           "noise_mm": float(math.sqrt(res.sigma2)) if not res.known_sigma else None,
+           "measured_tool_lengths_mm": [float(np.min(meas.L)), float(np.max(meas.L))],
+           "file": str(meas.path)}
+    if res.known_sigma:
+        fit.pop("noise_mm")
+    return FittedModel(machine.name, str(Path(machine.path).resolve()), sha256(machine.path), model.convention,
+                       errors, units,
+                       tuple(n for i, n in enumerate(names) if not determined[i]),
+                       {n: float(std[i]) for i, n in enumerate(names) if determined[i] and math.isfinite(std[i])},
+                       tuple(effects), dict(prob.scales), combos, fit)
+
+
+# -- checks against a loaded model -------------------------------------------------------------------------------
+def check_model(fm: FittedModel, model, where: str = "model file") -> None:
+    """InputError unless fm was fitted for this machine file (same name and SHA-256) and convention."""
+    machine = model.machine
+    sha = sha256(machine.path)
+    if fm.machine != machine.name or fm.machine_sha256 != sha:
+        raise InputError(f"{where}: fitted for machine '{fm.machine}' ({fm.machine_file}, sha256 "
+                         f"{fm.machine_sha256[:12]}...), not for '{machine.name}' ({machine.path}, sha256 "
+                         f"{sha[:12]}...)")
+    if fm.convention != model.convention:
+        raise InputError(f"{where}: fitted under convention '{fm.convention}', the model loaded uses "
+                         f"'{model.convention}'")
+    if set(fm.errors) != set(model.errors):
+        raise InputError(f"{where}: errors_mm_rad: the error names differ from the model's")
+
+
+def load_model(fm: FittedModel, where: str = "model file"):
+    """The kernels of the machine file the model was fitted for (checked against its SHA-256): machine.file, or a
+    shipped machine of the same name (a model file moved to another checkout)."""
+    from .kernels import load
+    from .machine import MACHINES_DIR
+    path = Path(fm.machine_file)
+    if not path.exists():
+        shipped = MACHINES_DIR / f"{fm.machine}.toml"
+        if not shipped.exists():
+            raise InputError(f"{where}: machine.file: {path} not found (the model was fitted for that machine "
+                             f"file; give it with --machine)")
+        path = shipped
+    model = load(str(path), fm.convention)
+    check_model(fm, model, where)
+    return model
+
+
+def base_vector(fm: FittedModel, model) -> np.ndarray:
+    """The error values (n_errors,) in the model's order, mm and rad."""
+    return np.array([fm.errors[n] for n in model.errors], dtype=float)
+
+
+def sensitivity_errors(fm: FittedModel) -> dict:
+    """Error values by name (mm, rad) for the sensitivity commands (`gsa --errors model.json`)."""
+    return dict(fm.errors)
+
+
+# -- evaluation at poses -----------------------------------------------------------------------------------------
+def _directions(dirs, model, n):
+    """Approach direction (+1/-1) per pose for each effect variable token; None -> {}."""
+    if dirs is None:
+        return {}
+    if isinstance(dirs, dict):
+        return {k: np.broadcast_to(np.asarray(v, dtype=float), (n,)) for k, v in dirs.items()}
+    arr = np.asarray(dirs, dtype=float)
+    arr = np.broadcast_to(arr, (n, len(model.variables))) if arr.ndim <= 1 else arr
+    return {fx.var_token(model.machine, v): arr[:, i] for i, v in enumerate(model.variables)}
+
+
+def errors_at(fm: FittedModel, model, poses, t=None, dirs=None, L=None):
+    """Error values per pose E (n, n_errors; mm, rad) and tool-length change dL (n,; mm) of the fitted model.
+
+    poses (n, nvar) in mm and rad (the positions the axes are at), t (n,) s or None (time effects at t = 0),
+    dirs: approach directions for reversal effects, +1/-1: a dict token -> (n,) or scalar, an (n, nvar) array in
+    the model's variable order, or None (reversal effects contribute their mean, 0). L: tool lengths for custom
+    effects (None: the machine's L0)."""
+    poses = model.poses(poses)
+    n = len(poses)
+    E = np.tile(base_vector(fm, model), (n, 1))
+    dL = np.zeros(n)
+    u = fx.scaled_values(fm.scales, poses, model.variables, t)
+    if t is None:
+        u.pop(fx.TIME, None)
+    s = _directions(dirs, model, n)
+    index = {e: i for i, e in enumerate(model.errors)}
+    for rec in fm.effects:
+        if rec.kind == "polynomial":
+            if rec.var not in u:
+                if rec.var == fx.TIME:
+                    continue                  # no times: the state at t = 0, u_t = 0
+                raise InputError(f"effect {rec.id}: no variable '{rec.var}' in this model")
+            dE, dl = fx.per_pose([fx.Effect(rec.id, rec.param, rec.var, rec.deg)], rec.values, u, model.errors, n)
+        elif rec.kind == "reversal":
+            if rec.var not in s:
+                continue                      # no directions: the mean of both, 0
+            term = rec.values[0] * np.sign(s[rec.var])
+            dE, dl = np.zeros((n, len(model.errors))), np.zeros(n)
+            if rec.param == fx.TOOL:
+                dl = term
+            else:
+                dE[:, index[rec.param]] = term
+        else:
+            from .custom_effects import load_custom
+            eff = load_custom(model.machine, rec.id)
+            dE, dl = eff.per_pose_raw(model, poses, t, model.tool_lengths(L, n), np.asarray(rec.values))
+        E += dE
+        dL += dl
+    return E, dL
+
+
+# -- file ----------------------------------------------------------------------------------------------------------
+def _clean(x):
+    """JSON-safe: a non-finite float would be NaN/inf in the file; refuse instead of writing it."""
+    if isinstance(x, float) and not math.isfinite(x):
+        raise ValueError("non-finite number in a fitted model")
+    if isinstance(x, dict):
+        return {k: _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    return x
+
+
+def to_json(fm: FittedModel) -> dict:
+    scales = {}
+    for tok, sc in fm.scales.items():
+        unit = _SCALE_UNIT[sc.unit]
+        scales[tok] = {"variable": sc.column if sc.column is not None else "t",
+                       f"centre_{unit}": float(sc.centre), f"half_range_{unit}": float(sc.half)}
+    effects = []
+    for e in fm.effects:
+        rec = {"id": e.id, "kind": e.kind, "param": e.param}
+        if e.var is not None:
+            rec["variable"] = e.var
+        if e.deg is not None:
+            rec["degree"] = e.deg
+        rec["coefficients_mm_rad"] = dict(zip(e.names, e.values))
+        sd = {n: v for n, v in zip(e.names, e.std) if v is not None}
+        if sd:
+            rec["std_mm_rad"] = sd
+        effects.append(rec)
+    out = {"format": FORMAT, "version": VERSION,
+           "machine": {"name": fm.machine, "file": fm.machine_file, "sha256": fm.machine_sha256},
+           "convention": fm.convention,
+           "errors_mm_rad": dict(fm.errors), "error_units": dict(fm.error_units),
+           "std_mm_rad": dict(fm.std), "undetermined": list(fm.undetermined), "policy": fm.policy,
+           "combinations": [dict(c) for c in fm.combinations],
+           "effects": effects, "scales": scales, "fit": {k: v for k, v in fm.fit.items() if v is not None}}
+    return _clean(out)
+
+
+def save(fm: FittedModel, path, force: bool = False) -> Path:
+    """Write the model file (JSON, mm and rad) atomically; an existing file only with force."""
+    return write_text(path, json.dumps(to_json(fm), indent=1) + "\n", force=force)
+
+
+def _get(d, key, kind, where):
+    if not isinstance(d, dict) or key not in d:
+        raise InputError(f"{where}: missing key '{key}'")
+    v = d[key]
+    ok = {"str": isinstance(v, str), "dict": isinstance(v, dict), "list": isinstance(v, list),
+          "num": isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)}[kind]
+    if not ok:
+        expected = {"str": "a string", "dict": "an object", "list": "a list", "num": "a finite number"}[kind]
+        raise InputError(f"{where}: key '{key}': expected {expected}, got {json.dumps(v)[:40]}")
+    return v
+
+
+def load(path) -> FittedModel:
+    """Read a model file written by `save`; InputError naming the key for anything malformed."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: model file not found")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(f"{path}: not a fitted-model JSON file ({str(exc).splitlines()[0]})") from None
+    w = str(path)
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise InputError(f"{w}: key 'format': expected \"{FORMAT}\" (write one with `fiveaxis fit ... -o`)")
+    if data.get("version") != VERSION:
+        raise InputError(f"{w}: key 'version': expected {VERSION}, got {json.dumps(data.get('version'))}")
+    mach = _get(data, "machine", "dict", w)
+    name, mfile, sha = (_get(mach, k, "str", f"{w}: machine") for k in ("name", "file", "sha256"))
+    conv = _get(data, "convention", "str", w)
+    errs = _get(data, "errors_mm_rad", "dict", w)
+    errors = {k: float(_get(errs, k, "num", f"{w}: errors_mm_rad")) for k in errs}
+    units = {k: str(v) for k, v in _get(data, "error_units", "dict", w).items()}
+    std = {k: float(_get(data["std_mm_rad"], k, "num", f"{w}: std_mm_rad"))
+           for k in _get(data, "std_mm_rad", "dict", w)}
+    undetermined = tuple(str(x) for x in _get(data, "undetermined", "list", w))
+    scales = {}
+    for tok, sc in _get(data, "scales", "dict", w).items():
+        where = f"{w}: scales.{tok}"
+        var = _get(sc, "variable", "str", where)
+        unit = next((u for u in ("mm", "rad", "s") if f"centre_{u}" in sc), None)
+        if unit is None:
+            raise InputError(f"{where}: missing key 'centre_mm', 'centre_rad' or 'centre_s'")
+        centre = float(_get(sc, f"centre_{unit}", "num", where))
+        half = float(_get(sc, f"half_range_{unit}", "num", where))
+        if half <= 0:
+            raise InputError(f"{where}: key 'half_range_{unit}': expected a positive number, got {half}")
+        iface, to_unit = {"mm": ("mm", 1.0), "rad": ("deg", 180.0 / math.pi), "s": ("s", 1.0)}[unit]
+        scales[tok] = fx.Scale(tok, None if var == "t" else var, centre, half, iface, to_unit)
+    effects = []
+    for i, e in enumerate(_get(data, "effects", "list", w)):
+        where = f"{w}: effects[{i}]"
+        ident = _get(e, "id", "str", where)
+        kind = _get(e, "kind", "str", where)
+        if kind not in KINDS:
+            raise InputError(f"{where}: key 'kind': expected one of {', '.join(KINDS)}, got {kind!r}")
+        coefs = _get(e, "coefficients_mm_rad", "dict", where)
+        names = tuple(coefs)
+        values = tuple(float(_get(coefs, n, "num", f"{where}: coefficients_mm_rad")) for n in names)
+        sd = e.get("std_mm_rad", {}) if isinstance(e.get("std_mm_rad", {}), dict) else {}
+        stds = tuple(float(sd[n]) if n in sd else None for n in names)
+        param = _get(e, "param", "str", where)
+        var = e.get("variable")
+        deg = e.get("degree")
+        if kind == "polynomial" and (not isinstance(var, str) or deg not in fx.DEGREES or var not in scales):
+            raise InputError(f"{where}: a polynomial effect needs 'variable' (one of {', '.join(scales)}) and "
+                             f"'degree' 1 to 3")
+        if kind == "reversal" and not isinstance(var, str):
+            raise InputError(f"{where}: a reversal effect needs 'variable'")
+        if kind != "custom" and len(values) != 1:
+            raise InputError(f"{where}: key 'coefficients_mm_rad': expected one coefficient, got {len(values)}")
+        effects.append(EffectRecord(ident, kind, param, var, deg, names, values, stds))
+    combos = tuple(c for c in data.get("combinations", []) if isinstance(c, dict))
+    fit = data.get("fit", {}) if isinstance(data.get("fit", {}), dict) else {}
+    return FittedModel(name, mfile, sha, conv, errors, units, undetermined, std, tuple(effects), scales, combos,
+                       fit, str(data.get("policy", POLICY)))
