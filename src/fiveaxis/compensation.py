@@ -161,10 +161,11 @@ def _solve_chunk(model, errors_fn, q, L, mu, max_iter) -> Corrections:
         Jm = np.stack([(R[1 + 2 * j] - R[2 + 2 * j]) / (2 * h[j]) for j in range(nv)], axis=-1)   # (m, k, nv)
         norms = np.linalg.norm(Jm, axis=1)
         norms[norms == 0] = 1.0
-        Jn = Jm / norms[:, None, :]
-        A = np.einsum("mki,mkj->mij", Jn, Jn)
-        b = -np.einsum("mki,mk->mi", Jn, r0)
-        step = np.linalg.solve(A, b[..., None])[..., 0] / norms
+        # least-squares step through the SVD of the (column-scaled) Jacobian; directions below 1e-13 of the
+        # largest singular value (damping 0 at an exactly singular pose) are left alone
+        U, S, Vt = np.linalg.svd(Jm / norms[:, None, :], full_matrices=False)
+        inv = np.where(S > 1e-13 * S[:, :1], 1.0 / np.where(S > 0, S, 1.0), 0.0)
+        step = -np.einsum("mji,mj->mi", Vt, inv * np.einsum("mkj,mk->mj", U, r0)) / norms
         c[active] = ca + step
         done = np.all(np.abs(step) <= tol, axis=1)
         active = active[~done]

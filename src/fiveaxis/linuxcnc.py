@@ -204,21 +204,23 @@ def trt_forward(params: TrtParameters, joints_xyz, q1_deg, c_deg, tool_offset) -
 
 
 # -- what LinuxCNC commands -------------------------------------------------------------------------------------
-def _joint_file_units(lc: LinuxCNCCompensation, q: np.ndarray) -> np.ndarray:
-    """Model-unit joint positions (mm, rad) -> machine units (mm, degrees)."""
+def _rotary_columns(lc: LinuxCNCCompensation, q: np.ndarray, convert) -> np.ndarray:
+    """A copy of joint positions (n, nvar) with `convert` (np.degrees or np.radians) applied to the rotary joints."""
     out = np.array(q, dtype=float, copy=True)
     for j, rot in enumerate(lc.rotary):
         if rot:
-            out[:, j] = np.degrees(out[:, j])
+            out[:, j] = convert(out[:, j])
     return out
+
+
+def _joint_file_units(lc: LinuxCNCCompensation, q: np.ndarray) -> np.ndarray:
+    """Model-unit joint positions (mm, rad) -> machine units (mm, degrees)."""
+    return _rotary_columns(lc, q, np.degrees)
 
 
 def _joint_model_units(lc: LinuxCNCCompensation, q: np.ndarray) -> np.ndarray:
-    out = np.array(q, dtype=float, copy=True)
-    for j, rot in enumerate(lc.rotary):
-        if rot:
-            out[:, j] = np.radians(out[:, j])
-    return out
+    """Machine units (mm, degrees) -> model units (mm, rad)."""
+    return _rotary_columns(lc, q, np.radians)
 
 
 def kinematics_joints(lc: LinuxCNCCompensation, model, poses, L=None) -> np.ndarray:

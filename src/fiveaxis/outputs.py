@@ -19,16 +19,16 @@ def refuse_existing(path, force: bool) -> None:
         raise InputError(f"{path}: exists; not overwriting it (use --force to replace it)")
 
 
-def write_text(path, text: str, force: bool = False) -> Path:
-    """Write text (UTF-8) to path atomically; an existing file is replaced only if force is True."""
+def atomic(path, write, force: bool = False) -> Path:
+    """Write path through write(temporary_path) and a rename; an existing file is replaced only if force is True."""
     path = Path(path)
     refuse_existing(path, force)
     if not path.parent.is_dir():
         raise InputError(f"{path.parent}: output folder not found")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=str(path.parent))
+    os.close(fd)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(text)
+        write(tmp)
         os.chmod(tmp, file_mode())
         os.replace(tmp, path)
     except BaseException:
@@ -36,3 +36,11 @@ def write_text(path, text: str, force: bool = False) -> Path:
             os.unlink(tmp)
         raise
     return path
+
+
+def write_text(path, text: str, force: bool = False) -> Path:
+    """Write text (UTF-8) to path atomically; an existing file is replaced only if force is True."""
+    def put(tmp):
+        with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+    return atomic(path, put, force)
