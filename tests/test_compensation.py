@@ -399,3 +399,22 @@ def test_comp_files_are_what_linuxcnc_reads(ac):
     assert f[1] == pytest.approx(0.75 * comp.forward[3] + 0.25 * comp.forward[4], abs=1e-15)
     with pytest.raises(InputError, match="2 to 256"):
         LX.fit(lambda *a: None, ac, points=257)
+
+
+def test_custom_effect_in_the_model_file(tmp_path):
+    """A custom effect of the machine file (the lead-screw of test_cli_measure) is saved by name with its
+    parameters and evaluated again from the machine file."""
+    from test_cli_measure import LEADSCREW
+    from fiveaxis.machine import MACHINES_DIR
+    path = tmp_path / "screw.toml"
+    path.write_text((MACHINES_DIR / "li2018.toml").read_text() + LEADSCREW)
+    model = load(str(path))
+    sim = simulate(model, ["leadscrew=0.004,0.002"], n=300, noise=2e-4, seed=1)
+    res = F.fit(model, sim.meas, F.resolve_effects(model, ["leadscrew"]))
+    MF.save(MF.from_fit(res), tmp_path / "m.json")
+    fm = MF.load(tmp_path / "m.json")
+    (rec,) = fm.effects
+    assert rec.kind == "custom" and rec.id == "leadscrew" and rec.param == "dx_x"
+    assert np.allclose(rec.values, [0.004, 0.002], atol=1e-4)
+    d, _ = _tip_errors(MF.load_model(fm), fm, sim.meas.poses, sim.meas.poses)
+    assert np.max(np.abs(d.ravel() - res.problem.predict(res.theta))) < 1e-12

@@ -327,7 +327,8 @@ def stats(e: np.ndarray) -> dict:
     return {"max": float(np.max(v)), "rms": float(np.sqrt(np.mean(v ** 2))), "p95": float(np.percentile(v, 95))}
 
 
-def account(model, errors_fn, table: Table | None, lc=None, n: int = ACCOUNT_POSES, seed: int = 0, L=None) -> dict:
+def account(model, errors_fn, table: Table | None, lc=None, n: int = ACCOUNT_POSES, seed: int = 0, L=None,
+            damping: float = DAMPING) -> dict:
     """Predicted tool-tip error (mm) over n random poses within the strokes: before, after LinuxCNC (lc: a
     linuxcnc.LinuxCNCCompensation), after the volumetric table, and after the exact correction. Approach
     directions are random (+1/-1 per joint and pose) for the errors that depend on them. Also the tool-axis
@@ -353,7 +354,7 @@ def account(model, errors_fn, table: Table | None, lc=None, n: int = ACCOUNT_POS
         Pt, Vt = at(compensated_commands(table, q))
         out["tip_error_mm"]["after_table"] = stats(Pt - P0)
         out["axis_error_rad"]["after_table"] = stats(Vt - V0)
-    ex = solve(model, errors_fn, q, L)        # direction-independent, as the table
+    ex = solve(model, errors_fn, q, L, damping)        # direction-independent, as the table
     Pe, Ve = at(q + ex.c)
     out["tip_error_mm"]["after_exact_correction"] = stats(Pe - P0)
     out["axis_error_rad"]["after_exact_correction"] = stats(Ve - V0)
@@ -394,7 +395,7 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     table, nodes = build_table(model, errors_fn, counts, max_nodes, None, damping)
     reversal = [v for v in model.variables if _token(model, v) in fm.reversal_variables()]
     lc = lx.fit(tip_error_function(model, errors_fn), model, comp_points or lx.COMP_POINTS, reversal=reversal)
-    acc = account(model, errors_fn, table, lc, poses, seed)
+    acc = account(model, errors_fn, table, lc, poses, seed, damping=damping)
     return Compensation(fm, model, table, nodes, lc, acc, float(damping), float(model.machine.tool_length))
 
 

@@ -96,6 +96,15 @@ class FittedModel:
         """Effect variable tokens (x, A) that have a reversal effect."""
         return {e.var for e in self.effects if e.kind == "reversal"}
 
+    def save(self, path, force: bool = False) -> Path:
+        """Write the model file (see the module function `save`)."""
+        return save(self, path, force)
+
+    @classmethod
+    def load(cls, path) -> "FittedModel":
+        """Read a model file (see the module function `load`)."""
+        return load(path)
+
 
 # -- from a fit --------------------------------------------------------------------------------------------------
 def sha256(path) -> str:
