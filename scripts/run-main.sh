@@ -47,21 +47,21 @@ say "The error fell: residual RMS $TRAIL against noise $NOISE um; effects found:
 # From the identified model to the controller, and the error falls on the (simulated) machine: an A/C trunnion with
 # hidden errors and two effects is measured, fitted, compensated (volumetric table + LinuxCNC files), and measured
 # again with the table applied to its commands (same seed: the same machine, poses and noise).
-OUT=${OUT:-out}/compensation
-mkdir -p "$OUT"
+CDIR=${FIVEAXIS_OUT:-out}/compensation   # (OUT is taken by the section above)
+mkdir -p "$CDIR"
 SIM=("$BIN/fiveaxis" simulate --machine ac_trunnion --effect dx_x:x2 --effect ex_x:x1 --n 1000 --noise 0.001 --seed 4)
-say "Measure a simulated A/C trunnion (hidden errors, effects dx_x:x2 and ex_x:x1, 1 um noise): $OUT/before.csv"
-"${SIM[@]}" -o "$OUT/before.csv" --force 2>&1 | tee "$OUT/before.log"
-say "Fit the model with those effects, save it: $OUT/model.json"
-FIT=$("$BIN/fiveaxis" fit "$OUT/before.csv" --machine ac_trunnion --add dx_x:x2 --add ex_x:x1 \
-      -o "$OUT/model.json" --force)
+say "Measure a simulated A/C trunnion (hidden errors, effects dx_x:x2 and ex_x:x1, 1 um noise): $CDIR/before.csv"
+"${SIM[@]}" -o "$CDIR/before.csv" --force 2>&1 | tee "$CDIR/before.log"
+say "Fit the model with those effects, save it: $CDIR/model.json"
+FIT=$("$BIN/fiveaxis" fit "$CDIR/before.csv" --machine ac_trunnion --add dx_x:x2 --add ex_x:x1 \
+      -o "$CDIR/model.json" --force)
 echo "$FIT" | sed '/Parameters determined/,$d'
 say "Compensate: the volumetric table, LinuxCNC's files, the predicted error (fiveaxis compensate)"
-"$BIN/fiveaxis" compensate "$OUT/model.json" -o "$OUT/comp" --force --plot
+"$BIN/fiveaxis" compensate "$CDIR/model.json" -o "$CDIR/comp" --force --plot
 say "Measure the same machine again with the table applied to its commands (simulate --compensation)"
-"${SIM[@]}" -o "$OUT/after.csv" --force --compensation "$OUT/comp" 2>&1 | tee "$OUT/after.log"
-BEFORE=$(sed -n 's/.*deviation RMS \([0-9.e+-]*\) um.*/\1/p' "$OUT/before.log")
+"${SIM[@]}" -o "$CDIR/after.csv" --force --compensation "$CDIR/comp" 2>&1 | tee "$CDIR/after.log"
+BEFORE=$(sed -n 's/.*deviation RMS \([0-9.e+-]*\) um.*/\1/p' "$CDIR/before.log")
 RESID=$(echo "$FIT" | sed -n 's/.*residual RMS: *\([0-9.e+-]*\) um.*/\1/p')
-AFTER=$(sed -n 's/.*deviation RMS \([0-9.e+-]*\) um.*/\1/p' "$OUT/after.log")
+AFTER=$(sed -n 's/.*deviation RMS \([0-9.e+-]*\) um.*/\1/p' "$CDIR/after.log")
 say "Measured tool-tip error RMS before: $BEFORE um; the model's residual: $RESID um; measured after compensation: $AFTER um (1 um noise per axis: sqrt(3) um of it is noise)"
 # --- end section: compensation
