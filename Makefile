@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 MACHINE ?= li2018
 
-.PHONY: install system-deps run test derive bench lint clean
+.PHONY: install system-deps run test test-linuxcnc derive bench lint clean
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -37,6 +37,12 @@ run: install system-deps
 test: install system-deps
 	$(BIN)/python -m pytest -q
 	$(BIN)/lint-imports
+
+## against the real LinuxCNC 2.9 (Debian linuxcnc-uspace, installed when missing; skipped with a one-line
+## message where the package manager is not available)
+test-linuxcnc: install
+	@scripts/linuxcnc-deps.sh; rc=$$?; if [ $$rc -eq 77 ]; then exit 0; elif [ $$rc -ne 0 ]; then exit $$rc; fi; \
+	$(BIN)/python -m pytest -q --linuxcnc tests/test_linuxcnc.py
 
 ## regenerate the kernels in generated/ from machines/ and print Table 2 (time is printed per machine)
 derive: install

@@ -65,3 +65,21 @@ def rs274():
         if r.returncode != 0 or not gcode.available():
             pytest.skip(f"rs274 missing: apt-get install linuxcnc-uspace failed ({r.stderr.strip()[-120:]})")
     return gcode.RS274
+
+
+def pytest_addoption(parser):
+    parser.addoption("--linuxcnc", action="store_true",
+                     help="run the tests against the real LinuxCNC (make test-linuxcnc)")
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "linuxcnc: runs the real LinuxCNC (only with --linuxcnc: make test-linuxcnc)")
+
+
+def pytest_collection_modifyitems(config, items):
+    if config.getoption("--linuxcnc"):
+        return
+    skip = pytest.mark.skip(reason="runs the real LinuxCNC: make test-linuxcnc")
+    for item in items:
+        if "linuxcnc" in item.keywords:
+            item.add_marker(skip)

@@ -26,6 +26,8 @@ COMMANDS = {
     "model": ("fiveaxis.commands.measure", "model add EFFECT: write effects into a copy of a machine file"),
     "report": ("fiveaxis.commands.report", "the calibration report of a measurement file: one HTML page (and PDF)"),
     "names": ("fiveaxis.commands.names", "the errors' project names beside their ISO 230 names, kind, unit, meaning"),
+    "compensate": ("fiveaxis.commands.compensate", "compensation table, LinuxCNC files and predicted error from a "
+                                                   "fitted model"),
     "dask": ("fiveaxis.commands.dask", "GSIL of a workspace grid on Dask: local worker processes or --scheduler"),
 }
 

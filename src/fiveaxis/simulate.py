@@ -109,7 +109,7 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
              path="simulated", instrument: str = "tip", with_axis: bool = False,
              noise_axis: float = NOISE_AXIS_RAD, plan: ins.Plan | None = None, setup_scale: float = 1.0,
              options: dict | None = None, errors: dict | None = None,
-             setup_kind: str | None = None, placements: dict | None = None) -> Simulation:
+             setup_kind: str | None = None, placements: dict | None = None, commands=None) -> Simulation:
     """A simulated measurement set. effects: specs (`ex_x:x1=2e-5`) or (effect, values) pairs.
 
     instrument: a plan of `fiveaxis.instruments` (n: about how many poses), or `plan` given; tool_lengths: None
@@ -117,7 +117,9 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
     poses are measured in order (t column), None for no t column; setup_scale: size of the random setup placements
     relative to SETUP_OFFSET_MM and SETUP_ROTATION_RAD; errors: {name: value} (mm, rad) set instead of drawn;
     setup_kind: the kind of every setup of the plan (point, rigid, planar) instead of the instrument's;
-    placements: {setup id: {"c_mm": [3], "l_mm": x, "w_rad": [3]}} set instead of drawn (any key may be left out)."""
+    placements: {setup id: {"c_mm": [3], "l_mm": x, "w_rad": [3]}} set instead of drawn (any key may be left out);
+    commands: None, or a function of the poses (n, nvar; mm, rad) giving the positions the axes are actually sent
+    to (a compensation); the readings are then those of the machine there against the nominal tool of the poses."""
     _check(n, noise, noise_axis, duration, tool_lengths)
     rng = np.random.default_rng(seed)
     machine = model.machine
@@ -139,7 +141,8 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
         if name not in model.errors:
             raise InputError(f"error '{name}': unknown error name (expected one of {', '.join(model.errors[:3])} ...)")
         base[list(model.errors).index(name)] = float(value)
-    ctx = fx.context(machine, plan.poses, t, plan.dirs)
+    at = plan.poses if commands is None else commands(plan.poses)    # where the axes go
+    ctx = fx.context(machine, at, t, plan.dirs)
     E = np.tile(base, (m, 1))
     dL = np.zeros(m)
     truth, coefficients = {}, {}
@@ -149,8 +152,12 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
         coefficients.update({nm: float(v) for nm, v in zip(eff.names, vals)})
         E += dE
         dL += dl
-    P, V = model.tool_errors(plan.poses, np.ascontiguousarray(E), plan.L + dL, exact=True)
+    P, V = model.tool_errors(at, np.ascontiguousarray(E), plan.L + dL, exact=True)
     tip0, V0 = model.ideal_tool(plan.poses, plan.L)
+    if commands is not None:                      # the machine sent elsewhere: against the nominal tool of the poses
+        tip_at, V_at = model.ideal_tool(at, plan.L)
+        P, V = P + tip_at - tip0, V + V_at - V0
+        V0 = V_at
     P = P + V0 * dL[:, None]
     nan3 = np.full((m, 3), np.nan)
     zero3 = np.zeros((m, 3))

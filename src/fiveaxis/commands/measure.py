@@ -8,6 +8,8 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import InputError
 from ..instruments import NAMES as INSTRUMENTS
 from ..measurements import FRAMES, SETUP_KINDS
@@ -45,6 +47,9 @@ def register_fit(p):
     _fit_options(p)
     p.add_argument("--first-order", action="store_true", help="skip the refinement on the exact model")
     p.add_argument("--json", action="store_true", help="print JSON instead of the report")
+    p.add_argument("-o", "--output", type=Path, default=None, metavar="MODEL.json",
+                   help="write the fitted model (for compensate, gsa --errors)")
+    p.add_argument("--force", action="store_true", help="replace the model file if it exists")
     p.set_defaults(func=run_fit)
 
 
@@ -91,6 +96,8 @@ def register_simulate(p):
     p.add_argument("--with-sigma", action="store_true", help="write a sigma column (the noise level)")
     p.add_argument("-o", "--output", type=Path, required=True, help="output file, .csv or .parquet")
     p.add_argument("--force", action="store_true", help="replace the output file if it exists")
+    p.add_argument("--compensation", type=Path, default=None, metavar="DIR",
+                   help="apply the compensation table of `fiveaxis compensate -o DIR` to the commands")
     p.set_defaults(func=run_simulate)
 
 
@@ -154,7 +161,13 @@ def _dump(obj):
 def run_fit(args) -> int:
     from .. import fit as F
     model, meas, effects, fixed = _load(args)
+    if args.output is not None and args.output.exists() and not args.force:
+        raise InputError(f"{args.output}: exists; not overwriting it (use --force to replace it)")
     res = F.fit(model, meas, effects, refine=not args.first_order, fixed=fixed)
+    if args.output is not None:
+        from ..model_file import from_fit, save
+        save(from_fit(res), args.output, force=args.force)
+        print(f"fiveaxis: wrote {args.output}", file=sys.stderr)
     if args.json:
         _dump(F.to_json(res))
     else:
@@ -212,6 +225,11 @@ def run_simulate(args) -> int:
     check_size(args.n, "simulated poses (--n)", args.max_poses, "--max-poses {n}")
     if args.noise == 0 and args.with_sigma:
         raise InputError("--with-sigma with --noise 0: a standard deviation of 0 is not a measurement (give a noise)")
+    commands, comp = None, ""
+    if args.compensation is not None:
+        from ..compensation import command_function
+        commands = command_function(args.compensation, model)
+        comp = f", compensated by {args.compensation}"
     plan = None
     if args.poses is not None:
         plan = _plan_from_file(args, model, lengths)
@@ -227,7 +245,7 @@ def run_simulate(args) -> int:
     sim = simulate(model, args.effect, n=args.n, noise=args.noise, seed=args.seed, tool_lengths=lengths,
                    duration=None if args.no_time else args.duration, with_sigma=args.with_sigma,
                    instrument=args.instrument, with_axis=args.with_axis, noise_axis=args.noise_axis, plan=plan,
-                   setup_scale=args.setup_scale, errors=errors, setup_kind=args.setup_kind)
+                   setup_scale=args.setup_scale, errors=errors, setup_kind=args.setup_kind, commands=commands)
     meas = sim.meas
     if args.frame and args.frame != meas.frame:
         meas = in_frame(meas, model.machine, args.frame)
@@ -235,8 +253,11 @@ def run_simulate(args) -> int:
     path = write(to_frame(sim, model), args.output, force=args.force)
     write_text(truth_path, json.dumps(sim.truth_json(model, args.seed), indent=1) + "\n", force=args.force)
     hidden = ", ".join(f"{k}={v}" for k, v in sim.effects.items()) or "none"
+    tip = meas.d[~np.isnan(meas.d).any(axis=1)]
+    rms = f"; measured tool-tip deviation RMS {float(np.sqrt((tip ** 2).sum(axis=1).mean())) * 1000:.4g} um" \
+        if len(tip) else ""
     print(f"fiveaxis: wrote {path}: {meas.n} poses ({sim.instrument}, {meas.frame} frame), noise {args.noise} mm, "
-          f"hidden effects: {hidden}, {len(meas.setups)} setup(s), seed {args.seed}", file=sys.stderr)
+          f"hidden effects: {hidden}, {len(meas.setups)} setup(s), seed {args.seed}{comp}{rms}", file=sys.stderr)
     print(f"fiveaxis: wrote {truth_path}: the true values", file=sys.stderr)
     return 0
 

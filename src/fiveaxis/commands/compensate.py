@@ -1,0 +1,94 @@
+"""`fiveaxis compensate MODEL -o DIR`: the volumetric compensation table, LinuxCNC's files, the predicted account.
+
+Degrees for rotary axes on the command line and in the files; mm otherwise.
+"""
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+from ..errors import InputError
+
+
+def register_compensate(p):
+    p.add_argument("model", type=Path, help="fitted model file (JSON, written by `fiveaxis fit ... -o`)")
+    p.add_argument("-o", "--output", type=Path, required=True, metavar="DIR",
+                   help="output folder (created if its parent exists): table.csv/.parquet, summary.json, linuxcnc/")
+    p.add_argument("--machine", default=None,
+                   help="machine name or file (default: the one the model was fitted for; must be that file)")
+    p.add_argument("--nodes", action="append", default=[], metavar="AXIS=COUNT",
+                   help="table nodes over an axis' stroke, e.g. X=9 or A=31 (repeatable; default: 5 per linear "
+                        "axis, one every 10 degrees on rotary axes)")
+    p.add_argument("--max-nodes", type=int, default=None, metavar="N",
+                   help="allow tables of up to N nodes (default limit 200000)")
+    p.add_argument("--damping", type=float, default=None,
+                   help="limit on rotary corrections where the rotary axes hardly turn the tool axis (default 0.2; "
+                        "0: exact tool axis everywhere, unbounded near singular poses)")
+    p.add_argument("--comp-points", type=int, default=None, metavar="N",
+                   help="points per LinuxCNC compensation file, 2 to 256 (default 33)")
+    p.add_argument("--poses", type=int, default=None, help="random poses for the predicted error (default 4000)")
+    p.add_argument("--seed", type=int, default=0, help="random seed of those poses (default 0)")
+    p.add_argument("--plot", action="store_true", help="also write error_map.png")
+    p.add_argument("--json", action="store_true", help="print summary.json instead of the report")
+    p.add_argument("--force", action="store_true", help="replace existing output files")
+    p.set_defaults(func=run_compensate)
+
+
+def _counts(specs) -> dict:
+    out = {}
+    for spec in specs:
+        for part in spec.split(","):
+            name, sep, raw = part.partition("=")
+            try:
+                if not sep:
+                    raise ValueError
+                count = float(raw)
+                if count != int(count):
+                    raise ValueError
+            except ValueError:
+                raise InputError(f"--nodes {spec!r}: expected AXIS=COUNT with an integer COUNT, e.g. X=9") from None
+            out[name.strip()] = int(count)
+    return out
+
+
+def run_compensate(args) -> int:
+    from .. import compensation as C
+    from .. import model_file as MF
+    from ..kernels import load
+    fm = MF.load(args.model)
+    model = load(args.machine, fm.convention) if args.machine else MF.load_model(fm, str(args.model))
+    MF.check_model(fm, model, str(args.model))
+    out = args.output
+    if not out.is_dir():
+        if not out.parent.is_dir():
+            raise InputError(f"-o {out}: output folder not found (nor its parent {out.parent})")
+        if out.exists():
+            raise InputError(f"-o {out}: exists and is not a folder")
+        out.mkdir()
+    counts = _counts(args.nodes)
+    limit = args.max_nodes if args.max_nodes is not None else C.MAX_NODES
+    if limit < 1:
+        raise InputError(f"--max-nodes: expected a positive number, got {limit}")
+    try:
+        size = math.prod(len(a) for a in C.table_nodes(model.machine, counts, None))
+    except InputError as exc:
+        raise InputError(f"--nodes: {exc}") from None
+    if size > limit:
+        raise InputError(f"--nodes: a table of {size} nodes is over the limit of {limit} nodes (ask for it with "
+                         f"--max-nodes {size})")
+    if args.comp_points is not None and not 2 <= args.comp_points <= 256:
+        raise InputError(f"--comp-points: expected 2 to 256 (LinuxCNC reads at most 256 lines), got "
+                         f"{args.comp_points}")
+    for p in C.outputs(out, args.plot):
+        if p.exists() and not args.force:
+            raise InputError(f"{p}: exists; not overwriting it (use --force to replace it)")
+    comp = C.compensate(fm, model, counts, limit, C.DAMPING if args.damping is None else args.damping,
+                        args.comp_points, args.poses if args.poses is not None else C.ACCOUNT_POSES, args.seed)
+    C.write(comp, out, force=args.force, plot=args.plot, model_path=str(args.model))
+    if args.json:
+        print(json.dumps(C.summary(comp, str(args.model)), indent=1))
+    else:
+        print(C.report(comp, str(out)))
+    return 0

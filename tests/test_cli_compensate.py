@@ -1,0 +1,150 @@
+"""End to end on the command line: simulate -> fit -o -> compensate -> simulate --compensation (the error falls on
+the simulated machine, not only in the model), the files compensate writes, and its bad input."""
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from fiveaxis.cli import main
+
+from conftest import run_cli
+
+CASES = {"ac_trunnion": ["dx_x:x2", "ex_x:x1"], "li2018": ["ex_x:x1", "dz_x:x2"]}
+
+
+
+
+def rms_mm(path) -> float:
+    d = pd.read_csv(path)[["dx", "dy", "dz"]].to_numpy()
+    return math.sqrt(np.mean(np.sum(d ** 2, axis=1)))
+
+
+@pytest.fixture(scope="module", params=list(CASES))
+def loop(request, tmp_path_factory):
+    machine = request.param
+    d = tmp_path_factory.mktemp(machine)
+    sim = ["simulate", "--machine", machine, "--n", "1000", "--seed", "4", "--noise", "0.001"]
+    for e in CASES[machine]:
+        sim += ["--effect", e]
+    assert main(sim + ["-o", str(d / "before.csv")]) == 0
+    fit = ["fit", str(d / "before.csv"), "--machine", machine, "-o", str(d / "model.json")]
+    for e in CASES[machine]:
+        fit += ["--add", e]
+    assert main(fit) == 0
+    assert main(["compensate", str(d / "model.json"), "-o", str(d / "comp"), "--poses", "1000"]) == 0
+    assert main(sim + ["--compensation", str(d / "comp"), "-o", str(d / "after.csv")]) == 0
+    noiseless = [a if a != "0.001" else "0" for a in sim]
+    assert main(noiseless + ["--compensation", str(d / "comp"), "-o", str(d / "after0.csv")]) == 0
+    return machine, d, sim
+
+
+def test_simulated_machine_error_falls_by_90_percent(loop, capsys):
+    """The same simulated machine (same seed: same hidden errors, poses and noise) measured with the table applied
+    to its commands: the RMS tool-tip deviation falls by at least 90 %. The rest is the noise (sqrt(3) um RMS for
+    1 um per component) and, noise-free, the table's interpolation and the fit's uncertainty."""
+    machine, d, _ = loop
+    before, after, after0 = rms_mm(d / "before.csv"), rms_mm(d / "after.csv"), rms_mm(d / "after0.csv")
+    summary = json.loads((d / "comp" / "summary.json").read_text())
+    table = summary["predicted_tip_error_mm"]["after_table"]["rms"]
+    print(f"{machine}: measured RMS before {1e3 * before:.3f} um, after {1e3 * after:.3f} um (noise-free "
+          f"{1e3 * after0:.3f} um; the table's own interpolation {1e3 * table:.3f} um)")
+    assert after < 0.1 * before
+    assert after0 < 0.05 * before
+    assert after > math.sqrt(3) * 0.001 * 0.9                  # the noise is still in the measurement
+
+
+def test_compensate_outputs(loop):
+    machine, d, _ = loop
+    comp = d / "comp"
+    for name in ("table.csv", "table.parquet", "summary.json", "README.txt", "linuxcnc/fiveaxis.ini"):
+        assert (comp / name).is_file(), name
+    table = pd.read_parquet(comp / "table.parquet")
+    variables = {"ac_trunnion": ["X", "Y", "Z", "A", "C"], "li2018": ["X", "Y", "Z", "A", "B"]}[machine]
+    assert list(table.columns) == variables + [f"c_{v}" for v in variables]
+    assert (pd.read_csv(comp / "table.csv").to_numpy() - table.to_numpy()).max() < 1e-6
+    s = json.loads((comp / "summary.json").read_text())
+    tip = s["predicted_tip_error_mm"]
+    for stage in ("before", "after_linuxcnc", "after_table", "after_exact_correction"):
+        assert set(tip[stage]) == {"max", "rms", "p95"}
+    assert tip["after_exact_correction"]["max"] < 1e-9
+    assert tip["after_table"]["rms"] < 0.05 * tip["before"]["rms"]
+    assert tip["after_table"]["rms"] <= tip["after_linuxcnc"]["rms"] <= tip["before"]["rms"]
+    assert s["machine"]["name"] == machine and s["table"]["size"] == len(table)
+
+    def numbers(x):
+        if isinstance(x, dict):
+            return [v for y in x.values() for v in numbers(y)]
+        if isinstance(x, list):
+            return [v for y in x for v in numbers(y)]
+        return [x] if isinstance(x, float) else []
+    assert all(math.isfinite(v) for v in numbers(s))
+    lc = comp / "linuxcnc"
+    comps = sorted(lc.glob("*.comp"))
+    assert len(comps) == 5
+    for f in comps:
+        rows = np.loadtxt(f)
+        assert rows.shape[1] == 3 and rows.shape[0] <= 256 and np.all(np.diff(rows[:, 0]) > 0)
+    ini = (lc / "fiveaxis.ini").read_text()
+    assert ini.count("COMP_FILE_TYPE = 1") == 5
+    if machine == "ac_trunnion":
+        assert "KINEMATICS = xyzac-trt-kins" in ini and (lc / "fiveaxis-trt.hal").is_file()
+        assert "setp xyzac-trt-kins.y-offset" in (lc / "fiveaxis-trt.hal").read_text()
+    else:
+        assert "KINEMATICS" not in ini and not (lc / "fiveaxis-trt.hal").exists()
+
+
+def _one_line_error(rc, err, *words):
+    assert rc == 2 and err.startswith("fiveaxis: error:") and err.count("\n") == 1, err
+    for w in words:
+        assert w in err, err
+
+
+def test_existing_outputs_are_not_overwritten(loop, capsys):
+    machine, d, _ = loop
+    before = (d / "comp" / "table.csv").read_bytes()
+    rc, _, err = run_cli(capsys, "compensate", d / "model.json", "-o", d / "comp")
+    _one_line_error(rc, err, "exists", "--force")
+    assert (d / "comp" / "table.csv").read_bytes() == before
+    rc, _, _ = run_cli(capsys, "compensate", d / "model.json", "-o", d / "comp", "--force", "--nodes", "X=2,Y=2,Z=2",
+                   "--poses", "200", "--comp-points", "9")
+    assert rc == 0 and (d / "comp" / "table.csv").read_bytes() != before
+    rc, _, err = run_cli(capsys, "fit", d / "before.csv", "--machine", machine, "-o", d / "model.json")
+    _one_line_error(rc, err, "exists")
+
+
+def test_compensate_bad_input(loop, capsys, tmp_path):
+    machine, d, sim = loop
+    other = "li2018" if machine == "ac_trunnion" else "ac_trunnion"
+    model = d / "model.json"
+    cases = [
+        (["--machine", other, "-o", tmp_path / "a"], ["fitted for machine"]),
+        (["--nodes", "X=1", "-o", tmp_path / "b"], ["--nodes", "at least 2 nodes"]),
+        (["--nodes", "X=0", "-o", tmp_path / "c"], ["--nodes", "at least 2 nodes"]),
+        (["--nodes", "X=2.5", "-o", tmp_path / "d"], ["--nodes", "integer"]),
+        (["--nodes", "X=200,Y=200", "-o", tmp_path / "e"], ["over the limit", "--max-nodes"]),
+        (["-o", tmp_path / "missing" / "f"], ["output folder not found"]),
+        (["--comp-points", "300", "-o", tmp_path / "g"], ["--comp-points"]),
+    ]
+    for extra, words in cases:
+        rc, _, err = run_cli(capsys, "compensate", model, *extra)
+        _one_line_error(rc, err, *words)
+    assert not (tmp_path / "missing").exists()
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"errors_mm_rad": {}}')
+    rc, _, err = run_cli(capsys, "compensate", bad, "-o", tmp_path / "h")
+    _one_line_error(rc, err, "format")
+    rc, _, err = run_cli(capsys, "compensate", tmp_path / "nothing.json", "-o", tmp_path / "i")
+    _one_line_error(rc, err, "not found")
+
+
+def test_simulate_compensation_of_another_machine_is_refused(loop, capsys, tmp_path):
+    machine, d, _ = loop
+    other = "li2018" if machine == "ac_trunnion" else "ac_trunnion"
+    rc, _, err = run_cli(capsys, "simulate", "--machine", other, "--n", "10", "--compensation", d / "comp",
+                     "-o", tmp_path / "x.csv")
+    _one_line_error(rc, err, "compensation for machine")
+    rc, _, err = run_cli(capsys, "simulate", "--machine", machine, "--n", "10", "--compensation", tmp_path / "none",
+                     "-o", tmp_path / "y.csv")
+    _one_line_error(rc, err, "not found")

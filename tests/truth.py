@@ -1,0 +1,17 @@
+"""The hidden truth of a simulated machine as a FittedModel (what a perfect fit would find), for the tests."""
+from __future__ import annotations
+
+from fiveaxis import effects as fx
+from fiveaxis.model_file import EffectRecord, FittedModel, sha256
+
+
+def truth_model(sim, model, extra=()) -> FittedModel:
+    """The simulated machine's base errors and vocabulary effects (values at u = 1), plus extra EffectRecords."""
+    machine = model.machine
+    effects = []
+    for ident, value in sim.effects.items():
+        eff = fx.parse(ident, machine, model.errors)
+        effects.append(EffectRecord(eff.id, "polynomial", eff.param, eff.var, eff.deg, (eff.id,), (float(value),)))
+    return FittedModel(machine.name, str(machine.path), sha256(machine.path), model.convention,
+                       dict(sim.base_errors), {n: ("rad" if machine.is_angular(n) else "mm") for n in model.errors},
+                       (), {}, tuple(effects) + tuple(extra), fx.scales(machine, sim.meas.t))
