@@ -128,27 +128,32 @@ def _png(path):
 
 
 def test_compensation_folder(tmp_path, example):
-    d = tmp_path / "comp"
-    d.mkdir()
-    _png(d / "before.png")
-    summary = {"machine": "li2018", "method": "per-axis tables", "before_mm": {"max": 0.012, "rms": 0.0045,
-               "p95": 0.009}, "after_mm": {"max": 0.002, "rms": 0.0008, "p95": 0.0015},
-               "maps": [{"file": "before.png", "caption": "predicted error before (um)"}], "files": ["x.comp"]}
-    (d / "summary.json").write_text(json.dumps(summary))
-    comp = C.read(d, "li2018")
-    assert comp["after_mm"]["rms"] == 0.0008 and comp["maps"][0]["png"].startswith(C.PNG_MAGIC)
+    """The report reads the folder `fiveaxis compensate` writes: the predicted tip error per stage, the map, the
+    files for the controller; a summary for another machine or a damaged number is a one-line error."""
+    from fiveaxis.cli import main
+    d = tmp_path
+    assert main(["simulate", "--n", "300", "--seed", "2", "--effect", "ex_x:x1", "-o", str(d / "m.csv")]) == 0
+    assert main(["fit", str(d / "m.csv"), "--add", "ex_x:x1", "-o", str(d / "model.json")]) == 0
+    assert main(["compensate", str(d / "model.json"), "-o", str(d / "comp"), "--poses", "300", "--plot"]) == 0
+    summary = json.loads((d / "comp" / "summary.json").read_text())
+    comp = C.read(d / "comp", "li2018")
+    assert [st["key"] for st in comp["stages"]][0] == "before"
+    by = {st["key"]: st for st in comp["stages"]}
+    assert by["after_table"]["rms"] == summary["predicted_tip_error_mm"]["after_table"]["rms"]
+    assert by["after_table"]["rms"] < by["before"]["rms"]
+    assert comp["maps"][0]["png"].startswith(C.PNG_MAGIC) and any(f.endswith(".comp") for f in comp["files"])
     rep = record.Report(dict(example.record, compensation={k: v for k, v in comp.items() if k != "maps"}
-                             | {"maps": [{"file": "before.png", "caption": "predicted error before (um)"}]}),
+                             | {"maps": [{"file": m["file"], "caption": m["caption"]} for m in comp["maps"]]}),
                         dict(example.figures, compensation_0=comp["maps"][0]["png"]))
     page = html.render(rep)
-    assert 'id="compensation-summary"' in page and "<td class=\"num\">0.8</td>" in page and "x.comp" in page
-    bad = dict(summary, after_mm={"max": 0.002, "rms": float("nan"), "p95": 1})
-    (d / "summary.json").write_text(json.dumps(bad))
-    with pytest.raises(InputError, match=r"summary.json: after_mm.rms: expected a length >= 0 in mm"):
-        C.read(d, "li2018")
-    (d / "summary.json").write_text(json.dumps(dict(summary, machine="ac_trunnion")))
-    with pytest.raises(InputError, match="the compensation is for 'ac_trunnion'"):
-        C.read(d, "li2018")
+    assert 'id="compensation-summary"' in page and "after the volumetric table" in page and ".comp" in page
+    bad = json.loads(json.dumps(summary))
+    bad["predicted_tip_error_mm"]["after_table"]["rms"] = -1
+    (d / "comp" / "summary.json").write_text(json.dumps(bad))
+    with pytest.raises(InputError, match=r"summary.json: after_table.rms: expected a length >= 0 in mm"):
+        C.read(d / "comp", "li2018")
+    with pytest.raises(InputError, match="the compensation is for 'li2018'"):
+        C.read(d / "comp", "ac_trunnion")
 
 
 def test_people_units():

@@ -1,18 +1,11 @@
-"""What a compensation run leaves for the report: DIR/summary.json and the PNG maps it names.
+"""What a compensation run (`fiveaxis compensate MODEL -o DIR`) leaves for the report: DIR/summary.json, written by
+`fiveaxis.compensation.summary`, and the map PNG beside it.
 
-summary.json (lengths in mm):
-
-    {
-      "machine": "li2018",                                  optional; must match the report's machine
-      "method": "per-axis LinuxCNC comp tables from the fit", optional, one line for people
-      "before_mm": {"max": 0.0123, "rms": 0.0045, "p95": 0.0089},   required: predicted tool-tip error
-      "after_mm":  {"max": 0.0021, "rms": 0.0008, "p95": 0.0015},   required: ... with the compensation applied
-      "maps": [{"file": "before.png", "caption": "predicted |P_err| (um) over X-Y, before"}, ...],  optional
-      "files": ["x.comp", "y.comp"]                         optional: files written for the controller
-    }
-
-max, rms and p95 are the largest, root-mean-square and 95th-percentile length of the predicted tool-tip error
-over the compensation's evaluation poses. Any problem is an InputError naming the file and the key.
+The report reads from summary.json: the machine (`machine.name`, must match the report's), the predicted tool-tip
+error over the workspace (`predicted_tip_error_mm`: `before`, `after_linuxcnc`, `after_table`, each
+{max, rms, p95} in mm: the largest, root-mean-square and 95th-percentile length over the evaluation poses), what is
+not compensated, and the files for the controller (the table, `linuxcnc/`). Any problem is an InputError naming the
+file and the key.
 """
 from __future__ import annotations
 
@@ -40,6 +33,13 @@ def _stats(path, data, key) -> dict:
     return out
 
 
+#: The stages of summary.json's predicted_tip_error_mm the report shows, in order, with their labels.
+STAGES = (("before", "before compensation"), ("after_linuxcnc", "after what LinuxCNC takes (comp files, trunnion "
+                                                                 "kinematics)"),
+          ("after_table", "after the volumetric table"))
+MAP = ("error_map.png", "predicted tool-tip error over the workspace before and after the table (um)")
+
+
 def read(folder, machine_name: str | None = None) -> dict:
     """The compensation summary of a folder, checked; maps come back as {"caption", "file", "png": bytes}."""
     folder = Path(folder)
@@ -47,32 +47,38 @@ def read(folder, machine_name: str | None = None) -> dict:
     if not folder.is_dir():
         raise InputError(f"{folder}: compensation folder not found")
     if not path.is_file():
-        raise InputError(f"{path}: not found (a compensation folder holds summary.json with before_mm and after_mm)")
+        raise InputError(f"{path}: not found (expected the folder written by `fiveaxis compensate MODEL -o DIR`)")
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as exc:
         raise InputError(f"{path}: line {exc.lineno} column {exc.colno}: invalid JSON ({exc.msg})") from None
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a UTF-8 text file") from None
-    if not isinstance(data, dict):
-        raise InputError(f"{path}: expected a JSON object with before_mm and after_mm")
-    if machine_name is not None and "machine" in data and data["machine"] != machine_name:
-        raise InputError(f"{path}: machine: the compensation is for '{data['machine']}', the report for "
-                         f"'{machine_name}'")
-    out = {"folder": str(folder), "method": str(data.get("method", "")),
-           "before_mm": _stats(path, data, "before_mm"), "after_mm": _stats(path, data, "after_mm"),
-           "files": [str(f) for f in data.get("files", [])], "maps": []}
-    maps = data.get("maps", [])
-    if not isinstance(maps, list):
-        raise InputError(f"{path}: maps: expected a list of {{\"file\", \"caption\"}}")
-    for i, m in enumerate(maps):
-        if not isinstance(m, dict) or not isinstance(m.get("file"), str):
-            raise InputError(f"{path}: maps[{i}]: expected {{\"file\": \"<name>.png\", \"caption\": \"...\"}}")
-        f = folder / m["file"]
-        if not f.is_file():
-            raise InputError(f"{path}: maps[{i}].file: {f} not found")
+    if not isinstance(data, dict) or not isinstance(data.get("predicted_tip_error_mm"), dict):
+        raise InputError(f"{path}: predicted_tip_error_mm: missing (expected the summary.json of `fiveaxis "
+                         f"compensate`)")
+    mach = data.get("machine")
+    name = mach.get("name") if isinstance(mach, dict) else mach
+    if machine_name is not None and name is not None and name != machine_name:
+        raise InputError(f"{path}: machine.name: the compensation is for '{name}', the report for '{machine_name}'")
+    tip = data["predicted_tip_error_mm"]
+    stages = []
+    for key, label in STAGES:
+        if key in tip:
+            stages.append(dict(_stats(path, tip, key), key=key, label=label))
+    if not stages or stages[0]["key"] != "before":
+        raise InputError(f"{path}: predicted_tip_error_mm.before: missing")
+    files = [str(f) for f in (data.get("table") or {}).get("files", [])]
+    lc = folder / "linuxcnc"
+    if lc.is_dir():
+        files += [f"linuxcnc/{p.name}" for p in sorted(lc.iterdir())]
+    out = {"folder": str(folder), "stages": stages, "files": files, "maps": [],
+           "not_compensated": data.get("not_compensated", {}),
+           "method": "volumetric table solved on the exact model" + (" and LinuxCNC files" if lc.is_dir() else "")}
+    f = folder / MAP[0]
+    if f.is_file():
         png = f.read_bytes()
         if not png.startswith(PNG_MAGIC):
-            raise InputError(f"{path}: maps[{i}].file: {f} is not a PNG image")
-        out["maps"].append({"file": m["file"], "caption": str(m.get("caption", m["file"])), "png": png})
+            raise InputError(f"{f}: not a PNG image")
+        out["maps"].append({"file": MAP[0], "caption": MAP[1], "png": png})
     return out

@@ -294,8 +294,8 @@ def _compensation(rec: dict, figs: dict) -> str:
                 '<span class="code">--compensation DIR</span> (a folder holding summary.json with the predicted '
                 "tool-tip error before and after compensation, and its maps) this section shows what the "
                 "compensation achieves.</p></section>")
-    rows = [[_e(label), _num(c[k]["max"] * 1e3, 3), _num(c[k]["rms"] * 1e3, 3), _num(c[k]["p95"] * 1e3, 3)]
-            for label, k in (("before compensation", "before_mm"), ("after compensation", "after_mm"))]
+    rows = [[_e(st["label"]), _num(st["max"] * 1e3, 3), _num(st["rms"] * 1e3, 3), _num(st["p95"] * 1e3, 3)]
+            for st in c["stages"]]
     out = [head, f"<p>Predicted tool-tip error over the compensation's evaluation poses (from "
                  f"<span class=\"code\">{_e(c['folder'])}</span>)" + (f": {_e(c['method'])}" if c["method"] else "")
            + ".</p>", _table(["", "largest (\u00b5m)", "RMS (\u00b5m)", "95th percentile (\u00b5m)"], rows,

@@ -10,7 +10,7 @@ never reaches into the analyses' objects:
   combinations [{formula, terms, value, std}], correlations [{a, b, r}];
 - Diagnosis.to_json: rms_mm, noise_mm, noise_source, missing_effect, added, decision, candidates [{id, aliases,
   rms_mm, explained, description, separate_by?}];
-- compensation.read: before_mm / after_mm {max, rms, p95}, maps, method, files.
+- compensation.read: stages (before, after LinuxCNC, after the table: {max, rms, p95} mm), maps, files.
 """
 from __future__ import annotations
 
