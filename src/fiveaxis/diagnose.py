@@ -571,7 +571,6 @@ def _diagnose(model, meas, added, top, fixed=None) -> Diagnosis:
         best_id, best_fam = pool.blocks[jbest - len(d_single)].id, pool.block_family[jbest - len(d_single)]
     sse0, sse1, chosen = cross_validate(prob, pool)
     cv_pass = sse1 < sse0
-    missing = bool(d_ebic < 0 and cv_pass)
     decision = {"rule": "extended BIC (penalty k ln N + 2 ln(F M_f) for k coefficients from family f of F, M_f "
                         "trials) and nested K-fold cross-validation",
                 "N": N, "F": prior.F, "families": prior.to_json(N),
@@ -597,22 +596,36 @@ def _diagnose(model, meas, added, top, fixed=None) -> Diagnosis:
                   else "estimated from the residual of the fit")
     listed = _listing(prob, pool, cands, bgain, d_single, d_block, Q, rw, rss, top)
     tests = st.tests(prob, res.residual * w)
-    p_struct = st.significance(tests)
-    strong = st.strongest(tests)
+    passes = bool(d_ebic < 0 and cv_pass)
+    decision["passes"] = passes
+    # The structure that matters: left by the effects the rule accepts (forward selection), or by the fit.
+    after = [f["id"] for f in forward] if passes and forward else []
+    t_used = st.tests(prob, r_cur) if after else tests
+    r_mm = r_cur / w if after else res.residual
+    p_struct = st.significance(t_used)
+    strong = st.strongest(t_used)
     structure_test = {"rule": f"trend (cubic F), order (von Neumann) and direction (Welch t) tests of the weighted "
                               f"residual per variable and reading; p = smallest p x number of tests "
                               f"(Bonferroni); structure when p < {st.ALPHA:g}",
-                      "tests": len(tests), "p": p_struct, "significant": bool(p_struct < st.ALPHA),
+                      "residual": ("after the effects the rule accepts: " + ", ".join(after)) if after
+                      else "of the fit",
+                      "after": after, "tests": len(t_used), "p": p_struct, "significant": bool(p_struct < st.ALPHA),
                       "strongest": strong.to_json() if strong else None}
     if strong is not None and strong.test != "direction":
-        nl = st.local_noise(prob, res.residual, strong.var)
+        nl = st.local_noise(prob, r_mm, strong.var)
         if nl is not None:
             structure_test["noise_local_mm"] = nl
-            structure_test["ratio_to_local_noise"] = res.rms_mm_without_outliers / nl if nl > 0 else None
-    above = (decision["chi2_p"] < CHI2_P) if known else bool(p_struct < st.ALPHA)
-    verdict = "missing effect" if missing else ("unexplained structure" if above else "no missing effect")
-    unexplained = _unexplained(prob, res, tests, strong, listed, pool) if verdict == "unexplained structure" \
-        else None
+            structure_test["ratio_to_local_noise"] = _rms_mm(prob, r_mm) / nl if nl > 0 else None
+    if passes:
+        verdict = "unexplained structure" if p_struct < st.ALPHA else "missing effect"
+    else:
+        above = (decision["chi2_p"] < CHI2_P) if known else bool(p_struct < st.ALPHA)
+        verdict = "unexplained structure" if above else "no missing effect"
+    missing = verdict == "missing effect"
+    unexplained = None
+    if verdict == "unexplained structure":
+        unexplained = _unexplained(prob, r_mm, t_used, strong, listed, pool, rss)
+        unexplained["after"] = after
     return Diagnosis(res, meas.n, res.rms_mm, noise, source, missing, listed, decision,
                      residual_structure(prob, res.residual, tests), forward, pool.n_fixed, absorbed, verdict,
                      res.rms_mm_without_outliers, structure_test, unexplained, pool.searched_json())
@@ -757,7 +770,7 @@ def _rms_mm(prob: F.Problem, r: np.ndarray) -> float:
 
 
 # -- unexplained structure -------------------------------------------------------------------------------------
-def _unexplained(prob, res, tests, strong, listed, pool) -> dict:
+def _unexplained(prob, r_mm, tests, strong, listed, pool, rss_fit) -> dict:
     """What the structure the candidates do not explain looks like, and a custom-effect template for it."""
     machine = prob.model.machine
     out = {"tests": [t.to_json() for t in sorted(tests, key=lambda t: t.p)[:6]]}
@@ -775,7 +788,7 @@ def _unexplained(prob, res, tests, strong, listed, pool) -> dict:
     out.update({"variable": tok, "axis": axis, "reading": reading, "test": strong.test, "share": strong.share,
                 "p": strong.p})
     unit = "rad" if reading in ("di", "dj", "dk") else "mm"
-    prof = st.profile(prob, res.residual, tok, reading)
+    prof = st.profile(prob, r_mm, tok, reading)
     out["profile"] = prof
     out["profile_unit"] = unit
     direction = [t for t in tests if t.test == "direction" and t.reading == reading and t.var == axis]
@@ -785,8 +798,8 @@ def _unexplained(prob, res, tests, strong, listed, pool) -> dict:
     per = [f for f in pool.periodic_found if f.effect.var == tok]
     if per:
         b = max(per, key=lambda f: f.gain)
-        rss = float(np.sum((res.residual * prob.w) ** 2))
-        out["periodic"] = {"best": b.effect.id, "period": b.effect.arg, "explained": b.gain / rss if rss else 0.0}
+        out["periodic"] = {"best": b.effect.id, "period": b.effect.arg,
+                           "explained": b.gain / rss_fit if rss_fit else 0.0}
     times = [t for t in tests if t.var == fx.TIME and t.reading == reading and t.test != "direction"]
     if times:
         tb = min(times, key=lambda t: t.p)
@@ -822,7 +835,8 @@ def _template(machine, tok, reading, param, prof, periodic, strong) -> str:
     rotary = tok in machine.variables and machine.axis(tok).type == "rotary"
     to_model = math.pi / 180 if rotary else 1.0
     unit = "rad" if rotary else ("s" if tok == fx.TIME else "mm")
-    if periodic and periodic.get("explained", 0) > 0.3 * max(strong.share, 1e-12):
+    span = (prof[-1]["to"] - prof[0]["from"]) if prof else 0.0
+    if periodic and periodic["period"] <= 0.5 * span and periodic.get("explained", 0) > 0.1:
         P = periodic["period"] * to_model
         expr = f"p1*sin(2*pi*{tok}/{P:.6g}) + p2*cos(2*pi*{tok}/{P:.6g})"
         guess = f"a period of {periodic['period']:.4g} (the best periodic candidate along {tok})"
@@ -831,7 +845,8 @@ def _template(machine, tok, reading, param, prof, periodic, strong) -> str:
         k = int(np.argmax(jumps))
         x0 = 0.5 * (prof[k]["to"] + prof[k + 1]["from"]) * to_model
         width = max(0.25 * (prof[k + 1]["to"] - prof[k]["from"]) * to_model, 1e-9)
-        expr = f"p1*tanh(({tok} - {x0:.4g})/{width:.3g})"
+        shift = f"{tok} - {x0:.4g}" if x0 >= 0 else f"{tok} + {-x0:.4g}"
+        expr = f"p1*tanh(({shift})/{width:.3g})"
         guess = f"a step near {tok} = {x0 / to_model:.4g} (the largest jump of the residual profile)"
     else:
         expr = f"p1*{tok}"
@@ -884,8 +899,9 @@ def report_from_json(j: dict) -> str:
                      + ", ".join(f"{tok} {share:.0%}" for tok, share in top) + ")")
     fams = ", ".join(f"{f} {v['M']}" for f, v in d["families"].items())
     verdict = {"missing effect": "MISSING EFFECT", "no missing effect": "no missing effect found",
-               "unexplained structure": "UNEXPLAINED STRUCTURE (the residual is above the noise; no candidate "
-                                        "passes)"}[j["verdict"]]
+               "unexplained structure": "UNEXPLAINED STRUCTURE (" + (
+                   "candidates pass, but structure remains after them" if d.get("passes") else
+                   "the residual is above the noise; no candidate passes") + ")"}[j["verdict"]]
     lines.append(f"    decision: {verdict} "
                  f"(best candidate {d['best']}: delta EBIC {d['delta_ebic_best']:.1f} with penalty "
                  f"{d['penalty']:.1f}; trials per family: {fams}; {d['cv_folds']}-fold CV held-out SSE "
@@ -914,7 +930,11 @@ def report_from_json(j: dict) -> str:
 
 
 def _unexplained_lines(u: dict) -> list[str]:
-    lines = ["[[Unexplained structure]] the residual is above the noise and no candidate explains it"]
+    if u.get("after"):
+        lines = [f"[[Unexplained structure]] after the candidates the rule accepts ({', '.join(u['after'])}), "
+                 f"structure remains: the vocabulary only approximates it"]
+    else:
+        lines = ["[[Unexplained structure]] the residual is above the noise and no candidate explains it"]
     if "variable" not in u:
         lines.append(f"    {u['note']}")
         return lines
@@ -932,12 +952,13 @@ def _unexplained_lines(u: dict) -> list[str]:
     if "periodic" in u:
         pp = u["periodic"]
         lines.append(f"    periodicity: the best period along {u['variable']} ({pp['best']}) explains "
-                     f"{pp['explained']:.1%} of the residual")
-    if "time" in u:
-        lines.append(f"    time: along t, p = {u['time']['p']:.2g} ({u['time']['share']:.0%})")
+                     f"{pp['explained']:.1%} of the fit's residual")
+    if "time" in u and u["time"]["p"] < st.ALPHA and u["variable"] != fx.TIME:
+        lines.append(f"    time: it also changes with t (p = {u['time']['p']:.2g}, {u['time']['share']:.0%})")
     if u.get("candidates_on_variable"):
         lines.append(f"    closest candidates along {u['variable']}: {', '.join(u['candidates_on_variable'])} "
-                     f"(not accepted by the decision)")
+                     + ("(they pass the decision but leave this structure)" if u.get("after")
+                        else "(not accepted by the decision)"))
     lines.append("    a custom effect to fill in (machine file; then fiveaxis diagnose FILE --machine EDITED.toml):")
     lines += [f"        {t}" for t in u["template"].splitlines()]
     return lines

@@ -673,7 +673,7 @@ def parameters(res: FitResult) -> dict:
                 entry.update(_entry(vals[j][0], abs(stds[j][0]), vals[j][1]))
             else:
                 entry["unit"] = vals[j][1]
-            entry["description"] = eff.describe(model.machine)
+            entry["description"] = eff.describe(model.machine, res.theta[idx])
         k += len(eff.names)
     return out
 
