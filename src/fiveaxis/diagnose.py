@@ -268,15 +268,17 @@ def param_columns(prob: F.Problem):
     return params, P
 
 
-def build_pool(prob: F.Problem, Q: np.ndarray, rw: np.ndarray, present: set, customs: list) -> Pool:
-    """Every candidate of a diagnosis of problem prob (residual rw, basis Q), effects already present left out."""
+def build_pool(prob: F.Problem, Q: np.ndarray, rw: np.ndarray, present: set, customs: list,
+               periodic: bool = True) -> Pool:
+    """Every candidate of a diagnosis of problem prob (residual rw, basis Q), effects already present left out;
+    periodic: search periods (the costly search)."""
     machine, model = prob.model.machine, prob.model
     poly = [e for e in fx.vocabulary(machine, model.errors, prob.meas.t is not None) if e.id not in present]
     rev = [e for e in fx.reversals(machine, model.errors, prob.meas.dirs) if e.id not in present]
     params, P = param_columns(prob)
     sums = es.row_sums(params, P, rw, Q, prob.obs.row, prob.meas.n)
     bands = []
-    for tok, s in prob.scales.items():
+    for tok, s in (prob.scales.items() if periodic else ()):
         try:
             vals = prob.ctx.raw(tok) * s.to_unit
         except Exception:                 # no t column
@@ -302,11 +304,11 @@ def build_pool(prob: F.Problem, Q: np.ndarray, rw: np.ndarray, present: set, cus
 
 
 # -- cross-validation ------------------------------------------------------------------------------------------
-def cross_validate(prob: F.Problem, pool: Pool, k: int = K_FOLDS, seed: int = 0, block_gain=None):
+def cross_validate(prob: F.Problem, pool: Pool, k: int = K_FOLDS, seed: int = 0):
     """Nested K-fold CV of "add the best candidate": per fold, rank every candidate on the training poses (by
     extended BIC, as on the whole data; the periods and time constants of the CV_SEARCH_PAIRS best searched pairs
-    of each family searched again there), evaluate held out. Returns (held-out weighted SSE without, with the
-    per-fold best candidate, ids chosen per fold)."""
+    of each family searched again there, all folds in one pass of the searches), evaluate held out. Returns
+    (held-out weighted SSE without, with the per-fold best candidate, ids chosen per fold)."""
     groups = ob.pose_groups(prob.meas)[prob.obs.row]      # readings of one pose are held out together
     ng = int(groups.max()) + 1 if len(groups) else 0
     order = np.random.default_rng(seed).permutation(ng)
@@ -317,42 +319,36 @@ def cross_validate(prob: F.Problem, pool: Pool, k: int = K_FOLDS, seed: int = 0,
     Aw = prob.A[:, prob.free] * prob.w[:, None]
     dw = (prob.d - prob.A[:, ~prob.free] @ np.array([prob.fixed[n] for n, f in zip(prob.names, prob.free)
                                                      if not f])) * prob.w
+    m = len(dw)
+    folds = []
+    for f in range(k):
+        test = np.flatnonzero(row_fold == f)
+        train = np.flatnonzero(row_fold != f)
+        idf = F.identify(Aw[train])
+        theta = F._solve(idf, dw[train])
+        r_tr = dw[train] - Aw[train] @ theta
+        folds.append((test, train, idf, theta, r_tr))
+    found = _fold_searches(prob, pool, folds)
     G = pool.G
     g2_all = np.einsum("ij,ij->j", G, G)
-    # The searched pairs re-searched per fold (best on the whole data first); their full-data versions sit out.
-    top_per = sorted(range(len(pool.periodic_found)), key=lambda i: -pool.periodic_found[i].gain)[:CV_SEARCH_PAIRS]
-    top_th = sorted(range(len(pool.thermal_found)), key=lambda i: -pool.thermal_found[i].gain)[:CV_SEARCH_PAIRS]
-    n_per = len(pool.periodic_found)
-    skip_blocks = set(top_per)
-    th_ids = {pool.thermal_found[i].effect.id for i in top_th}
+    th_ids = {x.effect.id for x in pool.thermal_found if found["resampled_thermal"].get(x.param_index)}
     skip_singles = np.array([e.id in th_ids for e in pool.singles], bool)
-    pairs = {}
-    for i in top_per:
-        f = pool.periodic_found[i]
-        pairs.setdefault(f.effect.var, []).append(f.param_index)
-    th_params = [pool.thermal_found[i].param_index for i in top_th]
-    needed = sorted({p for v in pairs.values() for p in v} | set(th_params))
-    local = {p: j for j, p in enumerate(needed)}
+    skip_blocks = [b for b, x in enumerate(pool.periodic_found)
+                   if (x.effect.var, x.param_index) in found["resampled_periodic"]]
     pen_single = np.array([pool.prior.penalty(f, 1, 1) for f in pool.single_family]) if len(pool.singles) else \
         np.zeros(0)
     gram_all = pair_gram(pool.Gp)
     pen_per = pool.prior.penalty("periodic", 1, 0)
     sse0 = sse1 = 0.0
     chosen = []
-    pose_n = prob.meas.n
-    for f in range(k):
-        test = np.flatnonzero(row_fold == f)
-        train = np.flatnonzero(row_fold != f)
+    for f, (test, train, idf, theta, r_tr) in enumerate(folds):
         Ntr = len(train)
         logN = math.log(Ntr)
-        idf = F.identify(Aw[train])
-        theta = F._solve(idf, dw[train])
-        r_tr = dw[train] - Aw[train] @ theta
         rss = float(r_tr @ r_tr)
         # Training rows only, without copying G: zero the held-out rows of Q and r instead.
-        Qpad = np.zeros((len(dw), idf.rank))
+        Qpad = np.zeros((m, idf.rank))
         Qpad[train] = idf.U
-        rpad = np.zeros(len(dw))
+        rpad = np.zeros(m)
         rpad[train] = r_tr
         best = (math.inf, None, None)           # (delta, id, columns)
         if len(pool.singles):
@@ -362,36 +358,25 @@ def cross_validate(prob: F.Problem, pool: Pool, k: int = K_FOLDS, seed: int = 0,
             d = _deltas(rss, gains, Ntr, pen_single + logN, prob.known_sigma)
             j = int(np.argmin(d))
             best = (float(d[j]), pool.singles[j].id, G[:, [j]])
-        if n_per:
+        if len(pool.periodic):
             gt = pair_gram(pool.Gp[test])
             pg = pair_gains(Qpad, pool.Gp, rpad, tuple(a - b for a, b in zip(gram_all, gt)))
-            pg[list(skip_blocks)] = 0.0
+            pg[skip_blocks] = 0.0
             d = _deltas(rss, pg, Ntr, pen_per + 2 * logN, prob.known_sigma)
             b = int(np.argmin(d))
             if d[b] < best[0]:
                 best = (float(d[b]), pool.periodic[b].id, pool.block_cols(b))
-        for c, (eff, cols) in enumerate(zip(pool.customs, pool.custom_cols)):
+        for eff, cols in zip(pool.customs, pool.custom_cols):
             sb = score_block(idf.U, cols[train], r_tr)
             d = ebic_delta(rss, sb.gain, Ntr, pool.prior.trials["custom"], prob.known_sigma, max(sb.k, 1),
                            pool.prior.F)
             if d < best[0]:
                 best = (d, eff.id, cols)
-        if needed:
-            active = np.zeros(len(dw), bool)
-            active[train] = True
-            sums = es.row_sums([pool.params[p] for p in needed], pool.P[:, needed], rpad, Qpad, prob.obs.row,
-                               pose_n, active)
-            found = []
-            if pairs:
-                found += [("periodic", x) for x in
-                          es.periodic(sums, pool.bands, {v: [local[p] for p in ps] for v, ps in pairs.items()})]
-            if th_params and pool.grid is not None:
-                found += [("thermal", x) for x in es.thermal(sums, pool.grid, [local[p] for p in th_params])]
-            for fam, x in found:
-                kk = len(x.effect.names)
-                d = ebic_delta(rss, x.gain, Ntr, pool.prior.trials[fam], prob.known_sigma, kk, pool.prior.F)
-                if d < best[0]:
-                    best = (d, x.effect.id, candidate_matrix(prob, [x.effect]))
+        for fam, x in found["by_fold"][f]:
+            d = ebic_delta(rss, x.gain, Ntr, pool.prior.trials[fam], prob.known_sigma, len(x.effect.names),
+                           pool.prior.F)
+            if d < best[0]:
+                best = (d, x.effect.id, candidate_matrix(prob, [x.effect]))
         _, name, cols = best
         chosen.append(name)
         sse0 += float(np.sum((dw[test] - Aw[test] @ theta) ** 2))
@@ -403,6 +388,46 @@ def cross_validate(prob: F.Problem, pool: Pool, k: int = K_FOLDS, seed: int = 0,
         th1 = F._solve(idf1, dw[train])
         sse1 += float(np.sum((dw[test] - np.hstack([Aw[test], cols[test]]) @ th1) ** 2))
     return sse0, sse1, chosen
+
+
+def _fold_searches(prob, pool: Pool, folds) -> dict:
+    """The period and time-constant searches of every CV fold, on its training rows, for the CV_SEARCH_PAIRS best
+    (parameter, variable) pairs of each searched family on the whole data: the per-pose sums of all folds side by
+    side (one parameter column per fold and parameter), searched in one pass."""
+    top_per = sorted(pool.periodic_found, key=lambda x: -x.gain)[:CV_SEARCH_PAIRS]
+    top_th = sorted(pool.thermal_found, key=lambda x: -x.gain)[:CV_SEARCH_PAIRS]
+    out = {"by_fold": [[] for _ in folds], "resampled_periodic": {(x.effect.var, x.param_index) for x in top_per},
+           "resampled_thermal": {x.param_index: True for x in top_th}}
+    needed = sorted({x.param_index for x in top_per} | {x.param_index for x in top_th})
+    if not needed:
+        return out
+    local = {p: j for j, p in enumerate(needed)}
+    q = len(needed)
+    m = pool.P.shape[0]
+    rmax = max(idf.rank for _, _, idf, _, _ in folds)
+    parts = []
+    for test, train, idf, theta, r_tr in folds:
+        Qpad = np.zeros((m, rmax))
+        Qpad[train, :idf.rank] = idf.U
+        rpad = np.zeros(m)
+        rpad[train] = r_tr
+        active = np.zeros(m, bool)
+        active[train] = True
+        parts.append(es.row_sums([pool.params[p] for p in needed], pool.P[:, needed], rpad, Qpad, prob.obs.row,
+                                 prob.meas.n, active))
+    sums = es.RowSums(parts[0].params * len(folds), np.hstack([s.W1 for s in parts]),
+                      np.hstack([s.W2 for s in parts]), np.concatenate([s.W3 for s in parts], axis=2),
+                      np.any([s.live for s in parts], axis=0))
+    pairs = {}
+    for x in top_per:
+        pairs.setdefault(x.effect.var, []).extend(f * q + local[x.param_index] for f in range(len(folds)))
+    results = [("periodic", x) for x in es.periodic(sums, pool.bands, pairs)] if pairs else []
+    if top_th and pool.grid is not None:
+        cols = [f * q + local[x.param_index] for f in range(len(folds)) for x in top_th]
+        results += [("thermal", x) for x in es.thermal(sums, pool.grid, cols)]
+    for fam, x in results:
+        out["by_fold"][x.param_index // q].append((fam, x))
+    return out
 
 
 # -- the record ------------------------------------------------------------------------------------------------
@@ -521,7 +546,9 @@ def _recheck_outliers(model, meas, fixed, res: F.FitResult) -> F.FitResult:
     Q = res.idf.U
     rw = rw - Q @ (Q.T @ rw)
     present = {e.id for e in prob.effects}
-    pool = build_pool(prob, Q, rw, present, _customs(model, present))
+    # Without the period search: a periodic effect's residual has no long tails (|z| < 4 against the median scale
+    # even times a lever arm of 3), so the readings it would explain are not flagged in the first place.
+    pool = build_pool(prob, Q, rw, present, _customs(model, present), periodic=False)
     cands = project(Q, pool.G, rw, pool.singles)
     forward, _, _ = _forward(prob, pool, cands, Q, rw, len(rw), res.known_sigma)
     if not forward:
@@ -611,11 +638,16 @@ def _diagnose(model, meas, added, top, fixed=None) -> Diagnosis:
                       else "of the fit",
                       "after": after, "tests": len(t_used), "p": p_struct, "significant": bool(p_struct < st.ALPHA),
                       "strongest": strong.to_json() if strong else None}
+    if after:
+        p_fit, s_fit = st.significance(tests), st.strongest(tests)
+        structure_test["fit"] = {"tests": len(tests), "p": p_fit, "significant": bool(p_fit < st.ALPHA),
+                                 "strongest": s_fit.to_json() if s_fit else None}
     if strong is not None and strong.test != "direction":
         nl = st.local_noise(prob, r_mm, strong.var)
         if nl is not None:
             structure_test["noise_local_mm"] = nl
-            structure_test["ratio_to_local_noise"] = _rms_mm(prob, r_mm) / nl if nl > 0 else None
+            if nl > 0:
+                structure_test["ratio_to_local_noise"] = _rms_mm(prob, r_mm) / nl
     if passes:
         verdict = "unexplained structure" if p_struct < st.ALPHA else "missing effect"
     else:
@@ -881,22 +913,7 @@ def report_from_json(j: dict) -> str:
     if j["outliers"]:
         lines.append(f"    residual RMS with the outliers: {j['rms_mm'] * 1000:.4g} um")
         lines += F.outlier_lines(j)
-    strong = [(tok, max(v.values())) for tok, v in j["structure"].items() if v]
-    st_j = j["structure_test"]
-    if st_j.get("significant"):
-        s = st_j["strongest"]
-        what = {"trend": "a cubic trend", "order": "structure (von Neumann)", "direction": "a direction dependence"}
-        extra = ""
-        if "noise_local_mm" in st_j and j["verdict"] != "missing effect":
-            extra = (f"; noise of the readings along {s['var']} with the structure removed "
-                     f"{st_j['noise_local_mm'] * 1000:.4g} um (ratio {st_j['ratio_to_local_noise']:.3g})")
-        lines.append(f"    residual structure: {what[s['test']]} of {s['reading']} along {s['var']} holds "
-                     f"{s['share']:.0%} of its residual (p = {st_j['p']:.2g} over {st_j['tests']} tests){extra}")
-    elif strong:
-        top = sorted(strong, key=lambda s: -s[1])[:3]
-        lines.append(f"    residual structure: none significant (p = {st_j['p']:.2g} over {st_j['tests']} tests; "
-                     f"largest share explained by a cubic: "
-                     + ", ".join(f"{tok} {share:.0%}" for tok, share in top) + ")")
+    lines += _structure_lines(j)
     fams = ", ".join(f"{f} {v['M']}" for f, v in d["families"].items())
     verdict = {"missing effect": "MISSING EFFECT", "no missing effect": "no missing effect found",
                "unexplained structure": "UNEXPLAINED STRUCTURE (" + (
@@ -927,6 +944,37 @@ def report_from_json(j: dict) -> str:
     if u:
         lines += _unexplained_lines(u)
     return "\n".join(lines)
+
+
+_WHAT = {"trend": "a cubic trend", "order": "structure (von Neumann)", "direction": "a direction dependence"}
+
+
+def _structure_line(t: dict, head: str) -> str:
+    s = t["strongest"]
+    if not t["significant"] or s is None:
+        return f"    {head}: none significant (p = {t['p']:.2g} over {t['tests']} tests)"
+    return (f"    {head}: {_WHAT[s['test']]} of {s['reading']} along {s['var']} holds {s['share']:.0%} of its residual "
+            f"(p = {t['p']:.2g} over {t['tests']} tests)")
+
+
+def _structure_lines(j: dict) -> list[str]:
+    """The residual-structure tests of a diagnosis JSON record, in words."""
+    st_j = j["structure_test"]
+    lines = []
+    if st_j.get("after"):
+        lines.append(_structure_line(st_j["fit"], "residual structure"))
+        lines.append(_structure_line(st_j, f"after the effects the rule accepts ({', '.join(st_j['after'])})"))
+    else:
+        lines.append(_structure_line(st_j, "residual structure"))
+        shares = sorted(((tok, max(v.values())) for tok, v in j["structure"].items() if v), key=lambda s: -s[1])
+        if not st_j["significant"] and shares:
+            lines[-1] = lines[-1][:-1] + "; largest share explained by a cubic: " + ", ".join(
+                f"{tok} {share:.0%}" for tok, share in shares[:3]) + ")"
+    if "noise_local_mm" in st_j and st_j["significant"] and j["verdict"] != "missing effect":
+        lines.append(f"    noise of the readings along {st_j['strongest']['var']} with the structure removed "
+                     f"(difference-based): {st_j['noise_local_mm'] * 1000:.4g} um; residual RMS / that noise "
+                     f"{st_j.get('ratio_to_local_noise', math.inf):.3g}")
+    return lines
 
 
 def _unexplained_lines(u: dict) -> list[str]:

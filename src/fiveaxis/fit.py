@@ -103,9 +103,17 @@ class Problem:
         return self.A[:, list(self.model.errors).index(param)]
 
     def effect_columns(self, effects) -> np.ndarray:
-        """Design columns (m, sum of coefficients) of effects at these readings."""
-        cols = [self.param_column(e.param)[:, None] * e.basis(self.ctx)[self.obs.row] for e in effects]
-        return np.hstack(cols) if cols else np.empty((self.obs.m, 0))
+        """Design columns (m, sum of coefficients) of effects at these readings: the column of each effect's
+        parameter times its basis functions at the reading's pose."""
+        effects = list(effects)
+        if not effects:
+            return np.empty((self.obs.m, 0))
+        bases = [e.basis(self.ctx) for e in effects]                   # per pose
+        params = list(dict.fromkeys(e.param for e in effects))
+        PC = np.column_stack([self.param_column(p) for p in params])
+        where = {p: i for i, p in enumerate(params)}
+        idx = [where[e.param] for e, b in zip(effects, bases) for _ in range(b.shape[1])]
+        return PC[:, idx] * np.hstack(bases)[self.obs.row]
 
     def per_pose(self, theta: np.ndarray):
         """Error values (n, n_errors) and tool-length changes (n,) per pose for parameter values theta."""
