@@ -41,7 +41,7 @@ def main(n: int = 1500, subset_first: int = 60, subset_exact: int = 6, subset_pe
     D.diagnose(model, meas)                                   # warm up numba and imports
     t_diag, dg = _best(lambda: D.diagnose(model, meas))
     fams = dg.decision["families"]
-    res = F.fit(model, meas)
+    res = dg.fit                                              # the fit diagnose made (outliers, if any, out)
     prob = res.problem
     vocab = fiveaxis.effects.vocabulary(model.machine, model.errors, True) + \
         fiveaxis.effects.reversals(model.machine, model.errors, meas.dirs)

@@ -458,6 +458,7 @@ class Diagnosis:
                 "rms_mm": self.rms_mm, "rms_mm_without_outliers": self.rms_mm_without_outliers,
                 "noise_mm": self.noise_mm, "noise_source": self.noise_source,
                 "outliers": fj["outliers"], "outlier_readings": fj["outlier_readings"],
+                "outlier_readings_of": fj["outlier_readings_of"],
                 "outlier_rule": fj["outlier_rule"] + ("; outliers are left out of the decision" if fj["outliers"]
                                                       else ""),
                 "verdict": self.verdict, "missing_effect": self.missing_effect,

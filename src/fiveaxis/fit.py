@@ -51,6 +51,8 @@ ANGLE_WEIGHT0 = 100.0
 OUTLIER_ALPHA = 1e-3
 #: Tuning constant of the Huber weights of the robust fit (95% efficiency on Gaussian noise).
 HUBER_C = 1.345
+#: More outliers than this fraction of the readings are suspicious: said so in the report.
+OUTLIER_MANY = 0.01
 #: Residuals below this fraction of the RMS of the weighted readings are rounding, never outliers.
 ROUNDING = 1e-9
 
@@ -727,6 +729,7 @@ def to_json(res: FitResult) -> dict:
         "outliers": o.data_rows,
         "outlier_readings": o.to_json(),
         "outlier_rule": outlier_rule(o, res.known_sigma),
+        "outlier_readings_of": o.readings,
         "rms_first_order_mm": float(np.sqrt(np.mean(first[lg] ** 2))) if lg.any() else 0.0,
         "rank": res.idf.rank, "n_parameters": res.idf.n_params, "condition": res.idf.condition,
         "sigma": "sigma column" if res.known_sigma else "estimated from the residual",
@@ -774,10 +777,14 @@ def outlier_lines(j: dict, limit: int = 12) -> list[str]:
     for o in j["outlier_readings"][:limit]:
         items.append(f"row {o['row']} {o['reading']} {human(o['residual'], o['unit'])}")
     more = len(j["outlier_readings"]) - limit
+    many = len(j["outlier_readings"]) > OUTLIER_MANY * j["outlier_readings_of"]
     lines = [f"    outliers:        {len(j['outlier_readings'])} reading(s) in {len(j['outliers'])} data row(s) left "
              f"out of the fit: {', '.join(items)}" + (f", ... and {more} more (JSON: outlier_readings)"
                                                       if more > 0 else ""),
              f"                     rule: {j['outlier_rule']}"]
+    if many:
+        lines.append("                     that many: the model may be missing an effect whose largest deviations "
+                     "look like outliers (fiveaxis diagnose tells the two apart)")
     return lines
 
 
