@@ -210,6 +210,8 @@ def test_effect_outside_every_vocabulary_is_unexplained_structure_along_x(model,
     assert min(steps) < -0.0005 and max(steps) > 0.0005          # the profile shows the two levels
     text = D.report(dg)
     assert "[[Unexplained structure]]" in text and "dz along X" in text and "no missing effect" not in text
+    # The noise of the readings the structure does not explain (difference-based along X) is the noise.
+    assert dg.structure_test["noise_local_mm"] == pytest.approx(NOISE, rel=0.15)
 
 
 def test_text_report_is_built_from_the_json(model, periodic_set):

@@ -465,8 +465,8 @@ class Diagnosis:
                 "added": [e.id for e in self.fit.problem.effects],
                 "decision": self.decision, "n_candidates": self.n_candidates, "searched": self.searched,
                 "candidates": self.candidates, "forward": self.forward, "structure": self.structure,
-                "structure_test": self.structure_test, "unexplained": self.unexplained,
-                "already_in_model": self.absorbed}
+                "structure_test": self.structure_test, "already_in_model": self.absorbed,
+                **({"unexplained": self.unexplained} if self.unexplained else {})}
 
 
 def residual_structure(prob: F.Problem, residual: np.ndarray, tests=None) -> dict:
@@ -638,11 +638,11 @@ def _diagnose(model, meas, added, top, fixed=None) -> Diagnosis:
                       "residual": ("after the effects the rule accepts: " + ", ".join(after)) if after
                       else "of the fit",
                       "after": after, "tests": len(t_used), "p": p_struct, "significant": bool(p_struct < st.ALPHA),
-                      "strongest": strong.to_json() if strong else None}
+                      **({"strongest": strong.to_json()} if strong else {})}
     if after:
         p_fit, s_fit = st.significance(tests), st.strongest(tests)
         structure_test["fit"] = {"tests": len(tests), "p": p_fit, "significant": bool(p_fit < st.ALPHA),
-                                 "strongest": s_fit.to_json() if s_fit else None}
+                                 **({"strongest": s_fit.to_json()} if s_fit else {})}
     if strong is not None and strong.test != "direction":
         nl = st.local_noise(prob, r_mm, strong.var)
         if nl is not None:
@@ -951,7 +951,7 @@ _WHAT = {"trend": "a cubic trend", "order": "structure (von Neumann)", "directio
 
 
 def _structure_line(t: dict, head: str) -> str:
-    s = t["strongest"]
+    s = t.get("strongest")
     if not t["significant"] or s is None:
         return f"    {head}: none significant (p = {t['p']:.2g} over {t['tests']} tests)"
     return (f"    {head}: {_WHAT[s['test']]} of {s['reading']} along {s['var']} holds {s['share']:.0%} of its residual "

@@ -9,12 +9,15 @@ functions at the poses, so that the search is expressible in blocks of rows and 
 
 Periodic (a least-squares / Lomb-Scargle periodogram, generalised to the columns of a design): for each variable v
 (mm, deg or s) frequencies f from 1/span (the data's span of v) to 1/(MIN_SPACINGS x the mean spacing of its distinct
-values), OVERSAMPLE points per resolution element 1/span; for every parameter at every frequency the 2-column
-block a_p [cos, sin](2 pi f v) is scored without the projection off Q (a_p's own Lomb-Scargle: exact in r, the norms
-slightly too large at the lowest frequencies); the PEAKS highest peaks per (parameter, variable) are refined (to
-1/16 of the grid step) and scored exactly (projected off Q) at the period rounded for the id.
+values), OVERSAMPLE points per resolution element 1/span, at most MAX_FREQUENCIES; for every parameter at every
+frequency the 2-column block a_p [cos, sin](2 pi f v) is scored without the projection off Q (a_p's own
+Lomb-Scargle: exact in r, the norms slightly too large at the lowest frequencies): two matrix products per variable
+(W1^T e^(i 2 pi f v) and W2^T e^(i 4 pi f v)); the PEAKS highest peaks per (parameter, variable) are refined (the
+vertex of a parabola through the grid, then 1/8 and 1/32 of the grid step) and scored exactly (projected off Q) at
+the period rounded for the id (`period_digits`).
 Thermal: tau on a log grid (TAU_PER_DECADE per decade) from TAU_MIN_SPACINGS mean time spacings to TAU_MAX_RUNS run
-lengths, scored exactly for every parameter, the best refined (golden ratio of the grid step, twice).
+lengths, scored exactly for every parameter, the best refined (9 points over +-1 grid step, then +-1/4), rounded
+to 3 significant figures.
 
 Trials (for the false-alarm penalty of the decision, `fiveaxis.diagnose`): a periodic search over a band of width
 B = f_max - f_min on data spanning T has about B T independent frequencies; the maximum of a continuous
@@ -35,6 +38,9 @@ from . import effects as fx
 
 OVERSAMPLE = 3
 MIN_SPACINGS = 3
+#: Most frequencies searched along one variable: the shortest period is at least span / (MAX_FREQUENCIES /
+#: OVERSAMPLE) (5 m / 683 = 7.3 mm), so that the search grows linearly with the number of poses, not as its square.
+MAX_FREQUENCIES = 2048
 TRIALS_PER_ELEMENT = 5
 PEAKS = 3
 #: Fewest distinct values of a variable for a periodic search along it.
@@ -109,10 +115,11 @@ def band(token: str, values: np.ndarray, live: np.ndarray) -> Band | None:
     if not span > 0:
         return None
     spacing = span / (len(distinct) - 1)
-    f_min, f_max = 1.0 / span, 1.0 / (MIN_SPACINGS * spacing)
+    df = 1.0 / (OVERSAMPLE * span)
+    f_min = 1.0 / span
+    f_max = min(1.0 / (MIN_SPACINGS * spacing), f_min + (MAX_FREQUENCIES - 1) * df)
     if f_max <= f_min:
         return None
-    df = 1.0 / (OVERSAMPLE * span)
     K = int(math.floor((f_max - f_min) / df)) + 1
     centre = 0.5 * (distinct[0] + distinct[-1])
     return Band(token, np.asarray(values, float) - centre, span, f_min, df, K)
