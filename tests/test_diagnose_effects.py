@@ -214,6 +214,15 @@ def test_effect_outside_every_vocabulary_is_unexplained_structure_along_x(model,
     assert dg.structure_test["noise_local_mm"] == pytest.approx(NOISE, rel=0.15)
 
 
+def test_sigma_column_understating_the_noise(model):
+    """chi2 fails (the rule with a sigma column) without structure along any variable: said so, no template."""
+    sim = simulate(model, [], n=400, noise=2 * NOISE, seed=50, with_sigma=True)
+    sim.meas.sigma = sim.meas.sigma / 2
+    dg = D.diagnose(model, sim.meas, top=1)
+    assert dg.verdict == "unexplained structure" and not dg.structure_test["significant"]
+    assert "sigma column says" in dg.unexplained["note"] and "template" not in dg.unexplained
+
+
 def test_text_report_is_built_from_the_json(model, periodic_set):
     dg = D.diagnose(model, periodic_set.meas, top=3)
     j = json.loads(json.dumps(dg.to_json()))

@@ -575,7 +575,6 @@ def _diagnose(model, meas, added, top, fixed=None) -> Diagnosis:
     present = {e.id for e in prob.effects}
     pool = build_pool(prob, Q, rw, present, _customs(model, present))
     prior = pool.prior
-    logN = math.log(N)
     cands = project(Q, pool.G, rw, pool.singles)
     pen_single = np.array([prior.penalty(f, N, 1) for f in pool.single_family]) if pool.singles else np.zeros(0)
     d_single = _deltas(rss, cands.gain, N, pen_single, known)
@@ -725,8 +724,7 @@ def _forward(prob, pool, cands, Q, rw, N, known):
 def _listing(prob, pool, cands, bgain, d_single, d_block, Q, rw, rss, top):
     """The candidates best first (by extended BIC change), aliases collapsed into the best member of their set
     (a custom effect heads its set)."""
-    model, w = prob.model, prob.w
-    N = len(rw)
+    w = prob.w
     listed, seen = [], set()
     order = np.argsort(d_single, kind="stable")
     for j in order:
@@ -807,9 +805,13 @@ def _unexplained(prob, r_mm, tests, strong, listed, pool, rss_fit) -> dict:
     """What the structure the candidates do not explain looks like, and a custom-effect template for it."""
     machine = prob.model.machine
     out = {"tests": [t.to_json() for t in sorted(tests, key=lambda t: t.p)[:6]]}
-    if strong is None:
-        out["note"] = ("no structure along any single variable, reading or approach direction: the noise may be "
-                       "larger than the sigma column says, or the structure depends on several variables at once")
+    if strong is None or st.significance(tests) >= st.ALPHA:
+        chi2 = float(np.sum((r_mm * prob.w) ** 2))
+        dof = max(len(r_mm), 1)
+        out["note"] = ("the residual is above the noise the sigma column gives, but no single variable, reading or "
+                       "approach direction shows structure: the noise may be larger than the sigma column says "
+                       f"(chi2 / readings = {chi2 / dof:.3g}), or the structure depends on several variables at "
+                       "once")
         return out
     if strong.test == "direction":
         axis = strong.var
