@@ -32,6 +32,7 @@ import numpy as np
 from . import effect_ids as ids
 from . import iso
 from .errors import InputError
+from .units import human
 
 DEGREES = (1, 2, 3)
 TOOL = ids.TOOL
@@ -186,8 +187,8 @@ class Effect:
             return [(float(c) / half ** self.deg, f"{unit}/{per}") for c in coefs]
         return [(float(c), unit) for c in coefs]
 
-    def describe(self, machine) -> str:
-        return describe(machine, self)
+    def describe(self, machine, coefs=None) -> str:
+        return describe(machine, self, coefs)
 
 
 def parse(effect_id: str, machine, errors, where: str = "effect") -> Effect:
@@ -207,9 +208,19 @@ def parse(effect_id: str, machine, errors, where: str = "effect") -> Effect:
 
 def vocabulary(machine, errors, with_time: bool) -> list[Effect]:
     """The polynomial effects: all errors and L, times every pose variable (and t if the data has times),
-    degrees 1-3. (Reversal, periodic and thermal candidates depend on the data; see `fiveaxis.diagnose`.)"""
+    degrees 1-3. (Reversal, periodic and thermal candidates depend on the data: `reversals` below and the searches
+    of `fiveaxis.effect_search`.)"""
     toks = tokens(machine, with_time)
     return [Effect(f"{p}:{v}{d}", p, v, "poly", float(d)) for p in (*errors, TOOL) for v in toks for d in DEGREES]
+
+
+def reversals(machine, errors, dirs: dict) -> list[Effect]:
+    """The reversal effects `<param>:<var>r` of all errors and L for every pose variable whose approach direction
+    column dir_<VAR> takes both signs in the data (dirs: {pose variable: (n,) +1/-1})."""
+    vars_ = [v for v in machine.variables if v in dirs and (np.asarray(dirs[v]) > 0).any()
+             and (np.asarray(dirs[v]) < 0).any()]
+    return [Effect(f"{p}:{var_token(machine, v)}r", p, var_token(machine, v), "reversal", 0.0)
+            for p in (*errors, TOOL) for v in vars_]
 
 
 # -- what every effect provides, used by fit, diagnose, simulate and compensation ----------------------------------
@@ -294,24 +305,63 @@ def _var_words(machine, var):
     return name, ("deg" if kind == "rotary" else "mm")
 
 
-def describe(machine, effect: Effect) -> str:
-    """A plain-language description of an effect, e.g. 'the roll of the X carriage changing linearly along X'."""
+def _own(machine, effect: Effect):
+    """The axis of the effect's variable if param is that axis' own positioning error (dx_x for x, ez_C for C)."""
+    ax = _axis_of(machine, effect.param) if effect.param != TOOL else None
+    if ax is None or effect.var == TIME or var_token(machine, ax.name) != effect.var:
+        return None
+    own = _DIR[int(np.argmax(np.abs(ax.direction)))]
+    prefix = effect.param.split("_")[0]
+    if ax.type == "linear" and prefix == f"d{own}" or ax.type == "rotary" and prefix == f"e{own}":
+        return ax
+    return None
+
+
+def describe(machine, effect: Effect, coefs=None) -> str:
+    """A plain-language description of an effect, e.g. 'the roll of the X carriage changing linearly along X';
+    with its fitted coefficients (as fitted: scaled polynomial coefficients, amplitudes in mm or rad) also its
+    size, e.g. 'the X axis reverses with a backlash of 6.1 um'."""
     what = describe_param(machine, effect.param)
     name, unit = _var_words(machine, effect.var)
+    size_unit = effect.unit_of(machine)
+    c = None if coefs is None else [float(x) for x in np.ravel(coefs)]
+    own = _own(machine, effect)
     if effect.kind == "reversal":
-        return f"{what} changing with the direction of approach of {name} (reversal: backlash or lost motion)"
+        if c is None:
+            return f"{what} changing with the direction of approach of {name} (reversal: backlash or lost motion)"
+        size = human(2 * abs(c[0]), size_unit, 2)
+        if own is not None:
+            return f"the {name} axis reverses with a backlash of {size} (lost motion in its positioning)"
+        return f"{what} changing by {size} with the direction of approach of {name} (reversal)"
     if effect.kind == "periodic":
-        note = " (a lead-screw or rack pitch error)" if unit == "mm" else (
-            " (a gear or encoder error)" if unit == "deg" else " (a cyclic thermal or environmental effect)")
-        return f"{what} varying periodically with {name}, period {ids.fmt(effect.arg)} {unit}{note}"
+        if unit == "s":
+            note = " — a cyclic thermal or environmental effect"
+        elif own is not None:
+            note = " — a lead-screw or rack pitch error" if unit == "mm" else " — a gear or encoder error"
+        else:
+            note = f" — a periodic error of the guideway or drive of {name}"
+        amp = "" if c is None else f" and an amplitude of {human(math.hypot(*c), size_unit, 2)}"
+        period = f"a period of {ids.fmt(effect.arg)} {unit}{amp}"
+        if own is not None:
+            kind = "positioning" if unit == "mm" else "angular positioning"
+            return f"a periodic {kind} error of {name} with {period}{note}"
+        return f"{what} varying periodically with {name}, with {period}{note}"
     if effect.kind == "thermal":
-        return f"{what} drifting with time towards a new value, time constant {ids.fmt(effect.arg)} s (thermal)"
+        by = "" if c is None else f" by {human(c[0], size_unit, 2)}"
+        if effect.param == TOOL:
+            return (f"the tool length growing{by} towards a new value with a time constant of "
+                    f"{ids.fmt(effect.arg)} s (spindle warm-up)")
+        return f"{what} drifting{by} towards a new value with a time constant of {ids.fmt(effect.arg)} s (thermal)"
     if effect.var == TIME:
         how = f"drifting {_HOW[effect.deg]} with time"
+        end = "at the end of the run"
     else:
         kind = machine.axis(name).type if name in machine.variables else "linear"
         how = f"changing {_HOW[effect.deg]} {'along' if kind == 'linear' else 'with the angle of'} {name}"
+        end = "at the end of the stroke"
     text = f"{what} {how}"
+    if c is not None:
+        text += f" by {human(c[0], size_unit, 2)} {end}"
     note = _note(machine, effect)
     return f"{text} ({note})" if note else text
 

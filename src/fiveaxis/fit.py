@@ -10,7 +10,13 @@ number, and its null space the combinations the data cannot separate. A paramete
 value of its own; only the combinations of such parameters that the data determines (e.g. `ex_y + Syz`) get a value
 and an uncertainty.
 Weights: 1/sigma from the file; without sigma, the noise of each kind of reading (mm, rad) is estimated from the
-residual (variance components). Uncertainties are standard uncertainties, scaled by sqrt(reduced chi2) when a
+residual (variance components).
+Outliers: a gross error (a probe misfire, a bumped sensor) is not a physical effect. The fit is made robust by
+iteratively reweighted least squares with Huber weights on the weighted residual z = r w / s (s a robust scale:
+1.4826 x the median |z|; with a sigma column never below 1), each step a Gauss-Newton step on the exact model; a
+reading is a gross outlier if |z| exceeds the two-sided normal quantile of OUTLIER_ALPHA / N (Bonferroni over the N
+readings: 5.2 for N = 4,500). Outliers are left out and the fit is made again, by least squares, on the other
+readings; they are listed by data row of the file, with their residuals. Uncertainties are standard uncertainties, scaled by sqrt(reduced chi2) when a
 sigma column is given and the fit is worse than it says (Birge ratio), and reported also expanded (k = 2).
 Units: mm for translations and readings, rad for rotations; effect coefficients as in `fiveaxis.effects`.
 """
@@ -25,6 +31,7 @@ from . import effects as fx
 from . import observations as ob
 from . import setups as su
 from .errors import InputError
+from .units import human
 
 #: Singular values below RANK_RTOL * largest (of the unit-norm columns) count as zero: those directions are not
 #: determined by the data.
@@ -40,6 +47,14 @@ STRONG_CORRELATION = 0.95
 K_EXPANDED = 2.0
 #: Initial weight of tool-axis readings (1/rad) relative to 1/mm for tip readings when neither has a sigma.
 ANGLE_WEIGHT0 = 100.0
+#: Probability that a fit flags any reading of a clean (Gaussian) data set as a gross outlier (Bonferroni).
+OUTLIER_ALPHA = 1e-3
+#: Tuning constant of the Huber weights of the robust fit (95% efficiency on Gaussian noise).
+HUBER_C = 1.345
+#: More outliers than this fraction of the readings are suspicious: said so in the report.
+OUTLIER_MANY = 0.01
+#: Residuals below this fraction of the RMS of the weighted readings are rounding, never outliers.
+ROUNDING = 1e-9
 
 
 @dataclass
@@ -90,10 +105,18 @@ class Problem:
         return self.A[:, list(self.model.errors).index(param)]
 
     def effect_columns(self, effects) -> np.ndarray:
-        """Design columns (m, sum of coefficients) of effects at these readings."""
+        """Design columns (m, sum of coefficients) of effects at these readings: the column of each effect's
+        parameter times its basis functions at the reading's pose."""
+        effects = list(effects)
+        if not effects:
+            return np.empty((self.obs.m, 0))
+        bases = [e.basis(self.ctx) for e in effects]                   # per pose
+        params = list(dict.fromkeys(e.param for e in effects))
+        PC = np.column_stack([self.param_column(p) for p in params])
+        where = {p: i for i, p in enumerate(params)}
+        idx = [where[e.param] for e, b in zip(effects, bases) for _ in range(b.shape[1])]
         with np.errstate(invalid="ignore", over="ignore"):     # non-finite columns are reported by build()
-            cols = [self.param_column(e.param)[:, None] * e.basis(self.ctx)[self.obs.row] for e in effects]
-        return np.hstack(cols) if cols else np.empty((self.obs.m, 0))
+            return PC[:, idx] * np.hstack(bases)[self.obs.row]
 
     def per_pose(self, theta: np.ndarray):
         """Error values (n, n_errors) and tool-length changes (n,) per pose for parameter values theta."""
@@ -101,6 +124,14 @@ class Problem:
         coefs = fx.split_coefficients(self.effects, theta[ne:ne + self.n_effect_coefs])
         E, dL = fx.per_pose(self.effects, coefs, self.ctx, self.model.errors)
         return E + theta[:ne], dL
+
+    def subset(self, keep) -> "Problem":
+        """The problem on some readings (a boolean mask or index array over the rows); poses, parameters and
+        effects unchanged."""
+        from dataclasses import replace
+        sb = su.SetupBlock(self.setups.setups, self.setups.names, self.setups.columns[keep])
+        return replace(self, obs=self.obs.subset(keep), A=self.A[keep], w=self.w[keep].copy(), d=self.d[keep],
+                       setups=sb, known=self.known[keep])
 
     def predict(self, theta: np.ndarray, exact: bool = True) -> np.ndarray:
         """Readings (m,) predicted for parameter values theta (first order, or the exact model)."""
@@ -274,6 +305,42 @@ def formula(terms: dict) -> str:
 
 
 @dataclass
+class Outliers:
+    """Readings left out of a fit as gross outliers: their data rows in the file, what they read, the residual
+    (mm or rad, with the final parameters) and z = residual * w / scale."""
+    rows: np.ndarray           # (k,) data row of each reading (1-based, as in error messages)
+    labels: list               # (k,) dx, dy, dz, di, dj, dk or du
+    group: np.ndarray          # (k,) ob.LENGTH or ob.ANGLE
+    residual: np.ndarray       # (k,) mm or rad
+    z: np.ndarray              # (k,)
+    threshold: float           # |z| above which a reading is an outlier
+    scale: float               # robust scale of the weighted residual (1 = the sigma column)
+    readings: int              # readings of the data set, outliers included
+    index: np.ndarray = None   # (k,) their indices among the readings (observation rows) of the data set
+
+    @property
+    def count(self) -> int:
+        return len(self.rows)
+
+    @property
+    def data_rows(self) -> list[int]:
+        """Distinct data rows holding an outlier, ascending."""
+        return sorted({int(r) for r in self.rows})
+
+    def to_json(self) -> list[dict]:
+        out = []
+        for r, lab, g, res, z in zip(self.rows, self.labels, self.group, self.residual, self.z):
+            unit = "rad" if g == ob.ANGLE else "mm"
+            out.append({"row": int(r), "reading": str(lab), "residual": float(res), "unit": unit, "z": float(z)})
+        return out
+
+
+def no_outliers(readings: int) -> Outliers:
+    return Outliers(np.zeros(0, int), [], np.zeros(0, int), np.zeros(0), np.zeros(0), math.inf, 1.0, readings,
+                    np.zeros(0, int))
+
+
+@dataclass
 class FitResult:
     """The fitted parameters with their identifiability, and the residual (readings: mm, rad)."""
     problem: Problem
@@ -289,6 +356,7 @@ class FitResult:
     groups: list = field(default_factory=list)          # lists of names not determined alone
     combinations: list = field(default_factory=list)    # Combination records
     correlations: list = field(default_factory=list)    # (name, name, r)
+    outliers: "Outliers" = None                          # gross outliers left out of the fit (see Outliers)
 
     @property
     def names(self):
@@ -303,10 +371,23 @@ class FitResult:
         return float(np.sqrt(np.mean(self.residual[g] ** 2))) if g.any() else None
 
     @property
-    def rms_mm(self) -> float:
-        """RMS of the residual of the readings in mm (tip and 1-D)."""
+    def rms_mm_without_outliers(self) -> float:
+        """RMS of the residual of the fitted readings in mm (tip and 1-D), outliers left out."""
         v = self._rms(ob.LENGTH)
         return v if v is not None else 0.0
+
+    @property
+    def rms_mm(self) -> float:
+        """RMS of the residual of every reading in mm (tip and 1-D), outliers included."""
+        o = self.outliers
+        if o is None or not o.count:
+            return self.rms_mm_without_outliers
+        g = self.problem.obs.group == ob.LENGTH
+        og = o.group == ob.LENGTH
+        n = int(g.sum() + og.sum())
+        if not n:
+            return 0.0
+        return float(np.sqrt((np.sum(self.residual[g] ** 2) + np.sum(o.residual[og] ** 2)) / n))
 
     @property
     def rms_rad(self) -> float | None:
@@ -379,13 +460,87 @@ def one_blas_thread():
     return threadpool_limits(limits=1, user_api="blas")
 
 
-def fit(model, meas, added=(), refine: bool = True, max_iter: int = 6, fixed=None) -> FitResult:
+def fit(model, meas, added=(), refine: bool = True, max_iter: int = 6, fixed=None,
+        robust: bool = True, exclude=None) -> FitResult:
     """Fit the errors of a model, the added effects and the setups to measurements; first order, then exact.
 
-    added: effect ids or records, or a Problem already built; fixed: {name: value} held at known values."""
+    added: effect ids or records, or a Problem already built; fixed: {name: value} held at known values;
+    robust: find gross outliers and leave them out (see the module docstring); exclude: (m,) bool over the
+    readings (observation rows): outliers found elsewhere (e.g. against a richer model), left out instead."""
     with one_blas_thread():
         prob = added if isinstance(added, Problem) else build(model, meas, added, fixed)
-        return _fit(prob, refine, max_iter)
+        res = _fit(prob, refine, max_iter)
+        if exclude is not None:
+            return _without_outliers(prob, res, refine, max_iter, np.asarray(exclude, bool))
+        if not robust:
+            res.outliers = no_outliers(len(prob.d))
+            return res
+        return _without_outliers(prob, res, refine, max_iter)
+
+
+def outlier_threshold(N: int) -> float:
+    """|z| above which one of N Gaussian readings is a gross outlier: the two-sided normal quantile of
+    OUTLIER_ALPHA / N."""
+    from scipy.stats import norm
+    return float(norm.isf(OUTLIER_ALPHA / (2.0 * max(N, 1))))
+
+
+def _robust_scale(z: np.ndarray, known: bool) -> float:
+    s = 1.4826 * float(np.median(np.abs(z))) if len(z) else 0.0
+    return max(s, 1.0) if known else s
+
+
+def _without_outliers(prob: Problem, res: FitResult, refine, max_iter, flags=None) -> FitResult:
+    """Robust refit (IRLS, Huber weights, exact-model Gauss-Newton steps) to flag gross outliers (or the flags
+    given); then the least-squares fit of the other readings, with the outliers' residuals at its parameters."""
+    N = len(prob.d)
+    w = prob.w
+    known = res.known_sigma
+    thr = outlier_threshold(N)
+    if flags is not None:
+        if not flags.any():
+            res.outliers = no_outliers(N)
+            return res
+        return _refit_without(prob, flags, refine, max_iter, thr, known)
+    floor = ROUNDING * float(np.sqrt(np.mean((prob.d * w) ** 2))) if N else 0.0
+    free = prob.free
+    theta = res.theta.copy()
+    r = res.residual
+    z = r * w
+    s = _robust_scale(z, known)
+    if s <= floor or not np.any(np.abs(z) > thr * s):
+        res.outliers = no_outliers(N)
+        return res
+    Af = prob.A[:, free] * w[:, None]
+    for _ in range(20):
+        h = np.sqrt(np.minimum(1.0, HUBER_C * s / np.maximum(np.abs(z), 1e-300)))
+        idf = identify(Af * h[:, None])
+        step = _solve(idf, z * h)
+        theta[free] = theta[free] + step
+        r = prob.d - prob.predict(theta, exact=refine)
+        z = r * w
+        s = max(_robust_scale(z, known), floor)
+        if np.all(np.abs(step) * idf.norms <= 1e-8 * (np.max(np.abs(theta[free]) * idf.norms, initial=0.0) + 1e-300)):
+            break
+    flags = (np.abs(z) > thr * s) & (np.abs(z) > floor)
+    if not flags.any():
+        res.outliers = no_outliers(N)
+        return res
+    return _refit_without(prob, flags, refine, max_iter, thr, known)
+
+
+def _refit_without(prob: Problem, flags, refine, max_iter, thr, known) -> FitResult:
+    """The least-squares fit without the flagged readings; the outliers' residuals and z at its parameters."""
+    w = prob.w.copy()
+    sub = prob.subset(~flags)
+    out = _fit(sub, refine, max_iter)
+    r_all = prob.d - prob.predict(out.theta, exact=refine)
+    s = _robust_scale(out.residual * sub.w, known) or 1.0
+    idx = np.flatnonzero(flags)
+    obs = prob.obs
+    out.outliers = Outliers(prob.meas.rows[obs.row[idx]], list(obs.labels()[idx]), obs.group[idx], r_all[idx],
+                            r_all[idx] * w[idx] / s, thr, s, len(prob.d), idx)
+    return out
 
 
 def _solve_all(prob, free, fixed_vals, refine, max_iter):
@@ -536,7 +691,7 @@ def parameters(res: FitResult) -> dict:
                 entry.update(_entry(vals[j][0], abs(stds[j][0]), vals[j][1]))
             else:
                 entry["unit"] = vals[j][1]
-            entry["description"] = eff.describe(model.machine)
+            entry["description"] = eff.describe(model.machine, res.theta[idx])
         k += len(eff.names)
     return out
 
@@ -600,9 +755,15 @@ def to_json(res: FitResult) -> dict:
     counts = {ob.KIND_NAMES[k]: int(np.sum(obs.kind == k)) for k in range(3) if (obs.kind == k).any()}
     first = res.residual_first
     lg = obs.group == ob.LENGTH
+    o = res.outliers if res.outliers is not None else no_outliers(obs.m)
     out = {
         "file": str(prob.meas.path), "n": prob.meas.n, "readings": counts, "frame": obs.frame,
         "rms_mm": res.rms_mm,
+        "rms_mm_without_outliers": res.rms_mm_without_outliers,
+        "outliers": o.data_rows,
+        "outlier_readings": o.to_json(),
+        "outlier_rule": outlier_rule(o, res.known_sigma),
+        "outlier_readings_of": o.readings,
         "rms_first_order_mm": float(np.sqrt(np.mean(first[lg] ** 2))) if lg.any() else 0.0,
         "rank": res.idf.rank, "n_parameters": res.idf.n_params, "condition": res.idf.condition,
         "sigma": "sigma column" if res.known_sigma else "estimated from the residual",
@@ -633,6 +794,36 @@ def to_json(res: FitResult) -> dict:
     return out
 
 
+def outlier_rule(o: Outliers, known_sigma: bool) -> str:
+    """The rule that flagged the outliers, in words."""
+    if known_sigma:
+        scale = "sigma" + (f" x {o.scale:.3g} (the residual is wider than the sigma column says)" if o.scale > 1
+                           else " (the sigma column)")
+    else:
+        scale = f"{human(o.scale, 'mm')} (robust noise estimate: 1.4826 x the median |residual|)"
+    return (f"|residual| above {o.threshold:.3g} x {scale} after a robust fit (Huber weights); the threshold keeps "
+            f"the chance of flagging any reading of clean Gaussian data below {OUTLIER_ALPHA:g}")
+
+
+def outlier_lines(j: dict, limit: int = 12) -> list[str]:
+    """Text lines on the outliers of a fit or diagnosis JSON record (empty without outliers)."""
+    if not j.get("outliers"):
+        return []
+    items = []
+    for o in j["outlier_readings"][:limit]:
+        items.append(f"row {o['row']} {o['reading']} {human(o['residual'], o['unit'])}")
+    more = len(j["outlier_readings"]) - limit
+    many = len(j["outlier_readings"]) > OUTLIER_MANY * j["outlier_readings_of"]
+    lines = [f"    outliers:        {len(j['outlier_readings'])} reading(s) in {len(j['outliers'])} data row(s) left "
+             f"out of the fit: {', '.join(items)}" + (f", ... and {more} more (JSON: outlier_readings)"
+                                                      if more > 0 else ""),
+             f"                     rule: {j['outlier_rule']}"]
+    if many:
+        lines.append("                     that many: the model may be missing an effect whose largest deviations "
+                     "look like outliers (fiveaxis diagnose tells the two apart)")
+    return lines
+
+
 def _combo_unit(prob, terms) -> str:
     """The unit of a combination: that of its first term (a combination mixes parameters of one unit, or of
     units the readings relate: mm and rad times the tool length)."""
@@ -641,19 +832,6 @@ def _combo_unit(prob, terms) -> str:
 
 
 # -- text ------------------------------------------------------------------------------------------------------
-def human(value: float, unit: str) -> str:
-    """A value in units for people: um for mm, urad for rad, with 4 significant figures."""
-    if unit == "mm":
-        return f"{value * 1000:.4g} um"
-    if unit == "rad":
-        return f"{value * 1e6:.4g} urad"
-    if unit.startswith("mm/"):
-        return f"{value * 1000:.4g} um/{unit[3:]}"
-    if unit.startswith("rad/"):
-        return f"{value * 1e6:.4g} urad/{unit[4:]}"
-    return f"{value:.6g} {unit}".rstrip()
-
-
 def report(res: FitResult) -> str:
     """A readable report (in the manner of lmfit's fit_report): um and urad, expanded uncertainty (k = 2)."""
     j = to_json(res)
@@ -664,9 +842,11 @@ def report(res: FitResult) -> str:
              f"    parameters:      {j['n_parameters']} fitted, determined by this data: rank {j['rank']}"
              + (f"; held fixed: {', '.join(j['fixed'])}" if j["fixed"] else ""),
              f"    condition:       {j['condition']:.4g} (design with unit-norm columns)",
-             f"    residual RMS:    {j['rms_mm'] * 1000:.4g} um (exact model; first order "
+             f"    residual RMS:    {j['rms_mm_without_outliers'] * 1000:.4g} um (exact model; first order "
              f"{j['rms_first_order_mm'] * 1000:.4g} um, {j['iterations']} Gauss-Newton steps)"
-             + (f"; tool axis {j['rms_rad'] * 1e6:.4g} urad" if "rms_rad" in j else "")]
+             + (f"; tool axis {j['rms_rad'] * 1e6:.4g} urad" if "rms_rad" in j else "")
+             + (f"; {j['rms_mm'] * 1000:.4g} um with the outliers" if j["outliers"] else "")]
+    lines += outlier_lines(j)
     if res.known_sigma:
         lines.append(f"    reduced chi2:    {j['reduced_chi2']:.4g} (weights from the sigma column)")
         if res.uncertainty_scale > 1:

@@ -76,11 +76,17 @@ def _centre_pose(model) -> np.ndarray:
     return np.array(out)
 
 
-def tip(model, n, rng, with_axis: bool = False, tool_lengths=None) -> Plan:
-    """Random poses within the strokes, 3-D tool-tip deviations (and the tool axis with with_axis)."""
+def tip(model, n, rng, with_axis: bool = False, tool_lengths=None, directions: bool = False) -> Plan:
+    """Random poses within the strokes, 3-D tool-tip deviations (and the tool axis with with_axis); directions:
+    the approach direction of every linear axis (dir_ columns) when the poses are visited in order."""
     poses = model.machine.random_poses(n, rng)
     L, has_L = _lengths(model, n, rng, tool_lengths)
-    return Plan("tip", poses, L, has_L, "tip+axis" if with_axis else "tip")
+    dirs = {}
+    if directions:
+        lin, _ = _variables(model)
+        D = _directions(poses[:, [model.variables.index(v) for v in lin]])
+        dirs = {v: D[:, j] for j, v in enumerate(lin)}
+    return Plan("tip", poses, L, has_L, "tip+axis" if with_axis else "tip", dirs=dirs)
 
 
 def _lengths(model, n, rng, tool_lengths):

@@ -288,7 +288,7 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
     from .. import fit as F
     from ..kernels import load
     from ..measurements import read
-    from ..plots.residuals import for_people, residual_figure
+    from ..plots.residuals import residual_figure, series_of
     from . import compensation as C
     from . import figures
     if max_rounds < 1:
@@ -319,13 +319,12 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
         "sensitivity": None, "compensation": None}
     record["verdict"] = _verdict(model, rounds, fit, max_rounds)
     figs = {"coverage": figures.coverage(model, meas), "rounds": figures.rounds(rounds)}
-    series = [(f"{_model_label(rounds[0]['added'])} (RMS {rounds[0]['rms_um']:.3g} um)",
-               for_people(diags[0].fit.problem.obs, diags[0].fit.residual))]
+    series = [series_of(diags[0].fit, f"{_model_label(rounds[0]['added'])} (RMS {rounds[0]['rms_um']:.3g} um)")]
     if len(diags) > 1:
-        series.append((f"{_model_label(rounds[-1]['added'])} (RMS {rounds[-1]['rms_um']:.3g} um)",
-                       for_people(final.fit.problem.obs, final.fit.residual)))
+        series.append(series_of(final.fit, f"{_model_label(rounds[-1]['added'])} (RMS {rounds[-1]['rms_um']:.3g} "
+                                           f"um)"))
     figs["residuals"] = figures.png(residual_figure(
-        model, meas, final.fit.problem.obs, series, "Fit residual (measured minus modelled reading, um; urad for "
+        model, meas, series, "Fit residual (measured minus modelled reading, um; urad for "
                                                     "the tool axis) against each axis "
                              "position and time" + (", before and after the effects found" if len(diags) > 1 else "")))
     if sensitivity:
