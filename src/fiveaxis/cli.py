@@ -22,6 +22,7 @@ COMMANDS = {
     "diagnose": ("fiveaxis.commands.measure", "where the fitted model fails and which effect is missing, ranked"),
     "simulate": ("fiveaxis.commands.measure", "simulated measurements from the exact model with hidden effects"),
     "model": ("fiveaxis.commands.measure", "model add EFFECT: write effects into a copy of a machine file"),
+    "plan": ("fiveaxis.commands.plan", "the measurement poses that determine the most, before measuring; CSV + G-code"),
     "dask": ("fiveaxis.commands.dask", "GSIL of a workspace grid on Dask: local worker processes or --scheduler"),
 }
 
