@@ -84,6 +84,9 @@ RANDOM_PLANS = 5
 #: with it on the uniform population; at most RIVALS_MAX per effect are estimated alongside in the objective.
 RIVAL_COS = 0.9
 RIVALS_MAX = 3
+#: Rounds of looking for rivals on the plan itself (columns that run close to a named effect's on the chosen poses)
+#: and planning again with them.
+RIVAL_ROUNDS = 2
 #: Units of the pool looked at for the largest rank one unit can have (the minimum number of poses).
 UNIT_RANK_SAMPLE = 500
 #: Readings per candidate unit, by instrument (ballbar: a circle).
@@ -277,12 +280,13 @@ _UNITS = {"tip": _tip_units, "rtest": _sphere_units, "probe-sphere": _sphere_uni
           "interferometer": _interferometer_units, "tracker": _tracker_units}
 
 
-def check_host(model, instrument: str) -> None:
-    """InputError if the machine cannot host the instrument (as planned here)."""
+def check_host(machine, instrument: str) -> None:
+    """InputError if the machine (a Machine record) cannot host the instrument as planned here."""
     if instrument not in _UNITS:
         raise InputError(f"unknown instrument '{instrument}' (expected one of: {', '.join(PLANNERS)})")
-    lin, rot = ins.linear_rotary(model)
-    name = model.machine.name
+    lin = [v for v in machine.variables if machine.axis(v).type == "linear"]
+    rot = machine.rotary
+    name = machine.name
     if instrument in ("rtest", "probe-sphere"):
         if not rot:
             raise InputError(f"instrument {instrument}: machine {name} has no rotary axis (the sphere is measured "
@@ -353,7 +357,7 @@ def _concat_plans(parts) -> ins.Plan:
 def pool(model, instrument: str, n_uniform: int, n_extreme: int, rng, lengths=None) -> Pool:
     """A candidate pool: n_uniform units drawn uniformly within the instrument's constraints and n_extreme that
     favour the ends of the strokes, split over the tool lengths (mm; default the machine's L0)."""
-    check_host(model, instrument)
+    check_host(model.machine, instrument)
     lengths = [model.machine.tool_length] if not lengths else list(lengths)
     fixtures = _fixtures(model, instrument, rng)
     make = _UNITS[instrument]
@@ -538,11 +542,12 @@ class Design:
         return int(np.sum(self.pool.unit == 0))
 
 
-def _rivals(model, prob, effs, uniform_rows, base_setup_cols):
+def _rivals(model, prob, effs, uniform_rows, base_setup_cols, existing=()):
     """Vocabulary effects whose columns, off the base and setups, run close to a named effect's on the uniform
-    population (|cos| >= RIVAL_COS; at most RIVALS_MAX per effect) and that the whole pool can tell from the base,
-    the setups, the named effects and the rivals taken before; and, per named effect, those no data of the
-    instrument separates from it (|cos| > diagnose.ALIAS_COS over the whole pool)."""
+    population (rows uniform_rows; |cos| >= RIVAL_COS; at most RIVALS_MAX new ones per effect) and that the whole
+    pool can tell from the base, the setups, the named effects and the rivals taken before (`existing` first); and,
+    per named effect, those no data of the instrument separates from it (|cos| > diagnose.ALIAS_COS over the pool).
+    Returns (existing + new rivals, aliases)."""
     from . import diagnose as Dg
     from . import effects as fx
     named = {e.id for e in effs}
@@ -565,8 +570,10 @@ def _rivals(model, prob, effs, uniform_rows, base_setup_cols):
         cos[alias] = 0.0
         candidates.append([i for i in np.argsort(-cos) if cos[i] >= RIVAL_COS])
     # Keep a rival only if the pool separates it from everything kept so far (no exact aliases among them).
-    kept = []
-    Q = _orth(np.hstack([pool_Q, on_pool.G[:, len(vocab):] - pool_Q @ on_pool.QtG[:, len(vocab):]]))
+    kept = list(existing)
+    R = np.column_stack([G[:, [v.id for v in vocab].index(r.id)] for r in kept]) if kept else G[:, :0]
+    Q = _orth(np.hstack([pool_Q, on_pool.G[:, len(vocab):] - pool_Q @ on_pool.QtG[:, len(vocab):],
+                         R - pool_Q @ (pool_Q.T @ R)]))
     for cand in candidates:
         taken = 0
         for i in cand:
@@ -581,11 +588,16 @@ def _rivals(model, prob, effs, uniform_rows, base_setup_cols):
 
 
 def design(model, pool_: Pool, effects=(), fixed=None, noise_mm: float = NOISE_MM,
-           noise_rad: float = NOISE_RAD) -> Design:
-    """The design of a pool: reference (scale, identifiable subspace) and the rows of every unit."""
-    meas = measurements(pool_.plan, model, noise_mm, noise_rad, path=f"{pool_.instrument} candidates")
+           noise_rad: float = NOISE_RAD, rivals_of: np.ndarray | None = None, before: "Design | None" = None) -> Design:
+    """The design of a pool: reference (scale, identifiable subspace) and the rows of every unit. Rivals of the
+    named effects are looked for on the uniform candidates, or on the units `rivals_of` (a plan) in addition to
+    those of the design `before` (whose problem is reused)."""
     effs = list(effects)
-    prob = F.build(model, meas, effs, fixed)
+    if before is not None:
+        prob = before.problem
+    else:
+        meas = measurements(pool_.plan, model, noise_mm, noise_rad, path=f"{pool_.instrument} candidates")
+        prob = F.build(model, meas, effs, fixed)
     theta = _theta_columns(prob)
     n_err = int(np.sum(theta < prob.n_errors))
     W = prob.A * prob.w[:, None]
@@ -595,8 +607,9 @@ def design(model, pool_: Pool, effects=(), fixed=None, noise_mm: float = NOISE_M
     setup_cols = np.concatenate([c for _, c in blocks]).astype(int) if blocks else np.zeros(0, int)
     rivals, aliases = [], {}
     if effs:
-        uniform_rows = np.flatnonzero(pool_.uniform[unit_of_row])
-        rivals, aliases = _rivals(model, prob, effs, uniform_rows, np.concatenate([theta[:n_err], setup_cols]))
+        rows = np.flatnonzero(pool_.uniform[unit_of_row] if rivals_of is None else np.isin(unit_of_row, rivals_of))
+        rivals, aliases = _rivals(model, prob, effs, rows, np.concatenate([theta[:n_err], setup_cols]),
+                                  before.rivals if before is not None else ())
     R = prob.effect_columns(rivals) * prob.w[:, None] if rivals else np.zeros((prob.obs.m, 0))
     At = np.hstack([W[:, theta], R])
     scale = np.sqrt(np.sum(At ** 2, axis=0) / pool_.plan.n)
@@ -688,7 +701,7 @@ class _Term:
         inner = np.eye(len(U)) + sign * U @ UM.T
         self.M += sign * U.T @ U
         self.updates += 1
-        if np.linalg.cond(inner) > 1e8 or self.updates % 64 == 0:
+        if self.updates <= len(U.T) or np.linalg.cond(inner) > 1e4 or self.updates % 32 == 0:
             self.refresh()
             return
         K = np.linalg.inv(inner)
@@ -810,12 +823,17 @@ def _setup_shortfall(dsg: Design, units) -> list[int]:
     return out
 
 
-def random_units(dsg: Design, n_units: int, rng) -> np.ndarray:
-    """A random plan: n_units drawn without replacement from the pool's uniform candidates."""
+def random_units(dsg: Design, n_units: int, rng, tries: int = 200) -> np.ndarray:
+    """A random plan: n_units drawn without replacement from the pool's uniform candidates, redrawn (up to `tries`
+    times) while a setup would have fewer readings than its unknowns + 1: random plans the fit accepts."""
     pop = np.flatnonzero(dsg.pool.uniform)
     if n_units > len(pop):
         raise ValueError(f"the pool has {len(pop)} uniform candidates, fewer than {n_units}")
-    return rng.choice(pop, n_units, replace=False)
+    for _ in range(tries):
+        units = rng.choice(pop, n_units, replace=False)
+        if not _setup_shortfall(dsg, units):
+            break
+    return units
 
 
 # -- the whole job ------------------------------------------------------------------------------------------------
@@ -901,7 +919,7 @@ def make(model, instrument: str, n: int, effects=(), lengths=None, seed: int = 0
     for what, v in (("noise", noise_mm), ("tool-axis noise", noise_rad)):
         if not (math.isfinite(v) and v > 0):
             raise InputError(f"{what}: expected a positive, finite standard deviation, got {v}")
-    check_host(model, instrument)
+    check_host(model.machine, instrument)
     lengths = parse_lengths(lengths)
     effs = resolve_effects(model, effects, where)
     rng = np.random.default_rng(seed)
@@ -921,6 +939,12 @@ def make(model, instrument: str, n: int, effects=(), lengths=None, seed: int = 0
                          + (f" with its setups' unknowns" if dsg.shared or instrument == "ballbar" else "")
                          + f" ({dsg.k} readings per {'circle' if per > 1 else 'pose'}); expected at least {need} poses")
     units, passes = _choose(dsg, n_units, rng)
+    for _ in range(RIVAL_ROUNDS if effs else 0):
+        again = design(model, pl, effs, model.machine.fixed, noise_mm, noise_rad, rivals_of=units, before=dsg)
+        if len(again.rivals) == len(dsg.rivals):
+            break
+        dsg = again
+        units, passes = _choose(dsg, n_units, rng)
     units = _measuring_order(dsg, units)
     D, rank = dsg.criterion(units)
     rand_D, rand_rank = [], []
@@ -947,7 +971,7 @@ def make(model, instrument: str, n: int, effects=(), lengths=None, seed: int = 0
                          f"{', '.join(dsg.aliases[e.id])} (the same column at every reachable pose): a diagnosis "
                          f"names them together")
     if dsg.rivals:
-        notes.append(f"told apart from the effects closest to the named ones on random data: "
+        notes.append(f"told apart from the effects closest to the named ones (on random data and on this plan): "
                      f"{', '.join(r.id for r in dsg.rivals)}")
     return PlanResult(model, instrument, plan, units, dsg, D, rank, rand_D, rand_rank, pred, effs, effect_std,
                       {s: t for s, t in pl.setup_notes.items() if plan.setup is not None and s in set(plan.setup)},
@@ -1106,7 +1130,7 @@ def report(res: PlanResult) -> str:
              + "; docs/plan.md)",
              f"    random plan: D = {_fmt_D(res.random_median, min(res.random_rank, default=0), res.r)} for "
              f"{res.n} random poses (median of {len(res.random_D)})"
-             + (f"; this plan is worth about {worth(res):.0f} random poses" if worth(res) else ""),
+             + (f"; random plans would need about {worth(res):.0f} poses to match this one" if worth(res) else ""),
              f"    chosen from: {j['candidates']} candidates (greedy D-optimal selection, then "
              f"{res.passes} exchange pass(es))"]
     for note in res.notes:
@@ -1117,10 +1141,11 @@ def report(res: PlanResult) -> str:
         for nm, v in res.effect_std.items():
             txt = [("not determined" if x is None else F.human(x, v["unit"])) for x in (v["plan"], v["random"])]
             lines.append(f"    {nm:14s} {txt[0]} / {txt[1]}")
-    lines.append(f"[[Determined by this plan]]  {len(pred['determined'])} parameters; predicted standard uncertainty "
-                 f"(k = 1)")
+    coefs = {nm for e in res.effects for nm in e.names}
     items = [f"{nm} {F.human(v['std'], v['unit'])}" for nm, v in pred["determined"].items()
-             if not nm.endswith("]")]
+             if not nm.endswith("]") and nm not in coefs]
+    lines.append(f"[[Determined by this plan]]  {len(items)} machine errors alone; predicted standard uncertainty "
+                 f"(k = 1)")
     for i in range(0, len(items), 4):
         lines.append("    " + ";  ".join(items[i:i + 4]))
     if pred["combinations"]:

@@ -56,6 +56,7 @@ def _lengths(text):
 def run_plan(args) -> int:
     from .. import plan as P
     from ..kernels import load
+    from ..machine import load_machine
     from ..measurements import write
     from ..plan_gcode import check_axes, program
     from .measure import _write_text
@@ -77,8 +78,10 @@ def run_plan(args) -> int:
             raise InputError(f"{opt}: expected {low}, finite number, got {v}")
     if not (args.dwell >= 0 and args.dwell < float("inf")):
         raise InputError(f"--dwell: expected a finite time >= 0 s, got {args.dwell}")
-    model = load(args.machine, args.convention)
-    check_axes(model.machine)
+    machine = load_machine(args.machine)
+    P.check_host(machine, args.instrument)         # before any derivation of a machine that cannot host it
+    check_axes(machine)
+    model = load(machine, args.convention)
     effects = [e.strip() for spec in args.effects for e in spec.split(",") if e.strip()]
     try:
         res = P.make(model, args.instrument, args.n, effects=effects, lengths=_lengths(args.tool_lengths),
