@@ -3,8 +3,9 @@
 1. D-criterion: a plan of N poses against random plans of N, 2N and 3N poses (median of 20 each, drawn uniformly
    within the instrument's constraints from the same population), and against the upper bound of any N-pose plan
    from the same candidates: log det(N M(w*)) of the approximate D-optimal design w* (multiplicative algorithm;
-   Kiefer-Wolfowitz: max_c d_c(w*) = r at the optimum, printed). For R-test the bound leaves the setups out, so it
-   bounds D_s from above too.
+   Kiefer-Wolfowitz: max_c d_c(w*) = r at the optimum, printed; `plan.bound`), and widened by r log(max d / r) over
+   fresh candidates (Atwood 1969) to bound any N poses within the constraints. For R-test the bound leaves the
+   setups out, so it bounds D_s from above too.
 2. Detection: a hidden effect named in --effects; per size N, the share of simulations at the planned poses (5
    noise seeds) and of random plans of N poses (10 plans) in which `diagnose` finds it (missing effect; the effect
    or an exact alias of it on top); "poses needed" is the smallest N from which the share stays >= 0.8.
@@ -33,20 +34,6 @@ RANDOM_DETECT = 10
 SHARE = 0.8
 
 
-def bound(X, iters=5000):
-    """(log det M(w*), max_c d_c, M(w*)) of the approximate D-optimal design over units X (C, k, r)."""
-    C, k, r = X.shape
-    flat = X.reshape(C * k, r)
-    w = np.full(C, 1.0 / C)
-    for _ in range(iters):
-        M = flat.T @ (flat * np.repeat(w, k)[:, None])
-        d = np.sum((flat @ np.linalg.inv(M)) * flat, axis=1).reshape(C, k).sum(axis=1)
-        if d.max() < r * (1 + 1e-5):
-            break
-        w *= d / r
-    return np.linalg.slogdet(M)[1], d.max(), M
-
-
 def part_d(quick: bool):
     print("== D-criterion: plan of N poses vs random plans (median of %d) and the bound of any N-pose plan" % RANDOM)
     print(f"{'machine':12s} {'instrument':10s} {'N':>4s} {'r':>3s} {'plan':>8s} {'bound':>8s} {'bound*':>8s} "
@@ -62,7 +49,7 @@ def part_d(quick: bool):
         med = {}
         for mult in (1, 2, 3):
             med[mult] = float(np.median([dsg.criterion(P.random_units(dsg, mult * n, rng))[0] for _ in range(RANDOM)]))
-        logdet_w, dmax, M = bound(dsg.X[:, :, dsg.cols("base")])
+        logdet_w, dmax, M = P.bound(dsg.X[:, :, dsg.cols("base")])
         b = logdet_w + res.r * math.log(n)
         # The bound holds for any plan within the constraints if no fresh candidate has d above r (equivalence
         # theorem): a second, larger pool from another seed, its rows in the same reference coordinates.
@@ -85,7 +72,8 @@ def part_d(quick: bool):
               f"        {secs:.1f} s   (bound check: max d = {dmax:.4f} on the pool, {d_fresh:.4f} on 40000 fresh "
               f"candidates; r = {res.r})")
     print("   bound: log det(N M(w*)) over the same candidates: no N-pose plan from them exceeds it; bound*: the same\n"
-          "   widened by r log(max d / r) over 40000 fresh candidates (Atwood 1969): any N poses within the constraints.\n"
+          "   widened by r log(max d / r) over 40000 fresh candidates (Atwood 1969): any N poses within the\n"
+          "   constraints.\n"
           "   Where bound* < rand 3N, no plan of N poses reaches the median random plan of 3N on this criterion.")
 
 
@@ -131,8 +119,8 @@ def part_detect(quick: bool):
             rand_share.append((n, r))
             std = res.effect_std.get(eff, {})
             fmt = (lambda x: "-" if x is None else f"{x:.3g}")
-            print(f"   {n:4d} {p:6.2f} {r:7.2f}  {fmt(std.get('plan'))} / {fmt(std.get('random'))} {std.get('unit', '')}",
-                  flush=True)
+            print(f"   {n:4d} {p:6.2f} {r:7.2f}  {fmt(std.get('plan'))} / {fmt(std.get('random'))} "
+                  f"{std.get('unit', '')}", flush=True)
         print(f"   poses needed (share >= {SHARE} from there on): plan {needed(plan_share)}, random "
               f"{needed(rand_share) or f'more than {sizes[-1]}'}")
 

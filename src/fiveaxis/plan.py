@@ -1,29 +1,31 @@
 """Measurement planning: the N poses of an instrument that make the most of the machine time, chosen before measuring.
 
-Criterion (D-optimality on the identifiable subspace, setups as nuisance unknowns). A plan's readings give the
-design A of the machine's errors and of any named effect coefficients (columns theta) and of the setups' unknowns
-(columns s; `fiveaxis.setups`), weighted by 1/sigma of the assumed noise (mm readings: NOISE_MM, tool-axis readings:
-NOISE_RAD). With
-- S = diag(s_j): a fixed column scale, the RMS of column j per candidate over the instrument's candidate pool (the
-  poses the instrument can reach; see below), so that the scaling does not depend on the plan;
-- B (p x r): an orthonormal basis of what the instrument's best possible data determines: the row space of the
-  pool's design after the setups are profiled out (SVD, singular values above `fit.RANK_RTOL` of the largest);
+Criterion (D-optimality on the identifiable subspace, setups as nuisance unknowns; docs/plan.md). A plan's readings
+give the design A of the machine's errors and of any named effects' coefficients (columns theta) and of the setups'
+unknowns (`fiveaxis.setups`), weighted by W = 1/sigma of the assumed noise (mm readings: NOISE_MM, tool-axis
+readings: NOISE_RAD). With
+- S = diag(s_j): a fixed column scale, the RMS per pose of column j over the instrument's candidate pool (the poses
+  it can reach; below), so that the scaling does not depend on the plan;
+- B = diag(B_b, I) (p x r): B_b an orthonormal basis of the directions of the machine's errors that the pool
+  determines once the setups are profiled out (SVD; singular values above fit.RANK_RTOL * sqrt(poses), the fit's
+  relative tolerance against a typical column), then one direction per named effect coefficient;
 - Z = W A_theta S^-1 B, and P_s the projection onto the plan's own setup columns,
 the criterion is
 
     D = log det( Z^T (I - P_s) Z ) = sum of log sigma_i^2 over the r singular values of (I - P_s) Z,
 
-the log-determinant of the information about the r identifiable directions once every setup's unknowns are
-estimated alongside (D_s-optimality with the setups as nuisance: det of the full information over det of the setups'
-own). D is -inf (reported as "rank r of R") when the plan does not determine every direction. Plans compare when
-they share the reference (machine, instrument, tool lengths, effects and noise): D grows by about r log 2 when the
-number of readings doubles at the same quality.
+the information about the r identifiable directions once every setup's unknowns are estimated alongside
+(D_s-optimality: det of the whole information over det of the setups' own). D is -inf (reported as "rank k of r")
+when the plan does not determine every direction. Plans compare when they share the reference (machine,
+instrument, tool lengths, effects, noise); D grows by r log 2 when the readings double at the same quality.
+With named effects the selection maximises the compound (1/r_b) D_base + (1/k_e) D_s(effects | base, setups,
+rivals): rivals are vocabulary effects whose columns run close to a named one's on random data or on the plan.
 
-Algorithm: greedy D-optimal selection from a large pool of candidates that respect the instrument's constraints,
-with rank-k updates of the inverse information (matrix determinant lemma; a small ridge starts it), followed by
-exchange passes (each chosen candidate in turn swapped for the best one outside, Cook & Nachtsheim's modified
-Fedorov exchange) until no swap improves D. The pool mixes uniform samples (the population random plans are drawn
-from) with samples that favour the ends of the strokes, where D-optimal designs live.
+Algorithm: greedy selection from a pool of candidates that respect the instrument's constraints, with rank-k updates
+of the inverse information (matrix determinant lemma, Woodbury; a small ridge starts it), then exchange passes (each
+chosen candidate in turn swapped for the best one outside: Cook & Nachtsheim's modified Fedorov exchange) until no
+swap improves the criterion; with shared setups a second start visits every setup first. The pool mixes uniform
+samples (the population random plans are drawn from) with samples that favour the ends of the strokes.
 
 Constraints per instrument (candidates):
 - tip: any pose within the strokes; 3-D tool-tip readings.
@@ -37,7 +39,7 @@ Constraints per instrument (candidates):
   the axis.
 - tracker: poses and the station that sees them (stations on the bed around the workspace, setups in the machine
   frame); 1-D along the line of sight.
-Tool lengths: one (the machine's L0) or the given ones; every candidate exists at each length (separating angular
+Tool lengths: one (the machine's L0) or two given ones; every candidate exists at each length (separating angular
 from translational errors needs two). Units: mm, rad inside; degrees for rotary axes in files.
 """
 from __future__ import annotations
@@ -58,7 +60,7 @@ from .measurements import Measurements
 NOISE_MM = 1e-3
 NOISE_RAD = 2e-6
 #: A plan of more poses than this is refused: planning is for the few poses that machine time allows.
-MAX_POSES = 2000
+MAX_POSES = 1000
 #: Candidates in the pool: uniform ones (the random plans' population) and end-favouring ones, each
 #: POOL_PER_UNIT per planned unit, at least POOL_MIN and at most POOL_MAX of each (per tool length together).
 POOL_PER_UNIT = 10
@@ -89,7 +91,7 @@ RIVALS_MAX = 3
 RIVAL_ROUNDS = 2
 #: Units of the pool looked at for the largest rank one unit can have (the minimum number of poses).
 UNIT_RANK_SAMPLE = 500
-#: Readings per candidate unit, by instrument (ballbar: a circle).
+#: The instruments a plan can be made for.
 PLANNERS = ("tip", "rtest", "probe-sphere", "ballbar", "interferometer", "tracker")
 
 
@@ -696,6 +698,10 @@ class _Term:
         sg, ld = np.linalg.slogdet(eye + sign * np.matmul(self.X, np.swapaxes(self.G, 1, 2)))
         return np.where(sg > 0, ld, -np.inf)
 
+    def change_one(self, c: int, sign: float) -> float:
+        sg, ld = np.linalg.slogdet(np.eye(self.X.shape[1]) + sign * self.X[c] @ self.G[c].T)
+        return ld if sg > 0 else -np.inf
+
     def update(self, c: int, sign: float):
         U, UM = self.X[c], self.G[c]
         inner = np.eye(len(U)) + sign * U @ UM.T
@@ -725,6 +731,10 @@ class _Objective:
                 total = total + t.weight * t.change(sign)
         return np.nan_to_num(total, nan=-np.inf)
 
+    def change_one(self, c: int, sign: float) -> float:
+        """change() of one unit."""
+        return float(sum(t.weight * t.change_one(c, sign) for t in self.terms))
+
     def value(self) -> float:
         """The objective of the current selection (with the ridge)."""
         return float(sum(t.weight * np.linalg.slogdet(t.M)[1] for t in self.terms))
@@ -743,7 +753,8 @@ def objective_terms(dsg: Design) -> list:
     k_e, r_b = len(g["effect"]), len(g["base"])
     if not k_e:
         return [(dsg.cols("setup", "base"), 1.0), (g["setup"], -1.0)]
-    terms = [(dsg.cols("setup", "rival", "base", "effect"), 1.0 / k_e), (dsg.cols("setup", "rival", "base"), -1.0 / k_e)]
+    terms = [(dsg.cols("setup", "rival", "base", "effect"), 1.0 / k_e),
+             (dsg.cols("setup", "rival", "base"), -1.0 / k_e)]
     if r_b:
         terms += [(dsg.cols("setup", "base"), 1.0 / r_b), (g["setup"], -1.0 / r_b)]
     return terms
@@ -790,7 +801,7 @@ def _run(dsg, n_units, rng, allowed, passes, balanced):
     for used in range(1, passes + 1):
         improved = False
         for i in rng.permutation(np.flatnonzero(chosen)):
-            loss = obj.change(-1.0)[i]
+            loss = obj.change_one(i, -1.0)
             if not np.isfinite(loss):
                 continue
             obj.update(i, -1.0)
@@ -834,6 +845,23 @@ def random_units(dsg: Design, n_units: int, rng, tries: int = 200) -> np.ndarray
         if not _setup_shortfall(dsg, units):
             break
     return units
+
+
+def bound(X: np.ndarray, iters: int = 5000, tol: float = 1e-5):
+    """The approximate D-optimal design over candidate units X (C, k, r) by the multiplicative algorithm (Silvey,
+    Titterington & Torsney 1978): weights w, information M(w) = sum_c w_c X_c^T X_c. Every N units chosen from the
+    candidates have log det(M) <= log det(N M(w*)) (Kiefer-Wolfowitz: at the optimum max_c d_c = r, with
+    d_c = tr(X_c M^-1 X_c^T)). Returns (log det M(w*), max_c d_c, M(w*)); stops when max_c d_c < r (1 + tol)."""
+    C, k, r = X.shape
+    flat = X.reshape(C * k, r)
+    w = np.full(C, 1.0 / C)
+    for _ in range(iters):
+        M = flat.T @ (flat * np.repeat(w, k)[:, None])
+        d = np.sum((flat @ np.linalg.inv(M)) * flat, axis=1).reshape(C, k).sum(axis=1)
+        if d.max() < r * (1 + tol):
+            break
+        w *= d / r
+    return float(np.linalg.slogdet(M)[1]), float(d.max()), M
 
 
 # -- the whole job ------------------------------------------------------------------------------------------------
@@ -888,8 +916,9 @@ def resolve_effects(model, ids, where: str = "effects") -> list:
     for e in effects:
         if getattr(e, "kind", "poly") in ("thermal", "reversal") or getattr(e, "var", None) == "t":
             what = "time" if getattr(e, "var", None) == "t" else "approach-direction (reversal)"
-            raise InputError(f"{where}: effect '{e.id}': a {what} effect cannot be planned for (a plan fixes poses, not when or "
-                             f"from which side they are reached); expected a polynomial or periodic effect of an axis")
+            raise InputError(f"{where}: effect '{e.id}': a {what} effect cannot be planned for (a plan fixes poses, "
+                             f"not when or from which side they are reached); expected a polynomial or periodic effect "
+                             f"of an axis")
     return effects
 
 
@@ -936,7 +965,7 @@ def make(model, instrument: str, n: int, effects=(), lengths=None, seed: int = 0
     if n < need:
         raise TooFewPoses(f"a plan of {n} poses cannot determine the {dsg.ref.r} parameter directions {instrument} "
                          f"data can identify on {model.machine.name}"
-                         + (f" with its setups' unknowns" if dsg.shared or instrument == "ballbar" else "")
+                         + (" with its setups' unknowns" if dsg.shared or instrument == "ballbar" else "")
                          + f" ({dsg.k} readings per {'circle' if per > 1 else 'pose'}); expected at least {need} poses")
     units, passes = _choose(dsg, n_units, rng)
     for _ in range(RIVAL_ROUNDS if effs else 0):
@@ -958,6 +987,8 @@ def make(model, instrument: str, n: int, effects=(), lengths=None, seed: int = 0
     pred = F.predicted(prob)
     effect_std = _effect_std(model, dsg, prob, effs, n_units, rr)
     notes = []
+    if per > 1 and n % per:
+        notes.append(f"{n} poses rounded down to {n_units} whole circles of {per} poses")
     if lengths and len(lengths) == 2:
         one = np.flatnonzero(np.isclose(pl.plan.L[pl.poses_of(np.arange(pl.n_units))][::per], lengths[0]))
         r1 = dsg.criterion(one)[1]
@@ -1128,11 +1159,13 @@ def report(res: PlanResult) -> str:
              f"directions {res.instrument} data can determine (noise {res.design.ref.noise_mm * 1000:g} um"
              + (f", {res.design.ref.noise_rad * 1e6:g} urad" if res.plan.reads == "tip+axis" else "")
              + "; docs/plan.md)",
-             f"    random plan: D = {_fmt_D(res.random_median, min(res.random_rank, default=0), res.r)} for "
-             f"{res.n} random poses (median of {len(res.random_D)})"
-             + (f"; random plans would need about {worth(res):.0f} poses to match this one" if worth(res) else ""),
              f"    chosen from: {j['candidates']} candidates (greedy D-optimal selection, then "
              f"{res.passes} exchange pass(es))"]
+    if res.random_D:
+        lines.insert(2, f"    random plan: D = {_fmt_D(res.random_median, min(res.random_rank), res.r)} for "
+                        f"{res.n} random poses (median of {len(res.random_D)})"
+                     + (f"; random plans would need about {worth(res):.0f} poses to match this one" if worth(res)
+                        else ""))
     for note in res.notes:
         lines.append(f"    note:        {note}")
     if res.effect_std:

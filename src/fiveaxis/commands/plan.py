@@ -35,7 +35,8 @@ def register_plan(p):
                    help="the poses, .csv (also writes the G-code program next to it as .ngc unless --gcode)")
     p.add_argument("--gcode", type=Path, default=None, metavar="FILE",
                    help="where to write the G-code program (default: the output with .ngc)")
-    p.add_argument("--feed", type=float, default=FEED_MM_MIN, help=f"feed of the moves, mm/min (default {FEED_MM_MIN:g})")
+    p.add_argument("--feed", type=float, default=FEED_MM_MIN,
+                   help=f"feed of the moves, mm/min (default {FEED_MM_MIN:g})")
     p.add_argument("--dwell", type=float, default=DWELL_S,
                    help=f"dwell at each pose while the instrument reads, s (default {DWELL_S:g})")
     p.add_argument("--json", action="store_true", help="print the summary as JSON instead of the report")
