@@ -28,6 +28,7 @@ COMMANDS = {
     "names": ("fiveaxis.commands.names", "the errors' project names beside their ISO 230 names, kind, unit, meaning"),
     "compensate": ("fiveaxis.commands.compensate", "compensation table, LinuxCNC files and predicted error from a "
                                                    "fitted model"),
+    "plan": ("fiveaxis.commands.plan", "the measurement poses that determine the most, before measuring; CSV + G-code"),
     "dask": ("fiveaxis.commands.dask", "GSIL of a workspace grid on Dask: local worker processes or --scheduler"),
 }
 

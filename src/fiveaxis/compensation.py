@@ -483,7 +483,7 @@ def write(comp: Compensation, folder, force: bool = False, plot: bool = False, m
 
     from . import linuxcnc as lx
     from .measurements import write as write_frame
-    from .outputs import target, write_text
+    from .outputs import target
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"{folder}: output folder not found")

@@ -14,7 +14,6 @@ import numpy as np
 
 from . import provenance
 from .errors import InputError
-from .machine import data_dir
 
 
 def effect_hash(machine, name: str) -> str:

@@ -623,6 +623,25 @@ def _fit(prob: Problem, refine, max_iter) -> FitResult:
     return res
 
 
+def predicted(prob: Problem) -> dict:
+    """What a design determines before any reading (a measurement plan; weights 1/sigma of the assumed noise): rank,
+    condition, each determined parameter's predicted standard uncertainty, the combinations the design determines
+    of the others (formula, predicted std) and the groups it does not; mm and rad. Same machinery as the fit."""
+    free = prob.free
+    names = [n for n, f in zip(prob.names, free) if f]
+    idf = identify(prob.A[:, free] * prob.w[:, None])
+    cov = _cov(idf, 1.0)
+    groups, combos = _groups_and_combinations(idf, np.zeros(len(names)), cov, names)
+    std = np.sqrt(np.clip(np.diag(cov), 0, None))
+    return {"rank": idf.rank, "n_parameters": idf.n_params, "condition": idf.condition,
+            "determined": {n: {"std": float(s), "unit": _unit(prob, n)}
+                           for n, s, d, nm in zip(names, std, idf.determined, idf.norms) if d and nm > 0},
+            "combinations": [{"formula": c.formula, "terms": c.terms, "std": c.std, "unit": _combo_unit(prob, c.terms)}
+                             for c in combos],
+            "unidentifiable": groups,
+            "unseen": [n for n, nm in zip(names, idf.norms) if nm == 0]}
+
+
 def identifiable_count(model, n_poses: int = 64, seed: int = 0) -> int:
     """Rank of the model's error design on generic poses inside the strokes (tool-tip readings): the parameters
     it can identify from full 3-D tip data at one tool length."""

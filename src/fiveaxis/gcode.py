@@ -118,8 +118,10 @@ def _clip(s: str, n: int = 80) -> str:
     return s if len(s) <= n else s[:n] + "..."
 
 
-def interpret(path, rs274: str = RS274, var_file=None, timeout: float = TIMEOUT) -> Program:
-    """Run the interpreter on a G-code file; its straight moves in machine axis positions (mm, degrees)."""
+def run(path, rs274: str = RS274, var_file=None, timeout: float = TIMEOUT) -> tuple[str, list[str]]:
+    """The one place that runs LinuxCNC's interpreter: `rs274 -g` on a G-code file (its lines tagged with their
+    numbers, so that every canonical command names the line it comes from). Returns (the canonical commands rs274
+    printed, the program's lines); a program it rejects is an InputError with its message and the line."""
     path = Path(path)
     if not available(rs274):
         raise InputError(f"{path}: G-code needs LinuxCNC's interpreter {rs274} (Debian package linuxcnc-uspace: "
@@ -142,7 +144,37 @@ def interpret(path, rs274: str = RS274, var_file=None, timeout: float = TIMEOUT)
             raise InputError(f"{path}: rs274 did not finish within {timeout:g} s (an endless loop?)") from None
     if proc.returncode != 0:
         raise _rejected(path, proc.stderr, lines)
-    return parse_canon(proc.stdout, path, lines)
+    return proc.stdout, lines
+
+
+def interpret(path, rs274: str = RS274, var_file=None, timeout: float = TIMEOUT) -> Program:
+    """Run the interpreter on a G-code file; its straight moves in machine axis positions (mm, degrees)."""
+    stdout, lines = run(path, rs274, var_file, timeout)
+    return parse_canon(stdout, path, lines)
+
+
+def canonical(stdout: str) -> list[tuple[str, str, int]]:
+    """(command, its argument text, program line or 0) of every canonical command rs274 printed, in order."""
+    out = []
+    for raw in stdout.splitlines():
+        m = _LINE.match(raw)
+        if m:
+            nfield, name, args = m.groups()
+            out.append((name, args, int(nfield) if nfield.isdigit() else 0))
+    return out
+
+
+def moves(stdout: str) -> list[tuple[str, dict]]:
+    """(command, {axis: value}) of every straight move rs274 printed: STRAIGHT_TRAVERSE, STRAIGHT_FEED and
+    STRAIGHT_PROBE, as printed (program units, degrees; no offsets applied: what a plan's check compares)."""
+    out = []
+    for name, args, line in canonical(stdout):
+        if name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "STRAIGHT_PROBE"):
+            vals = _numbers(args, f"line {line}")
+            if name == "STRAIGHT_PROBE":
+                vals = vals[:6]
+            out.append((name, dict(zip(AXES, vals[:6]))))
+    return out
 
 
 def parse_canon(stdout: str, path, lines=()) -> Program:

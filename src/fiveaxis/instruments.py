@@ -59,14 +59,14 @@ class Plan:
         return len(self.poses)
 
 
-def _variables(model):
+def linear_rotary(model):
     mach = model.machine
     rot = [v for v in model.variables if mach.axis(v).type == "rotary"]
     lin = [v for v in model.variables if mach.axis(v).type == "linear"]
     return lin, rot
 
 
-def _centre_pose(model) -> np.ndarray:
+def centre_pose(model) -> np.ndarray:
     """Rotary axes at 0 when 0 is in their stroke (else mid-stroke), linear axes mid-stroke: (nvar,) mm, rad."""
     out = []
     for v in model.variables:
@@ -83,8 +83,8 @@ def tip(model, n, rng, with_axis: bool = False, tool_lengths=None, directions: b
     L, has_L = _lengths(model, n, rng, tool_lengths)
     dirs = {}
     if directions:
-        lin, _ = _variables(model)
-        D = _directions(poses[:, [model.variables.index(v) for v in lin]])
+        lin, _ = linear_rotary(model)
+        D = approach_directions(poses[:, [model.variables.index(v) for v in lin]])
         dirs = {v: D[:, j] for j, v in enumerate(lin)}
     return Plan("tip", poses, L, has_L, "tip+axis" if with_axis else "tip", dirs=dirs)
 
@@ -96,12 +96,12 @@ def _lengths(model, n, rng, tool_lengths):
     return (rng.uniform(lo, hi, n) if hi > lo else np.full(n, float(lo))), True
 
 
-def _sphere_positions(model, L, count: int) -> list[np.ndarray]:
+def sphere_positions(model, L, count: int) -> list[np.ndarray]:
     """Sphere placements on the table (workpiece frame, mm) that the tool tip can reach at every rotary position
     of the sweeps: candidates around the nominal tip at the centre pose, shrunk until they fit."""
-    centre = _centre_pose(model)
+    centre = centre_pose(model)
     base, _ = model.ideal_tool(centre[None, :], L)
-    lin, _ = _variables(model)
+    lin, _ = linear_rotary(model)
     spans = [np.diff(model.machine.axis(v).model_stroke)[0] for v in lin]
     r = 0.15 * min(spans)
     dirs = [np.array([1.0, 0.0, 0.3]), np.array([-0.6, 0.8, 0.0]), np.array([0.0, -1.0, 0.5]),
@@ -112,7 +112,7 @@ def _sphere_positions(model, L, count: int) -> list[np.ndarray]:
 def _rotary_grid_sweeps(model, per_sweep: int) -> np.ndarray:
     """Rotary positions (k, nrot) rad: each rotary axis swept over its stroke with the others at 0 (or mid),
     then again with the others at a second value (a quarter of their stroke): ISO 10791-6 K-tests."""
-    _, rot = _variables(model)
+    _, rot = linear_rotary(model)
     mach = model.machine
     strokes = [mach.axis(v).model_stroke for v in rot]
     centre = [0.0 if lo <= 0 <= hi else 0.5 * (lo + hi) for lo, hi in strokes]
@@ -130,10 +130,10 @@ def _rotary_grid_sweeps(model, per_sweep: int) -> np.ndarray:
 
 def _on_spheres(model, rot_positions, L, spheres, setup_prefix):
     """Poses holding the tool tip on each sphere at each rotary position; keeps poses within the strokes."""
-    lin, rot = _variables(model)
+    lin, rot = linear_rotary(model)
     idx_rot = [model.variables.index(v) for v in rot]
     poses_all, setups = [], []
-    centre = _centre_pose(model)
+    centre = centre_pose(model)
     for s, p in enumerate(spheres):
         q = np.tile(centre, (len(rot_positions), 1))
         q[:, idx_rot] = rot_positions
@@ -148,13 +148,13 @@ def _on_spheres(model, rot_positions, L, spheres, setup_prefix):
 
 def rtest(model, n, rng, spheres: int = 3, L: float | None = None) -> Plan:
     """R-test sweeps of every rotary axis around `spheres` sphere placements (setups), workpiece frame."""
-    _, rot = _variables(model)
+    _, rot = linear_rotary(model)
     if not rot:
         raise InputError(f"instrument rtest: machine {model.machine.name} has no rotary axis to sweep")
     L = model.machine.tool_length if L is None else L
     per = max(4, int(round(n / (spheres * 2 * len(rot)))))
     grid = _rotary_grid_sweeps(model, per)
-    poses, setup = _on_spheres(model, grid, L, _sphere_positions(model, L, spheres), "sphere")
+    poses, setup = _on_spheres(model, grid, L, sphere_positions(model, L, spheres), "sphere")
     if len(poses) < 0.5 * len(grid) * spheres:
         raise InputError(f"instrument rtest: machine {model.machine.name}: the sweeps leave the strokes for most "
                          f"sphere placements ({len(poses)} of {len(grid) * spheres} poses fit)")
@@ -165,14 +165,14 @@ def rtest(model, n, rng, spheres: int = 3, L: float | None = None) -> Plan:
 
 def probe_sphere(model, n, rng, spheres: int = 2, L: float | None = None) -> Plan:
     """A sphere probed at a grid of rotary positions, per placement; sphere centre deviations, machine frame."""
-    _, rot = _variables(model)
+    _, rot = linear_rotary(model)
     if not rot:
         raise InputError(f"instrument probe-sphere: machine {model.machine.name} has no rotary axis")
     L = model.machine.tool_length if L is None else L
     per_axis = max(3, int(round((n / spheres) ** (1.0 / len(rot)))))
     axes = [np.linspace(*model.machine.axis(v).model_stroke, per_axis) for v in rot]
     grid = np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
-    poses, setup = _on_spheres(model, grid, L, _sphere_positions(model, L, spheres), "sphere")
+    poses, setup = _on_spheres(model, grid, L, sphere_positions(model, L, spheres), "sphere")
     if len(poses) < 0.5 * len(grid) * spheres:
         raise InputError(f"instrument probe-sphere: machine {model.machine.name}: the rotary grid leaves the strokes "
                          f"for most sphere placements ({len(poses)} of {len(grid) * spheres} poses fit)")
@@ -181,7 +181,7 @@ def probe_sphere(model, n, rng, spheres: int = 2, L: float | None = None) -> Pla
                 setup_frame={s: "workpiece" for s in dict.fromkeys(setup)})
 
 
-def _directions(path: np.ndarray) -> np.ndarray:
+def approach_directions(path: np.ndarray) -> np.ndarray:
     """+1/-1 per pose of a path (k, nlin): the sign of the last non-zero move of each axis (the first pose
     takes the sign of the first move)."""
     dq = np.diff(path, axis=0)
@@ -200,11 +200,11 @@ def _directions(path: np.ndarray) -> np.ndarray:
 
 def ballbar(model, n, rng, radius: float = 150.0, L: float | None = None) -> Plan:
     """ISO 230-4 circles in the XY, YZ and ZX planes, both directions; 1-D along the bar; a setup per circle."""
-    lin, _ = _variables(model)
+    lin, _ = linear_rotary(model)
     if len(lin) < 3:
         raise InputError(f"instrument ballbar: machine {model.machine.name} needs three linear axes")
     L = model.machine.tool_length if L is None else L
-    centre = _centre_pose(model)
+    centre = centre_pose(model)
     pivot, _ = model.ideal_tool(centre[None, :], L)
     pivot = pivot[0]
     per = max(16, int(round(n / 6)))
@@ -225,7 +225,7 @@ def ballbar(model, n, rng, radius: float = 150.0, L: float | None = None) -> Pla
             poses.append(q)
             us.append(u)
             setups += [f"{name}-{sense}"] * per
-            dirs.append(_directions(q[:, idx_lin]))
+            dirs.append(approach_directions(q[:, idx_lin]))
     D = np.vstack(dirs)
     poses = np.vstack(poses)
     setup = np.array(setups, dtype=object)
@@ -239,8 +239,8 @@ def ballbar(model, n, rng, radius: float = 150.0, L: float | None = None) -> Pla
 def interferometer(model, n, rng, cycles: int = 5, targets: int = 11) -> Plan:
     """ISO 230-2 bidirectional runs of every linear axis: `targets` positions over 90% of the stroke (slightly
     irregular spacing), `cycles` forward and reverse passes; 1-D along the axis; a setup per axis."""
-    lin, _ = _variables(model)
-    centre = _centre_pose(model)
+    lin, _ = linear_rotary(model)
+    centre = centre_pose(model)
     poses, us, setups, dirs_all = [], [], [], {v: [] for v in lin}
     for v in lin:
         i = model.variables.index(v)
@@ -274,6 +274,15 @@ def interferometer(model, n, rng, cycles: int = 5, targets: int = 11) -> Plan:
                 dirs={w: np.concatenate(dirs_all[w]) for w in lin})
 
 
+def station_positions(tip_m: np.ndarray, stations: int) -> np.ndarray:
+    """Tracker stations (stations, 3; mm, machine frame) around the box of tool-tip positions tip_m (n, 3): at
+    corners 1.5 half-widths (plus 100 mm) from its centre, so that the lines of sight cross at many angles."""
+    lo, hi = tip_m.min(axis=0), tip_m.max(axis=0)
+    c, half = 0.5 * (lo + hi), 0.5 * (hi - lo) + 100.0
+    corners = np.array([[1, 1, 1], [-1, 1, -1], [1, -1, -1], [-1, -1, 1], [0, 0, 1.5], [1.5, 0, 0]])[:stations]
+    return c + 1.5 * corners * half
+
+
 def tracker(model, n, rng, stations: int = 4) -> Plan:
     """1-D distance changes from `stations` fixed stations on the bed to the tool tip at random poses (each
     pose seen from every station); machine frame; a setup per station (offset and dead path, machine frame)."""
@@ -282,10 +291,7 @@ def tracker(model, n, rng, stations: int = 4) -> Plan:
     L = np.full(per, model.machine.tool_length)
     tip_wp, _ = model.ideal_tool(poses, L)
     tip_m = frames.to_machine(model.machine, poses, tip_wp) if frames.has_workpiece_rotation(model.machine) else tip_wp
-    lo, hi = tip_m.min(axis=0), tip_m.max(axis=0)
-    c, half = 0.5 * (lo + hi), 0.5 * (hi - lo) + 100.0
-    corners = np.array([[1, 1, 1], [-1, 1, -1], [1, -1, -1], [-1, -1, 1], [0, 0, 1.5], [1.5, 0, 0]])[:stations]
-    st = c + 1.5 * corners * half
+    st = station_positions(tip_m, stations)
     P, U, S = [], [], []
     for k, s in enumerate(st):
         vec = tip_m - s
@@ -304,10 +310,10 @@ def test_part(model, n, rng, size: float | None = None, kind: str = "planar") ->
     """A plate of about n holes on a square grid (side `size` mm, default 300 mm or 60% of the smaller of the X and
     Y strokes)
     drilled with the rotary axes at their centre pose; dx, dy measured; one setup `part` of the given kind."""
-    lin, _ = _variables(model)
+    lin, _ = linear_rotary(model)
     if len(lin) < 2:
         raise InputError(f"instrument test-part: machine {model.machine.name} needs two linear axes")
-    centre = _centre_pose(model)
+    centre = centre_pose(model)
     ix, iy = model.variables.index(lin[0]), model.variables.index(lin[1])
     spans = [np.diff(model.machine.axis(v).model_stroke)[0] for v in lin[:2]]
     side = min(300.0, 0.6 * min(spans)) if size is None else float(size)

@@ -387,7 +387,7 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
             i = int(np.argmax(off))
             raise InputError(f"{_where(path, keep[i] + 1, lines)}, columns ux,uy,uz: direction of length "
                              f"{norm[i]:.6g} (expected a unit vector)")
-        fix = has_line & (np.abs(norm - 1.0) > 1e-12)
+        fix = has_line & (np.abs(norm - 1.0) > 1e-9)        # files hold 10 significant digits (write)
         if fix.any():
             warnings.append(f"{path}: {int(fix.sum())} direction(s) ux,uy,uz not of unit length (within "
                             f"{UNIT_TOL:g}): normalised")

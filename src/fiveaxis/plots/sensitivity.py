@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
 
 #: Colours of the slices and bands: tab20 has 20 distinct colours, enough for the top 10 and more; "others"
 #: is always grey, so it never takes the colour of a named error.

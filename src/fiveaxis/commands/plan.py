@@ -1,0 +1,107 @@
+"""`fiveaxis plan`: the poses of a measurement that make the most of the machine time, chosen before measuring.
+
+Prints what the plan will determine and what it cannot (formulas), the criterion against a random plan of the same
+size, and writes the poses as a CSV (`simulate --poses` and the measurement readers take it) and a G-code program
+for LinuxCNC. The logic is in `fiveaxis.plan` and `fiveaxis.plan_gcode`; docs/plan.md.
+"""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from ..errors import InputError
+
+
+def register_plan(p):
+    from ..plan import MAX_POSES, NOISE_MM, PLANNERS
+    from ..plan_gcode import DWELL_S, FEED_MM_MIN
+    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
+    p.add_argument("--convention", default="equations", help="convention of the machine file (default: equations)")
+    p.add_argument("--instrument", default="tip", choices=PLANNERS,
+                   help="what will measure: tip (any pose, 3-D tool tip; default), rtest and probe-sphere (tool tip "
+                        "on a sphere), ballbar (circles), interferometer (along an axis), tracker (stations)")
+    p.add_argument("--n", type=int, required=True, help=f"number of poses (ballbar: rounded to whole circles; at most "
+                                                        f"{MAX_POSES})")
+    p.add_argument("--effects", action="append", default=[], metavar="ID,...",
+                   help="effects the plan should detect and tell apart, e.g. ex_x:x2,ez_C:C1 (repeatable)")
+    p.add_argument("--tool-lengths", default=None, metavar="L1[,L2]",
+                   help="tool lengths to plan with, mm (two separate angular from translational errors; default: the "
+                        "machine's L0)")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the candidates (default 0)")
+    p.add_argument("--noise", type=float, default=NOISE_MM,
+                   help=f"assumed noise of one reading, mm (default {NOISE_MM}): predicted uncertainties scale with it")
+    p.add_argument("-o", "--output", type=Path, required=True,
+                   help="the poses, .csv (also writes the G-code program next to it as .ngc unless --gcode)")
+    p.add_argument("--gcode", type=Path, default=None, metavar="FILE",
+                   help="where to write the G-code program (default: the output with .ngc)")
+    p.add_argument("--feed", type=float, default=FEED_MM_MIN,
+                   help=f"feed of the moves, mm/min (default {FEED_MM_MIN:g})")
+    p.add_argument("--dwell", type=float, default=DWELL_S,
+                   help=f"dwell at each pose while the instrument reads, s (default {DWELL_S:g})")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON instead of the report")
+    p.add_argument("--force", action="store_true", help="replace the output files if they exist")
+    p.set_defaults(func=run_plan)
+
+
+def _lengths(text):
+    if text is None:
+        return None
+    try:
+        vals = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise InputError(f"--tool-lengths: expected L1 or L1,L2 in mm, got {text!r}") from None
+    return vals
+
+
+def run_plan(args) -> int:
+    from .. import plan as P
+    from ..kernels import load
+    from ..machine import load_machine
+    from ..measurements import write
+    from ..plan_gcode import check_axes, program
+    from ..outputs import write_text
+    if args.output.suffix.lower() != ".csv":
+        raise InputError(f"{args.output}: expected a .csv file for the poses")
+    gcode = args.gcode or args.output.with_suffix(".ngc")
+    if gcode.resolve() == args.output.resolve():
+        raise InputError(f"{gcode}: the G-code program and the poses would be the same file (give --gcode FILE)")
+    for path in (args.output, gcode):
+        if path.exists() and not args.force:
+            raise InputError(f"{path}: exists; not overwriting it (use --force to replace it)")
+    if args.n < 1 or args.n > P.MAX_POSES:
+        raise InputError(f"--n {args.n}: expected 1 to {P.MAX_POSES} poses (planning chooses the few poses machine "
+                         f"time allows; for more, simulate an instrument's standard plan)")
+    if args.seed < 0:
+        raise InputError(f"--seed: expected a number >= 0, got {args.seed}")
+    for opt, v, low in (("--noise", args.noise, "a positive"), ("--feed", args.feed, "a positive")):
+        if not (v > 0 and v < float("inf")):
+            raise InputError(f"{opt}: expected {low}, finite number, got {v}")
+    if not (args.dwell >= 0 and args.dwell < float("inf")):
+        raise InputError(f"--dwell: expected a finite time >= 0 s, got {args.dwell}")
+    machine = load_machine(args.machine)
+    P.check_host(machine, args.instrument)         # before any derivation of a machine that cannot host it
+    check_axes(machine)
+    model = load(machine, args.convention)
+    effects = [e.strip() for spec in args.effects for e in spec.split(",") if e.strip()]
+    try:
+        res = P.make(model, args.instrument, args.n, effects=effects, lengths=_lengths(args.tool_lengths),
+                     seed=args.seed, noise_mm=args.noise, where="--effects")
+    except P.TooFewPoses as exc:
+        raise InputError(f"--n {args.n}: {exc}") from None
+    except P.BadLengths as exc:
+        raise InputError(f"--tool-lengths: {exc}") from None
+    title = (f"fiveaxis plan: {args.instrument} on {model.machine.name}, {res.n} poses, seed {args.seed}"
+             + (f", effects {','.join(effects)}" if effects else ""))
+    text = program(model, res.plan, res.setup_notes, title, feed=args.feed, dwell=args.dwell)
+    if args.json:
+        print(json.dumps(P.to_json(res), indent=1))
+    else:
+        print(P.report(res))
+    path = write(P.to_frame(res), args.output, force=args.force)
+    write_text(gcode, text, force=True)
+    print(f"fiveaxis: wrote {path}: {res.n} poses ({args.instrument}, {res.plan.frame} frame); "
+          f"`fiveaxis simulate --poses {path} --machine {args.machine}` simulates them", file=sys.stderr)
+    print(f"fiveaxis: wrote {gcode}: the G-code program (LinuxCNC, G21 G90; axis positions in mm and deg)",
+          file=sys.stderr)
+    return 0
