@@ -167,7 +167,7 @@ def trt_inverse(params: TrtParameters, world, q1_deg, c_deg, tool_offset) -> np.
         out[:, 2] = sc * sa * x + cc * sa * y + ca * z - sa * dy - ca * dz + dz + params.z_rot_point
     else:
         dx = params.offset
-        cb, sb = ca, sa
+        b, cb, sb = a, ca, sa
         dpx = -cb * dx - sb * dz + dx
         dpz = sb * dx - cb * dz + dz
         out[:, 0] = cc * cb * x - sc * cb * y + sb * z + dpx + params.x_rot_point
@@ -328,6 +328,7 @@ def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None,
     G = _tip_jacobian(model, q, L0)                                   # (n, 3, nvar)
     cols = []
     if kind:
+        base = build(np.zeros(n_par))
         for i in range(n_trt):
             h = 1e-3
             tp = np.zeros(n_par)
