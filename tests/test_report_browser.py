@@ -40,8 +40,8 @@ def chromium():
 def reports(tmp_path_factory, chromium):
     d = tmp_path_factory.mktemp("reports")
     sim = d / "ac_trunnion_rtest.csv"
-    assert main(["simulate", "--machine", "ac_trunnion", "--effect", "ey_A:A1=2e-5", "--n", "400", "--seed", "2",
-                 "--with-sigma", "-o", str(sim)]) == 0
+    assert main(["simulate", "--machine", "ac_trunnion", "--instrument", "rtest", "--effect", "dx_C:C1=0.01",
+                 "--n", "400", "--seed", "2", "--with-sigma", "-o", str(sim)]) == 0
     out = {}
     for name, data, machine in (("example", ROOT / "examples" / "li2018_measurements.csv", "li2018"),
                                 ("ac_trunnion", sim, "ac_trunnion")):
@@ -58,11 +58,11 @@ def _n_parameters(page: Path) -> int:
     return int(m.group(1))
 
 
-@pytest.mark.parametrize("name, n_params", [("example", 43), ("ac_trunnion", 42)])
+@pytest.mark.parametrize("name, n_params", [("example", 43), ("ac_trunnion", 51)])
 def test_report_in_headless_chromium(reports, chromium, name, n_params):
     sync_api = pytest.importorskip("playwright.sync_api", reason="playwright-python is not installed")
     page_file = reports[name]
-    assert _n_parameters(page_file) == n_params         # 41 errors + the effects found
+    assert _n_parameters(page_file) == n_params   # 41 errors + the effects found (+ 3 spheres x 3 offsets)
     errors, requests = [], []
     with sync_api.sync_playwright() as p:
         browser = p.chromium.launch(executable_path=chromium, args=FLAGS)
@@ -75,7 +75,7 @@ def test_report_in_headless_chromium(reports, chromium, name, n_params):
             figures = page.eval_on_selector_all(
                 "img", "els => els.map(e => ({w: e.naturalWidth, h: e.naturalHeight, done: e.complete, "
                        "rw: e.getBoundingClientRect().width, rh: e.getBoundingClientRect().height}))")
-            rows = page.locator("#parameters tbody tr").count()
+            rows = page.locator("#parameters tbody tr").count() + page.locator("#setups tbody tr").count()
             verdict = page.locator("#verdict .headline").inner_text()
             ARTIFACTS.mkdir(exist_ok=True)
             shot = ARTIFACTS / f"report-{name}.png"
@@ -107,7 +107,8 @@ def test_record_of_the_trunnion_names_its_axes_by_iso(reports, capsys, tmp_path)
     assert main(["report", str(sim), "--machine", "ac_trunnion", "-o", str(tmp_path / "r.html"), "--json",
                  "--no-sensitivity"]) == 0
     rec = json.loads(capsys.readouterr().out)
-    assert [f["id"] for f in rec["verdict"]["effects_found"]] == ["ey_A:A1"]
-    assert rec["verdict"]["effects_found"][0]["iso"] == "E_BA:A1"
+    assert [f["id"] for f in rec["verdict"]["effects_found"]] == ["dx_C:C1"]
+    assert rec["verdict"]["effects_found"][0]["iso"] == "E_XC:C1"
+    assert {p["setup"] for p in rec["fit"]["setups"]} == {"sphere1", "sphere2", "sphere3"}
     p = {q["name"]: q["iso"] for q in rec["fit"]["parameters"]}
     assert p["SBOA"] == "E_B0A" and p["dXOC"] == "E_X0C" and p["ez_C"] == "E_CC"

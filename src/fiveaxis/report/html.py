@@ -129,8 +129,12 @@ def _verdict(rec: dict) -> str:
 GLOSSARY = [
     ("pose", "one position of the machine's axes (X, Y, Z in mm; rotary axes in degrees) at which the tool tip "
              "was measured."),
-    ("deviation", "measured minus nominal tool-tip position (dx, dy, dz), relative to the workpiece."),
-    ("geometric errors", "the 41 small errors of the machine's kinematic chain (Li et al. 2018): for each axis six "
+    ("deviation", "measured minus nominal tool-tip position (dx, dy, dz), relative to the workpiece; a 1-D "
+                  "instrument (ballbar, interferometer, tracker) reads it along one direction (du)."),
+    ("setup", "one placement of an artefact or instrument (a sphere, a ballbar circle, a test part): its unknown "
+              "position (and orientation) is fitted beside the machine's errors and reported apart."),
+    ("geometric errors", "the small errors of the machine's kinematic chain (41 for the paper's machine, Li et al. "
+                         "2018): for each axis six "
                          "error motions (three translations, three rotations, changing along the axis), and the "
                          "location and squareness errors between axes (constants). Lengths in \u00b5m, angles in "
                          "\u00b5rad (1 \u00b5rad = 1 \u00b5m per m)."),
@@ -202,6 +206,20 @@ def _fit(rec: dict) -> str:
         classes.append("" if p["determined"] else "undetermined")
     out.append(_table(["parameter", "ISO 230", "meaning", "value", "U (k = 2)", "unit", "note"], rows,
                       "parameters", numeric=(3, 4), row_class=classes))
+    if f.get("setups"):
+        out.append("<h3>Setups: where the artefacts lay</h3><p>The unknown placement of each artefact or instrument "
+                   "(offsets c, a length offset l of 1-D readings, rotations w), fitted beside the machine's errors; "
+                   "these are not errors of the machine.</p>")
+        rows, classes = [], []
+        for p in f["setups"]:
+            rows.append([_e(p["setup"]), f'<span class="code">{_e(p["name"])}</span>', _e(p["kind"]),
+                         _num(p["value"], 4) if p["determined"] else "not determined",
+                         _num(p["u_k2"], 2) if p["determined"] else "", _e(_unit(p["unit"])), _e(p["note"])])
+            classes.append("" if p["determined"] else "undetermined")
+        out.append(_table(["setup", "unknown", "kind", "value", "U (k = 2)", "unit", "note"], rows, "setups",
+                          numeric=(3, 4), row_class=classes))
+        for text in sorted({p["setup"] + " " + p["placement"] for p in f["setups"] if p["placement"]}):
+            out.append(f"<p>{_e(text)}.</p>")
     if f["combinations"]:
         out.append("<h3>Combinations the data determines</h3><p>Members of these sums are not determined "
                    "alone; the sum is (coefficients are exact ratios of their effects).</p>")

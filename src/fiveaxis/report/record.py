@@ -213,7 +213,17 @@ def _fit_record(model, res, groups_advice) -> dict:
         std, _ = people(c["std"], j["parameters"][first]["unit"])
         combos.append({"formula": c["formula"], "formula_iso": _iso_formula(model, c["terms"]), "value": value,
                        "u_k2": 2 * std, "unit": unit, "note": c.get("note", "")})
+    setups = []
+    for su_ in j.get("setups", []):
+        for name, p in su_["parameters"].items():
+            value, unit = people(p.get("value"), p["unit"])
+            std, _ = people(p.get("std"), p["unit"])
+            setups.append({"setup": su_["id"], "kind": su_["kind"], "frame": su_["frame"], "name": name,
+                           "value": value, "u_k2": None if std is None else 2 * std, "unit": unit,
+                           "determined": p["determined"], "note": p.get("note", ""),
+                           "placement": su_.get("placement", "")})
     return {"rms_um": j["rms_mm"] * 1e3, "rms_first_order_um": j["rms_first_order_mm"] * 1e3, "rank": j["rank"],
+            "setups": setups,
             "n_parameters": j["n_parameters"], "condition": j["condition"], "sigma": j["sigma"],
             "reduced_chi2": j.get("reduced_chi2"), "effects": j["effects"],
             "effects_iso": [iso.name(model, e) for e in j["effects"]], "parameters": params,
