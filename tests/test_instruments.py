@@ -122,6 +122,7 @@ def test_tool_axis_readings_separate_an_angular_effect_from_translations(models)
 
 @pytest.mark.parametrize("machine, instrument, effect", [
     ("ac_trunnion", "rtest", "dx_C:C1=0.01"),
+    ("tilting_head", "rtest", "ey_B:B1=3e-5"),         # every shipped machine: the B head's angular positioning
     ("li2018", "ballbar", "dx_x:x1=0.05"),            # a scale error of X: 20 um/m
     ("ac_trunnion", "tracker", "dx_x:x1=0.01"),
 ])
