@@ -56,6 +56,25 @@ def _version() -> str:
     return __version__
 
 
+#: The library speaks Python (keyword arguments); on the command line its messages name the options instead.
+TRANSLATIONS = (("(force=True replaces it)", "(use --force to replace it)"),
+                ("(in_place=True rewrites it)", "(use --in-place to rewrite it)"),
+                ("give it as machine=...", "give it with --machine"),
+                ("LE: the effective cutting length", "--le: the effective cutting length"),
+                ("L0: the tool length", "--l0: the tool length"),
+                ("L0/LE: expected", "--l0/--le: expected"),
+                ("worker_kernel: expected", "--worker-kernel: expected"),
+                ("chunk: expected", "--chunk: expected"),
+                ("cone: expected", "--cone: expected"))
+
+
+def to_command_line(message: str) -> str:
+    """A library message with its Python argument names replaced by the command-line options that set them."""
+    for library, cli in TRANSLATIONS:
+        message = message.replace(library, cli)
+    return message
+
+
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     command = next((a for a in argv if not a.startswith("-")), None)
@@ -67,7 +86,7 @@ def main(argv=None) -> int:
     try:
         return int(args.func(args) or 0)
     except InputError as exc:
-        print(f"fiveaxis: error: {exc}", file=sys.stderr)
+        print(f"fiveaxis: error: {to_command_line(str(exc))}", file=sys.stderr)
         return 2
     except OSError as exc:            # a file that cannot be read or written: its name and the reason, on one line
         if isinstance(exc, BrokenPipeError):

@@ -192,7 +192,7 @@ def load_model(fm: FittedModel, where: str = "model file"):
         shipped = MACHINES_DIR / f"{fm.machine}.toml"
         if not shipped.exists():
             raise InputError(f"{where}: machine.file: {path} not found (the model was fitted for that machine "
-                             f"file; give it with --machine)")
+                             f"file; give it as machine=...)")
         path = shipped
     model = load(str(path), fm.convention)
     check_model(fm, model, where)

@@ -54,7 +54,7 @@ def target(path, force: bool = False) -> Path:
         raise InputError(f"{path}: is a folder (expected a file name)")
     check_folder(real.parent)
     if real.exists() and not force:
-        raise InputError(f"{path}: exists; not overwriting it (use --force to replace it)")
+        raise InputError(f"{path}: exists; not overwriting it (force=True replaces it)")
     return real
 
 

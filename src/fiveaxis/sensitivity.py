@@ -44,9 +44,9 @@ CHECK_SAMPLE = 4096
 def quadrature(L0: float, LE: float, order: int) -> tuple[np.ndarray, np.ndarray]:
     """Gauss-Legendre nodes (tool lengths, mm) and weights (mm) on [L0 - LE, L0]."""
     if not (isinstance(LE, (int, float)) and math.isfinite(LE) and LE > 0):
-        raise InputError(f"--le: the effective cutting length must be a positive number of mm, got {LE}")
+        raise InputError(f"LE: the effective cutting length must be a positive number of mm, got {LE}")
     if not (math.isfinite(L0) and L0 > 0):
-        raise InputError(f"--l0: the tool length must be a positive number of mm, got {L0}")
+        raise InputError(f"L0: the tool length must be a positive number of mm, got {L0}")
     if LE > L0:
         raise InputError(f"the effective cutting length LE = {LE:g} mm is longer than the tool length L0 = {L0:g} "
                          f"mm: the cutting edge would reach behind the gauge line (tool lengths L0 - LE = "
