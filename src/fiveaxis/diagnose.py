@@ -526,9 +526,13 @@ def _separating(prob: F.Problem, group, all_effects):
     return tips
 
 
-def diagnose(model, meas, added=(), top: int = 10, fixed=None) -> Diagnosis:
+def diagnose(model, meas, added=(), top: int = 10, fixed=None, in_blocks: bool | None = None) -> Diagnosis:
     """Fit, then rank every candidate effect by how much of the residual it explains, decide, and give a verdict.
-    fixed: {name: value} parameters held at known values (mm, rad)."""
+    fixed: {name: value} parameters held at known values (mm, rad); in_blocks: a set too large for memory, in row
+    blocks (`fiveaxis.blocked`; None: above `fit.IN_MEMORY_POSES` poses)."""
+    if F.use_blocks(meas.n, in_blocks):
+        from . import blocked
+        return blocked.diagnose(model, meas, added, top, fixed)
     with F.one_blas_thread():
         return _diagnose(model, meas, added, top, fixed)
 
@@ -613,25 +617,42 @@ def _diagnose(model, meas, added, top, fixed=None) -> Diagnosis:
     forward, r_cur, n_coef = _forward(prob, pool, cands, Q, rw, N, known)
     lg = prob.obs.group == ob.LENGTH
     if known:
-        from scipy.stats import chi2
         noise = res.noise(ob.LENGTH) or 0.0
-        source = "sigma column"
-        decision["chi2"] = rss
-        decision["chi2_dof"] = N - res.idf.rank
-        decision["chi2_p"] = float(chi2.sf(rss, max(N - res.idf.rank, 1)))
     else:
         dof = max(lg.sum() * (1 - (res.idf.rank + n_coef) / N), 1.0)     # the readings in mm take their share
         noise = float(np.sqrt(np.sum((r_cur[lg] / w[lg]) ** 2) / dof)) if lg.any() else 0.0
+    listed = _listing(prob, pool, cands, bgain, d_single, d_block, Q, rw, rss, top)
+    dg = conclude(res, prob, res.residual, r_cur, decision, forward, noise, listed, pool, rss, absorbed, meas.n)
+    dg.hidden_by_placement = su.hidden_by_placement(
+        prob, pool.singles, pool.G, [j for j, ratio in enumerate(cands.ratio) if ratio <= ABSORBED])
+    return dg
+
+
+def conclude(res: F.FitResult, prob: F.Problem, r_fit: np.ndarray, r_cur: np.ndarray, decision: dict,
+             forward: list, noise: float, listed: list, pool: Pool, rss: float, absorbed: list, n: int) -> "Diagnosis":
+    """The verdict and the structure of the residual, from the decision: the noise (mm), the structure tests of
+    the residual of prob's readings after the fit (r_fit, mm and rad) and after the effects the rule accepts
+    (r_cur, weighted, first order); prob: the fitted problem, or a sample of its poses for a set too large for
+    memory (`fiveaxis.blocked`), with the fit's weights at its readings."""
+    known = res.known_sigma
+    w = prob.w
+    if known:
+        from scipy.stats import chi2
+        source = "sigma column"
+        N, rank = decision["N"], res.idf.rank
+        decision["chi2"] = rss
+        decision["chi2_dof"] = N - rank
+        decision["chi2_p"] = float(chi2.sf(rss, max(N - rank, 1)))
+    else:
         source = ("estimated from the residual after the effects the rule accepts" if forward
                   else "estimated from the residual of the fit")
-    listed = _listing(prob, pool, cands, bgain, d_single, d_block, Q, rw, rss, top)
-    tests = st.tests(prob, res.residual * w)
-    passes = bool(d_ebic < 0 and cv_pass)
+    tests = st.tests(prob, r_fit * w)
+    passes = bool(decision["delta_ebic_best"] < 0 and decision["cv_pass"])
     decision["passes"] = passes
     # The structure that matters: left by the effects the rule accepts (forward selection), or by the fit.
     after = [f["id"] for f in forward] if passes and forward else []
     t_used = st.tests(prob, r_cur) if after else tests
-    r_mm = r_cur / w if after else res.residual
+    r_mm = r_cur / w if after else r_fit
     p_struct = st.significance(t_used)
     strong = st.strongest(t_used)
     structure_test = {"rule": f"trend (cubic F), order (von Neumann) and direction (Welch t) tests of the weighted "
@@ -661,12 +682,9 @@ def _diagnose(model, meas, added, top, fixed=None) -> Diagnosis:
     if verdict == "unexplained structure":
         unexplained = _unexplained(prob, r_mm, t_used, strong, listed, pool, rss)
         unexplained["after"] = after
-    dg = Diagnosis(res, meas.n, res.rms_mm, noise, source, missing, listed, decision,
-                   residual_structure(prob, res.residual, tests), forward, pool.n_fixed, absorbed, verdict,
-                   res.rms_mm_without_outliers, structure_test, unexplained, pool.searched_json())
-    dg.hidden_by_placement = su.hidden_by_placement(
-        prob, pool.singles, pool.G, [j for j, ratio in enumerate(cands.ratio) if ratio <= ABSORBED])
-    return dg
+    return Diagnosis(res, n, res.rms_mm, noise, source, missing, listed, decision,
+                     residual_structure(prob, r_fit, tests), forward, pool.n_fixed, absorbed, verdict,
+                     res.rms_mm_without_outliers, structure_test, unexplained, pool.searched_json())
 
 
 def _forward(prob, pool, cands, Q, rw, N, known):
@@ -745,7 +763,7 @@ def _listing(prob, pool, cands, bgain, d_single, d_block, Q, rw, rss, top):
         eff = pool.singles[j]
         r_after = (rw - cands.beta[j] * cands.perp(int(j))) / w
         c_fit = cands.beta[j] / cands.gnorm[j] if cands.gnorm[j] > 0 else 0.0
-        item = _item(prob, eff, str(pool.single_family[j]), [c_fit], r_after, float(cands.gain[j]), rss,
+        item = candidate_item(prob, eff, str(pool.single_family[j]), [c_fit], _rms_mm(prob, r_after), float(cands.gain[j]), rss,
                      float(d_single[j]))
         item["aliases"] = [pool.singles[i].id for i in group]
         if group and not listed:
@@ -765,7 +783,7 @@ def _listing(prob, pool, cands, bgain, d_single, d_block, Q, rw, rss, top):
         taken.update(members)
         sb = scored[head]
         r_after = (rw - sb.Qb @ (sb.Qb.T @ rw)) / w
-        item = _item(prob, pool.blocks[head], pool.block_family[head], sb.coefs, r_after, sb.gain, rss,
+        item = candidate_item(prob, pool.blocks[head], pool.block_family[head], sb.coefs, _rms_mm(prob, r_after), sb.gain, rss,
                      float(d_block[head]))
         item["aliases"] = [pool.blocks[m].id for m in members if m != head]
         listed.append(item)
@@ -786,12 +804,12 @@ def _same_space(A: np.ndarray, B: np.ndarray) -> bool:
     return bool(s.min() > ALIAS_COS)
 
 
-def _item(prob, eff, family, coefs, r_after, gain, rss, delta) -> dict:
-    """A listed candidate: id, family, RMS after adding it, share explained, its coefficients in physical units
-    and a description with its size."""
+def candidate_item(prob, eff, family, coefs, rms_after, gain, rss, delta) -> dict:
+    """A listed candidate: id, family, RMS after adding it (mm), share explained, its coefficients in physical
+    units and a description with its size."""
     machine = prob.model.machine
     phys = eff.physical(machine, np.asarray(coefs, float), prob.scales)
-    item = {"id": eff.id, "family": family, "aliases": [], "rms_mm": _rms_mm(prob, r_after),
+    item = {"id": eff.id, "family": family, "aliases": [], "rms_mm": rms_after,
             "explained": float(gain / rss) if rss > 0 else 0.0, "delta_ebic": delta,
             "description": eff.describe(machine, coefs),
             "coefficient": phys[0][0] if phys else None, "unit": phys[0][1] if phys else ""}

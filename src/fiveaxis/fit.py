@@ -55,6 +55,14 @@ HUBER_C = 1.345
 OUTLIER_MANY = 0.01
 #: Residuals below this fraction of the RMS of the weighted readings are rounding, never outliers.
 ROUNDING = 1e-9
+#: Above this many poses, fit and diagnose build the design in row blocks (`fiveaxis.blocked`) instead of in memory
+#: (in memory, a diagnosis of 20,000 poses peaks above 2 GB).
+IN_MEMORY_POSES = 16384
+
+
+def use_blocks(n_poses: int, in_blocks: bool | None = None) -> bool:
+    """Whether a set of n_poses is fitted in row blocks: as asked (True, False), or above IN_MEMORY_POSES (None)."""
+    return n_poses > IN_MEMORY_POSES if in_blocks is None else bool(in_blocks)
 
 
 @dataclass
@@ -76,6 +84,7 @@ class Problem:
     setups: su.SetupBlock
     fixed: dict = field(default_factory=dict)   # name -> value held fixed (mm, rad)
     known: np.ndarray = None   # (m,) bool: the row's sigma comes from the file
+    in_blocks: bool = False    # the design is not held: built one block of poses at a time (`fiveaxis.blocked`)
 
     @property
     def n_errors(self) -> int:
@@ -130,11 +139,15 @@ class Problem:
         effects unchanged."""
         from dataclasses import replace
         sb = su.SetupBlock(self.setups.setups, self.setups.names, self.setups.columns[keep])
-        return replace(self, obs=self.obs.subset(keep), A=self.A[keep], w=self.w[keep].copy(), d=self.d[keep],
-                       setups=sb, known=self.known[keep])
+        return replace(self, obs=self.obs.subset(keep), A=None if self.A is None else self.A[keep],
+                       w=self.w[keep].copy(), d=self.d[keep], setups=sb, known=self.known[keep])
+
 
     def predict(self, theta: np.ndarray, exact: bool = True) -> np.ndarray:
         """Readings (m,) predicted for parameter values theta (first order, or the exact model)."""
+        if self.in_blocks:
+            from . import blocked
+            return blocked.predict(self, theta, exact)
         if not exact:
             return self.A @ theta
         E, dL = self.per_pose(theta)
@@ -182,36 +195,67 @@ def _check_finite(prob_names, A, meas, obs, start):
                          f"a negative value)")
 
 
-def build(model, meas, added=(), fixed=None) -> Problem:
-    """The design of a model with added effects (ids or effect records) and held parameters at the readings."""
+def build(model, meas, added=(), fixed=None, design: bool = True) -> Problem:
+    """The design of a model with added effects (ids or effect records) and held parameters at the readings.
+
+    design=False: everything but the design (J, K and A stay None): the observation rows, weights, effects, setups
+    and names of a measurement set too large for its design in memory; `fiveaxis.blocked` builds the design of one
+    block of poses at a time (`design_of`)."""
     effects = resolve_effects(model, list(added))
     obs = ob.build(meas, model.machine)
-    J, K = model.jk(meas.poses, meas.L)
     tip, tool_dir = model.ideal_tool(meas.poses, meas.L)
     ctx = fx.context(model.machine, meas.poses, meas.t, meas.dirs)
-    base = ob.design(obs, J, K)
     sb = su.block(obs, meas, model.machine, tip)
-    names = list(model.errors)
-    prob = Problem(model, meas, obs, effects, names, ctx, J, K, tool_dir, tip, base, np.ones(obs.m), obs.value,
-                   sb)
-    blocks = [base]
-    if effects:
-        E = prob.effect_columns(effects)
-        _check_finite([n for e in effects for n in e.names], E, meas, obs, 0)
-        blocks.append(E)
-        names += [nm for e in effects for nm in e.names]
-    if sb.q:
-        blocks.append(sb.columns)
-        names += sb.names
-    prob.A = np.hstack(blocks) if len(blocks) > 1 else base
-    prob.names = names
+    names = list(model.errors) + [nm for e in effects for nm in e.names] + list(sb.names)
+    prob = Problem(model, meas, obs, effects, names, ctx, None, None, tool_dir, tip, None, np.ones(obs.m),
+                   obs.value, sb)
     prob.fixed = _check_fixed(model, names, fixed or {})
+    prob.w, prob.known = _weights(obs)
+    if design:
+        design_of(prob)
+    else:
+        prob.in_blocks = True
+    return prob
+
+
+def _weights(obs):
+    """Initial weights (m,) and whether each row's sigma is known: 1/sigma from the file; without it 1 for readings
+    in mm and ANGLE_WEIGHT0 for tool-axis readings (the variance components then adjust them)."""
     known = ~np.isnan(obs.sigma)
     w = np.where(known, 1.0 / np.where(known, obs.sigma, 1.0), 1.0)
     angle = obs.group == ob.ANGLE
     if (~known & angle).any() and (~known & ~angle).any():
         w[~known & angle] = ANGLE_WEIGHT0
-    prob.w, prob.known = w, known
+    return w, known
+
+
+def with_effects(prob: Problem, added=()) -> Problem:
+    """The same readings and setups (arrays shared, not copied) with more effects (ids or records) and fresh
+    weights: a problem to fit again, e.g. with the effects a diagnosis accepts."""
+    from dataclasses import replace
+    effects = list(prob.effects) + resolve_effects(prob.model, list(added))
+    names = list(prob.model.errors) + [nm for e in effects for nm in e.names] + list(prob.setups.names)
+    w, known = _weights(prob.obs)
+    new = replace(prob, effects=effects, names=names, w=w, known=known, A=None, J=None, K=None,
+                  fixed=_check_fixed(prob.model, names, prob.fixed))
+    return new if prob.in_blocks else design_of(new)
+
+
+def design_of(prob: Problem) -> Problem:
+    """Fill in the design of a problem built without it: J, K at its poses and A (errors, effect coefficients,
+    setup unknowns). Returns prob."""
+    model, meas = prob.model, prob.meas
+    prob.J, prob.K = model.jk(meas.poses, meas.L)
+    base = ob.design(prob.obs, prob.J, prob.K)
+    prob.A = base                      # the errors' columns: what effect columns are built from
+    blocks = [base]
+    if prob.effects:
+        E = prob.effect_columns(prob.effects)
+        _check_finite([n for e in prob.effects for n in e.names], E, meas, prob.obs, 0)
+        blocks.append(E)
+    if prob.setups.q:
+        blocks.append(prob.setups.columns)
+    prob.A = np.hstack(blocks) if len(blocks) > 1 else base
     return prob
 
 
@@ -461,14 +505,16 @@ def one_blas_thread():
 
 
 def fit(model, meas, added=(), refine: bool = True, max_iter: int = 6, fixed=None,
-        robust: bool = True, exclude=None) -> FitResult:
+        robust: bool = True, exclude=None, in_blocks: bool | None = None) -> FitResult:
     """Fit the errors of a model, the added effects and the setups to measurements; first order, then exact.
 
     added: effect ids or records, or a Problem already built; fixed: {name: value} held at known values;
     robust: find gross outliers and leave them out (see the module docstring); exclude: (m,) bool over the
-    readings (observation rows): outliers found elsewhere (e.g. against a richer model), left out instead."""
+    readings (observation rows): outliers found elsewhere (e.g. against a richer model), left out instead;
+    in_blocks: build the design in row blocks (`fiveaxis.blocked`; None: above IN_MEMORY_POSES poses)."""
     with one_blas_thread():
-        prob = added if isinstance(added, Problem) else build(model, meas, added, fixed)
+        prob = added if isinstance(added, Problem) else \
+            build(model, meas, added, fixed, design=not use_blocks(meas.n, in_blocks))
         res = _fit(prob, refine, max_iter)
         if exclude is not None:
             return _without_outliers(prob, res, refine, max_iter, np.asarray(exclude, bool))
@@ -490,6 +536,26 @@ def _robust_scale(z: np.ndarray, known: bool) -> float:
     return max(s, 1.0) if known else s
 
 
+def _floor(prob: Problem) -> float:
+    """Weighted residuals below this are rounding (ROUNDING x the RMS of the weighted readings)."""
+    return ROUNDING * float(np.sqrt(np.mean((prob.d * prob.w) ** 2))) if len(prob.d) else 0.0
+
+
+def suspects(res: FitResult) -> bool:
+    """A least-squares fit has readings beyond the outlier threshold (against the robust scale of its residual):
+    the robust fit is needed."""
+    prob = res.problem
+    z = res.residual * prob.w
+    s = _robust_scale(z, res.known_sigma)
+    return bool(s > _floor(prob) and np.any(np.abs(z) > outlier_threshold(len(prob.d)) * s))
+
+
+def robust(res: FitResult, refine: bool = True, max_iter: int = 6) -> FitResult:
+    """The robust fit (outliers flagged and left out, see the module docstring) from a least-squares fit."""
+    with one_blas_thread():
+        return _without_outliers(res.problem, res, refine, max_iter)
+
+
 def _without_outliers(prob: Problem, res: FitResult, refine, max_iter, flags=None) -> FitResult:
     """Robust refit (IRLS, Huber weights, exact-model Gauss-Newton steps) to flag gross outliers (or the flags
     given); then the least-squares fit of the other readings, with the outliers' residuals at its parameters."""
@@ -502,20 +568,17 @@ def _without_outliers(prob: Problem, res: FitResult, refine, max_iter, flags=Non
             res.outliers = no_outliers(N)
             return res
         return _refit_without(prob, flags, refine, max_iter, thr, known)
-    floor = ROUNDING * float(np.sqrt(np.mean((prob.d * w) ** 2))) if N else 0.0
+    floor = _floor(prob)
     free = prob.free
     theta = res.theta.copy()
-    r = res.residual
-    z = r * w
+    z = res.residual * w
     s = _robust_scale(z, known)
-    if s <= floor or not np.any(np.abs(z) > thr * s):
+    if not suspects(res):
         res.outliers = no_outliers(N)
         return res
-    Af = prob.A[:, free] * w[:, None]
     for _ in range(20):
         h = np.sqrt(np.minimum(1.0, HUBER_C * s / np.maximum(np.abs(z), 1e-300)))
-        idf = identify(Af * h[:, None])
-        step = _solve(idf, z * h)
+        idf, step = _weighted_step(prob, free, h, z * h, res.idf.rank)
         theta[free] = theta[free] + step
         r = prob.d - prob.predict(theta, exact=refine)
         z = r * w
@@ -543,8 +606,22 @@ def _refit_without(prob: Problem, flags, refine, max_iter, thr, known) -> FitRes
     return out
 
 
+def _weighted_step(prob, free, h, rhs, rank):
+    """Least-squares step of the free parameters for row weights w h (h > 0) and right-hand side rhs (m,): (idf of
+    the weighted free columns, step). rank: that of the columns weighted w alone (positive weights keep it). In
+    memory, or in row blocks for a problem without its design."""
+    if prob.in_blocks:
+        from . import blocked
+        return blocked.weighted_step(prob, free, h, rhs, rank)
+    idf = identify(prob.A[:, free] * (prob.w * h)[:, None])
+    return idf, _solve(idf, rhs)
+
+
 def _solve_all(prob, free, fixed_vals, refine, max_iter):
     """(theta, idf, first-order residual, exact residual, iterations) for the current weights."""
+    if prob.in_blocks:
+        from . import blocked
+        return blocked.solve_all(prob, free, fixed_vals, refine, max_iter)
     Af = prob.A[:, free]
     theta = np.zeros(len(prob.names))
     theta[~free] = fixed_vals

@@ -154,7 +154,14 @@ def _read_table(path: Path):
         names = list(table.column_names)
         _duplicates(path, names)
         types = {n: table.schema.field(n).type for n in names}
-        return names, {n: table.column(n).to_pylist() for n in names}, None, types
+        import pyarrow.types as pat
+        cols = {}
+        for n in names:        # numbers as float arrays (nulls NaN: blank); anything else as Python cells
+            t = types[n]
+            numeric = pat.is_floating(t) or pat.is_integer(t)
+            cols[n] = (np.asarray(table.column(n).to_numpy(zero_copy_only=False), dtype=float) if numeric
+                       else table.column(n).to_pylist())
+        return names, cols, None, types
     if suffix not in (".csv", ".txt"):
         raise InputError(f"{path}: unknown file type '{suffix}' (expected .csv or .parquet)")
     rows, lines = [], []
@@ -231,6 +238,18 @@ def _numbers(path, name, cells, lines, keep, blank_ok: bool = False, types=None)
     first bad cell is an InputError naming row and column. Vectorised: 10^6 cells in well under a second."""
     import pandas as pd
     _check_type(path, name, types)
+    if isinstance(cells, np.ndarray):       # Parquet numbers: NaN is blank
+        arr = cells[keep] if len(keep) != len(cells) else cells.copy()
+        blank = np.isnan(arr)
+        bad = np.flatnonzero(np.isinf(arr))
+        if not blank_ok and blank.any():
+            bad = np.sort(np.concatenate([bad, [int(np.argmax(blank))]])).astype(int)
+        if len(bad):
+            r = keep[int(bad[0])]
+            where = f"{_where(path, r + 1, lines)}, column {name}"
+            raise InputError(f"{where}: expected a finite number, got {cells[r]}" if np.isinf(cells[r]) else
+                             f"{where}: empty cell (expected a number)")
+        return arr
     s = pd.Series(cells, dtype=object)
     if len(keep) != len(s):
         s = s.iloc[keep]
@@ -321,8 +340,12 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
                          f"(missing: {', '.join(c for c in DIRECTION if c not in cols)})")
     nrows = len(cols[names[0]]) if names else 0
     # Rows that are entirely empty (blank lines) are skipped; row numbers stay those of the file.
-    keep = [r for r in range(nrows) if any(not _blank(c[r]) for c in cols.values())]
-    if not keep:
+    filled = np.zeros(nrows, bool)
+    for c in cols.values():
+        filled |= ~np.isnan(c) if isinstance(c, np.ndarray) else np.fromiter((not _blank(v) for v in c), bool,
+                                                                              count=nrows)
+    keep = np.flatnonzero(filled)
+    if not len(keep):
         raise InputError(f"{path}: no data rows (expected one row per measured pose under the header)")
     n = len(keep)
     num = lambda c, blank_ok=False: _numbers(path, c, cols[c], lines, keep, blank_ok, types)  # noqa: E731

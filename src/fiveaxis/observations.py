@@ -119,16 +119,36 @@ def design(obs: Observations, J: np.ndarray, K: np.ndarray) -> np.ndarray:
     """Design columns (m, n_params) of parameters whose tip and axis error vectors at each pose are J, K
     (n, n_params, 3): row o is h_o . (J, K) at its pose."""
     A = np.zeros((obs.m, J.shape[1]))
-    for k in range(3):
-        hp = obs.H[:, k]
-        live = hp != 0
-        if live.any():
-            A[live] += hp[live, None] * J[obs.row[live], :, k]
-        hv = obs.H[:, 3 + k]
-        live = hv != 0
-        if live.any():
-            A[live] += hv[live, None] * K[obs.row[live], :, k]
+    _design_kernel()(obs.row, obs.H, J, K, A)
     return A
+
+
+_KERNEL: list = []
+
+
+def _design_kernel():
+    """The row loop of `design`, compiled on first use (numba; cached on disk where numba can write)."""
+    if not _KERNEL:
+        from numba import njit
+
+        def rows(row, H, J, K, A):
+            ne = J.shape[1]
+            for o in range(row.shape[0]):
+                i = row[o]
+                for k in range(3):
+                    hp = H[o, k]
+                    if hp != 0.0:
+                        for e in range(ne):
+                            A[o, e] += hp * J[i, e, k]
+                    hv = H[o, 3 + k]
+                    if hv != 0.0:
+                        for e in range(ne):
+                            A[o, e] += hv * K[i, e, k]
+        try:
+            _KERNEL.append(njit(cache=True, nogil=True)(rows))
+        except RuntimeError:              # no folder numba can cache in: compile for this process only
+            _KERNEL.append(njit(nogil=True)(rows))
+    return _KERNEL[0]
 
 
 def apply(obs: Observations, P: np.ndarray, V: np.ndarray) -> np.ndarray:
