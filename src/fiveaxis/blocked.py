@@ -27,7 +27,9 @@ Units: mm and rad, as in `fiveaxis.fit`.
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 
@@ -108,18 +110,112 @@ def solve_normal(idf: F.Identifiability, g: np.ndarray) -> np.ndarray:
     return y / safe
 
 
-def _pass(prob, free, r_of=None, with_r: bool = True):
-    """One pass with the design: the TSQR factor of the weighted free columns A w (if with_r) and their products
-    (A w)^T (r w) with r = r_of(block problem, readings) (m_b,), unweighted."""
-    R, g = None, np.zeros(int(free.sum()))
-    every = bool(free.all())
-    for rows, pb in blocks(prob):
-        A = pb.A if every else pb.A[:, free]
-        if with_r:
-            R = tsqr(R, A * pb.w[:, None])
-        if r_of is not None:
-            g += A.T @ (pb.w ** 2 * r_of(pb, rows))
-    return R, g
+# -- where the blocks run ----------------------------------------------------------------------------------------
+class Local:
+    """Blocks one after the other in this process."""
+
+    def map(self, prob: F.Problem, fn, arrays=(), design: bool = True) -> list:
+        """[fn(block problem, *(a[readings of the block] for a in arrays)) for every block], in order."""
+        return [fn(pb, *(a[rows] for a in arrays)) for rows, pb in blocks(prob, design)]
+
+    def close(self):
+        pass
+
+
+class Cluster:
+    """Blocks on the workers of a dask client. The blocks of a problem (without the design: readings, poses,
+    setups; effects by id) are scattered once; every pass sends the current weights and its per-block arrays,
+    and each worker builds its blocks' design itself (the model loaded by machine file and convention, as
+    `fiveaxis.distributed` does: the package and the machine file must be on every worker)."""
+
+    def __init__(self, client):
+        self.client = client
+        self._key, self._blocks = None, None
+
+    def _scattered(self, prob):
+        key = (prob.obs, tuple(e.id for e in prob.effects), tuple(prob.names))
+        if self._key is None or self._key[0] is not prob.obs or self._key[1:] != key[1:]:
+            specs, rows = [], []
+            for r, pb in blocks(prob, design=False):
+                specs.append(replace(pb, model=None, effects=[e.id for e in pb.effects], w=None))
+                rows.append(r)
+            self._key, self._blocks = key, (self.client.scatter(specs), rows)
+        return self._blocks
+
+    def map(self, prob, fn, arrays=(), design: bool = True) -> list:
+        futures, rows = self._scattered(prob)
+        where = (str(prob.model.machine.path), prob.model.convention)
+        tasks = [self.client.submit(_on_worker, f, where, design, fn, prob.w[r], *(a[r] for a in arrays),
+                                    pure=False) for f, r in zip(futures, rows)]
+        return self.client.gather(tasks)
+
+    def close(self):
+        self._key = self._blocks = None
+
+
+def _on_worker(spec, where, design, fn, w, *arrays):
+    """One block on a worker: the model loaded (once per worker process), the effects resolved, the design built."""
+    from .kernels import load
+    model = load(where[0], where[1], derive=False)
+    pb = replace(spec, model=model, effects=F.resolve_effects(model, spec.effects), w=w)
+    if design:
+        F.design_of(pb)
+    return fn(pb, *arrays)
+
+
+_RUNNERS: list = [Local()]
+
+
+def runner():
+    """Where the blocks run now: this process, or a dask cluster inside `on_cluster`."""
+    return _RUNNERS[-1]
+
+
+@contextmanager
+def on_cluster(client):
+    """Run the row blocks of fits and diagnoses in this context on the workers of a dask client (for sets beyond
+    one machine's memory, e.g. 10^7 rows): the same results as in one process, up to rounding."""
+    _RUNNERS.append(Cluster(client))
+    try:
+        yield
+    finally:
+        _RUNNERS.pop().close()
+
+
+# -- the passes of a fit ------------------------------------------------------------------------------------------
+def _ls_block(pb, free, fixed_vals, theta, with_r, first):
+    """One block of a least-squares pass: (R of A w or None, (A w)^T (r w), first-order residual or None), with
+    r = d - A_fixed fixed_vals (theta None) or the exact model's residual at theta."""
+    A = pb.A[:, free]
+    if theta is None:
+        r, rf = pb.d - pb.A[:, ~free] @ fixed_vals, None
+    else:
+        r = pb.d - pb.predict(theta)
+        rf = pb.d - pb.A @ theta if first else None
+    return (tsqr(None, A * pb.w[:, None]) if with_r else None), A.T @ (pb.w ** 2 * r), rf
+
+
+def _gram_block(pb, h, rhs, free):
+    Af = pb.A[:, free] * (pb.w * h)[:, None]
+    return Af.T @ Af, Af.T @ rhs
+
+
+def _predict_block(pb, theta, exact):
+    return pb.predict(theta, exact)
+
+
+def _pass(prob, free, fixed_vals=None, theta=None, with_r: bool = True, first: bool = False):
+    """One pass with the design (`_ls_block` on every block): (R merged by TSQR, g summed, first-order residual
+    (m,) or None)."""
+    parts = runner().map(prob, partial(_ls_block, free=free, fixed_vals=fixed_vals, theta=theta, with_r=with_r,
+                                       first=first))
+    R = None
+    if with_r:
+        for Rb, _, _ in parts:
+            R = tsqr(R, Rb)
+    g = np.sum([gb for _, gb, _ in parts], axis=0) if parts else np.zeros(int(free.sum()))
+    rf = np.concatenate([x for _, _, x in parts]) if first else None
+    return R, g, rf
 
 
 def weighted_step(prob, free, h, rhs, rank):
@@ -128,11 +224,9 @@ def weighted_step(prob, free, h, rhs, rank):
     weighted w, found by the QR of the least-squares fit). The step is the minimum-norm solution, as in memory; the
     Gram squares the condition number, which the robust steps tolerate (they are iterated to convergence)."""
     p = int(free.sum())
-    M, g = np.zeros((p, p)), np.zeros(p)
-    for rows, pb in blocks(prob):
-        Af = pb.A[:, free] * (pb.w * h[rows])[:, None]
-        M += Af.T @ Af
-        g += Af.T @ rhs[rows]
+    parts = runner().map(prob, partial(_gram_block, free=free), (h, rhs))
+    M = np.sum([m for m, _ in parts], axis=0) if parts else np.zeros((p, p))
+    g = np.sum([gb for _, gb in parts], axis=0) if parts else np.zeros(p)
     norms = np.sqrt(np.clip(np.diag(M), 0.0, None))
     norms = np.where(norms > F.ZERO_COLUMN_RTOL * norms.max(initial=0.0), norms, 0.0)
     safe = np.where(norms > 0, norms, 1.0)
@@ -150,34 +244,24 @@ def weighted_step(prob, free, h, rhs, rank):
 def predict(prob: F.Problem, theta: np.ndarray, exact: bool = True) -> np.ndarray:
     """Readings (m,) predicted for parameter values theta, block by block (the first-order model builds the
     design of each block; the exact one does not need it)."""
-    out = np.empty(prob.obs.m)
-    for rows, pb in blocks(prob, design=not exact):
-        out[rows] = pb.predict(theta, exact)
-    return out
+    parts = runner().map(prob, partial(_predict_block, theta=theta, exact=exact), design=not exact)
+    return np.concatenate(parts) if parts else np.zeros(0)
 
 
 def solve_all(prob, free, fixed_vals, refine, max_iter):
     """`fit._solve_all` in row blocks: (theta, idf, first-order residual, exact residual, iterations)."""
     theta = np.zeros(len(prob.names))
     theta[~free] = fixed_vals
-    R, g = _pass(prob, free, lambda pb, rows: pb.d - pb.A[:, ~free] @ fixed_vals)
+    R, g, _ = _pass(prob, free, fixed_vals)
     idf = identify(R)
     theta[free] = solve_normal(idf, g)
-    res_first = np.empty(prob.obs.m)
     if not refine:
-        for rows, pb in blocks(prob):
-            res_first[rows] = pb.d - pb.A @ theta
+        res_first = prob.d - predict(prob, theta, exact=False)
         return theta, idf, res_first, res_first.copy(), 0
-    iterations = 0
+    iterations, res_first = 0, None
     for iterations in range(1, max_iter + 1):
-        current = theta.copy()
-
-        def rhs(pb, rows, current=current, first=iterations == 1):
-            if first:
-                res_first[rows] = pb.d - pb.A @ current
-            return pb.d - pb.predict(current)
-
-        _, g = _pass(prob, free, rhs, with_r=False)
+        _, g, rf = _pass(prob, free, theta=theta.copy(), with_r=False, first=res_first is None)
+        res_first = rf if res_first is None else res_first
         step = solve_normal(idf, g)
         theta[free] = theta[free] + step
         scale = np.abs(theta[free]) * idf.norms
@@ -188,8 +272,9 @@ def solve_all(prob, free, fixed_vals, refine, max_iter):
 
 
 # -- diagnosis ---------------------------------------------------------------------------------------------------
-def sample_poses(n: int, k: int = SAMPLE_POSES, seed: int = 0) -> np.ndarray:
-    """Sorted indices of k of n poses drawn at random (all of them if n <= k)."""
+def sample_poses(n: int, k: int | None = None, seed: int = 0) -> np.ndarray:
+    """Sorted indices of k (default SAMPLE_POSES) of n poses drawn at random (all of them if n <= k)."""
+    k = SAMPLE_POSES if k is None else k
     if n <= k:
         return np.arange(n)
     return np.sort(np.random.default_rng(seed).choice(n, k, replace=False))
@@ -220,19 +305,32 @@ class Compressed:
     def cols(self, k: int) -> list[int]:
         return list(range(self.offsets[k], self.offsets[k + 1]))
 
-    def add(self, X: np.ndarray, fold: np.ndarray, mm: np.ndarray, w: np.ndarray):
-        for f in range(len(self.R)):
-            sel = fold == f
-            if sel.any():
-                self.R[f] = tsqr(self.R[f], X[sel])
-                self.rows[f] += int(sel.sum())
-        Xm = X[mm] / w[mm, None]
-        self.gram_mm += Xm.T @ Xm
-        self.n_mm += int(mm.sum())
+    def merge(self, R: list, rows: np.ndarray, gram_mm: np.ndarray, n_mm: int):
+        """Add one block's part (`_compress_block`)."""
+        for f, Rf in enumerate(R):
+            if Rf is not None:
+                self.R[f] = tsqr(self.R[f], Rf)
+        self.rows += rows
+        self.gram_mm += gram_mm
+        self.n_mm += n_mm
 
     def stacked(self, skip: int | None = None) -> np.ndarray:
         parts = [R for f, R in enumerate(self.R) if R is not None and f != skip]
         return tsqr(None, np.vstack(parts))
+
+
+def _compress_block(pb, residual, fold, free, fixed_vals, ids, folds):
+    """One block of the diagnosis' pass: per fold, the TSQR factor of [A w | G w | r w | d w] over its readings;
+    the Gram matrix of the same columns over the readings in mm, weights 1/w^2."""
+    from . import diagnose as D
+    cands = F.resolve_effects(pb.model, ids)
+    X = np.hstack([pb.A[:, free] * pb.w[:, None]] + [D.candidate_matrix(pb, [e]) for e in cands]
+                  + [(residual * pb.w)[:, None], ((pb.d - pb.A[:, ~free] @ fixed_vals) * pb.w)[:, None]])
+    R = [tsqr(None, X[fold == f]) if np.any(fold == f) else None for f in range(folds)]
+    rows = np.bincount(fold, minlength=folds)
+    mm = pb.obs.group == ob.LENGTH
+    Xm = X[mm] / pb.w[mm, None]
+    return R, rows, Xm.T @ Xm, int(mm.sum())
 
 
 def _lstsq(Z: np.ndarray, cols: list[int], target: int):
@@ -292,12 +390,10 @@ def diagnose(model, meas, added=(), top: int = 10, fixed=None):
         pose_fold = fold_of[groups]
         p = int(free.sum())
         C = Compressed(p, cands, D.K_FOLDS)
-        for rows, pb in blocks(prob):
-            X = np.hstack([pb.A[:, free] * pb.w[:, None]]
-                          + [D.candidate_matrix(pb, [e]) for e in cands]
-                          + [(res.residual[rows] * pb.w)[:, None],
-                             ((pb.d - pb.A[:, ~free] @ fixed_vals) * pb.w)[:, None]])
-            C.add(X, pose_fold[prob.obs.row[rows]], pb.obs.group == ob.LENGTH, pb.w)
+        fold = pose_fold[prob.obs.row]
+        for part in runner().map(prob, partial(_compress_block, free=free, fixed_vals=fixed_vals,
+                                               ids=[e.id for e in cands], folds=D.K_FOLDS), (res.residual, fold)):
+            C.merge(*part)
         dg = _decide(res, prob, sp, srows, pool_s, C, cands, families, top, known)
         if pool_s.singles:
             absorbed = [j for j, ratio in enumerate(c_s.ratio) if ratio <= D.ABSORBED]
@@ -456,7 +552,7 @@ def _listing(C, Z, cands, families, scored, deltas, rss, sp, top):
         coefs = x[-C.widths[k]:]
         item = D.candidate_item(sp, cands[k], families[k], coefs, _rms(C, cols, x), float(g), rss, float(deltas[k]))
         item["aliases"] = [cands[j].id for j in group]
-        if group and not listed:
+        if group and not listed and C.widths[k] == 1:
             item["separate_by"] = D._separating(sp, [k] + group, cands)
         listed.append(item)
     from . import iso

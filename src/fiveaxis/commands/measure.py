@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,12 @@ def _fit_options(p):
     p.add_argument("--setup-frame", default=None, choices=FRAMES,
                    help="frame the setups' artefacts are fixed in when their rows do not say (setup_frame column): "
                         "workpiece (on the table; default) or machine (on the bed)")
+    p.add_argument("--blocks", default="auto", choices=("auto", "on", "off"),
+                   help="build the design in row blocks of 16,384 poses (bounded memory for 10^5-10^7 rows): auto "
+                        "(above 16,384 poses; default), on, off (in memory)")
+    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:8786",
+                   help="run the row blocks on the workers of this dask scheduler (every worker needs fiveaxis and "
+                        "the machine file at the same path); implies --blocks on")
 
 
 def register_fit(p):
@@ -118,6 +125,12 @@ def _load(args):
     from ..kernels import load
     from ..machine import load_machine
     from ..measurements import read
+    if getattr(args, "scheduler", None) is not None:
+        from ..distributed import scheduler_address
+        try:
+            scheduler_address(args.scheduler)       # before the data are read: a typo fails at once
+        except InputError as exc:
+            raise InputError(f"--scheduler: {exc}") from None
     machine = load_machine(args.machine)
     model = load(machine, args.convention)
     meas = read(args.file, model.machine, min_rows=2, frame=args.frame, setup_kind=args.setup_kind,
@@ -158,12 +171,34 @@ def _dump(obj):
     print(json.dumps(clean(obj), indent=1))
 
 
+@contextmanager
+def _where_blocks(args):
+    """The in_blocks argument of fit and diagnose from --blocks, inside a dask cluster's context for --scheduler."""
+    in_blocks = {"auto": None, "on": True, "off": False}[args.blocks]
+    if args.scheduler is None:
+        yield in_blocks
+        return
+    from .. import blocked, distributed
+    if args.blocks == "off":
+        raise InputError("--scheduler runs row blocks on a cluster: it cannot be combined with --blocks off")
+    try:
+        client = distributed.connect(args.scheduler)
+    except InputError as exc:
+        raise InputError(f"--scheduler: {exc}") from None
+    try:
+        with blocked.on_cluster(client):
+            yield True
+    finally:
+        client.close()
+
+
 def run_fit(args) -> int:
     from .. import fit as F
     model, meas, effects, fixed = _load(args)
     if args.output is not None and args.output.exists() and not args.force:
         raise InputError(f"{args.output}: exists; not overwriting it (use --force to replace it)")
-    res = F.fit(model, meas, effects, refine=not args.first_order, fixed=fixed)
+    with _where_blocks(args) as in_blocks:
+        res = F.fit(model, meas, effects, refine=not args.first_order, fixed=fixed, in_blocks=in_blocks)
     if args.output is not None:
         from ..model_file import from_fit, save
         save(from_fit(res), args.output, force=args.force)
@@ -180,7 +215,8 @@ def run_diagnose(args) -> int:
     if args.top < 1:
         raise InputError(f"--top: expected a positive number, got {args.top}")
     model, meas, effects, fixed = _load(args)
-    dg = D.diagnose(model, meas, effects, top=args.top, fixed=fixed)
+    with _where_blocks(args) as in_blocks:
+        dg = D.diagnose(model, meas, effects, top=args.top, fixed=fixed, in_blocks=in_blocks)
     if args.plot is not None:
         from ..plots.residuals import plot_residuals
         path = plot_residuals(dg, args.plot)
