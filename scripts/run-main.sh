@@ -69,6 +69,13 @@ say "A ballbar test (ISO 230-4 circles, both directions) on li2018 with a hidden
 loop "$BALLBAR" li2018
 # --- end section: measurements
 
+# --- section: scale (issue 12)
+BIG="$OUT/li2018_200k.parquet"
+say "A continuous measurement of 200,000 poses ($BIG, Parquet) with a hidden roll of X: diagnose in row blocks"
+"$BIN/fiveaxis" simulate --machine li2018 --n 200000 --effect ex_x:x1=1e-5 --with-sigma --seed 5 -o "$BIG" --force
+"$BIN/fiveaxis" diagnose "$BIG" --top 3
+# --- end section: scale
+
 # --- section: compensation (issue 10)
 # From the identified model to the controller, and the error falls on the (simulated) machine: an A/C trunnion with
 # hidden errors and two effects is measured, fitted, compensated (volumetric table + LinuxCNC files), and measured

@@ -561,14 +561,14 @@ def _recheck_outliers(model, meas, fixed, res: F.FitResult) -> F.FitResult:
     forward, _, _ = _forward(prob, pool, cands, Q, rw, len(rw), res.known_sigma)
     if not forward:
         return res
-    richer = F.fit(model, meas, list(prob.effects) + [f["id"] for f in forward], fixed=fixed)
+    richer = F.fit(model, meas, list(prob.effects) + [f["id"] for f in forward], fixed=fixed, in_blocks=False)
     flags = np.zeros(res.outliers.readings, bool)
     flags[richer.outliers.index] = True
-    return F.fit(model, meas, list(prob.effects), fixed=fixed, exclude=flags)
+    return F.fit(model, meas, list(prob.effects), fixed=fixed, exclude=flags, in_blocks=False)
 
 
 def _diagnose(model, meas, added, top, fixed=None) -> Diagnosis:
-    res = F.fit(model, meas, added, fixed=fixed)
+    res = F.fit(model, meas, added, fixed=fixed, in_blocks=False)
     if res.outliers.count:
         res = _recheck_outliers(model, meas, fixed, res)
     prob = res.problem
@@ -956,6 +956,11 @@ def report_from_json(j: dict) -> str:
                  f"{d['penalty']:.1f}; trials per family: {fams}; {d['cv_folds']}-fold CV held-out SSE "
                  f"{d['cv_sse_without']:.4g} -> {d['cv_sse_with']:.4g})"
                  + ("; outliers left out of the decision" if j["outliers"] else ""))
+    b = d.get("in_blocks")
+    if b:
+        lines.append(f"    in row blocks of {b['block_poses']:,} poses: every candidate screened on a sample of "
+                     f"{b['sample_poses']:,} poses, the best {b['scored_on_all_readings']} decided on all "
+                     f"{j['readings']:,} readings (structure tests on the sample)")
     lines.append("[[Candidates]] best first: RMS after adding it, share of the residual it explains")
     for k, c in enumerate(j["candidates"], 1):
         coef = "" if c["coefficient"] is None or c["family"] in ("periodic", "reversal", "thermal", "custom") \

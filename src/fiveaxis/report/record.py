@@ -171,6 +171,9 @@ def separation(model, meas, effects, groups: list[list[str]], names: list[str]) 
             pending.append(row)
     if pending:
         index = {n: i for i, n in enumerate(names)}
+        if F.use_blocks(meas.n):          # what separates the errors is a property of the poses: a sample shows it
+            from ..blocked import sample_poses
+            meas = meas.subset(sample_poses(meas.n))
         for text, extra in _options(model, meas):
             try:
                 prob = F.build(model, _concat(meas, extra), effects)
