@@ -186,7 +186,7 @@ def on_cluster(client):
 def _ls_block(pb, free, fixed_vals, theta, with_r, first):
     """One block of a least-squares pass: (R of A w or None, (A w)^T (r w), first-order residual or None), with
     r = d - A_fixed fixed_vals (theta None) or the exact model's residual at theta."""
-    A = pb.A[:, free]
+    A = pb.A if free.all() else pb.A[:, free]
     if theta is None:
         r, rf = pb.d - pb.A[:, ~free] @ fixed_vals, None
     else:
@@ -196,8 +196,12 @@ def _ls_block(pb, free, fixed_vals, theta, with_r, first):
 
 
 def _gram_block(pb, h, rhs, free):
-    Af = pb.A[:, free] * (pb.w * h)[:, None]
-    return Af.T @ Af, Af.T @ rhs
+    """One block of a robust step: (the Gram matrix of the columns w sqrt(1 - h^2) of the rows whose weight the
+    step lowers (h < 1), (A w h)^T rhs)."""
+    A = pb.A if free.all() else pb.A[:, free]
+    low = np.flatnonzero(h < 1.0)
+    Ad = A[low] * (pb.w[low] * np.sqrt(1.0 - h[low] ** 2))[:, None]
+    return Ad.T @ Ad, A.T @ (pb.w * h * rhs)
 
 
 def _predict_block(pb, theta, exact):
@@ -218,14 +222,20 @@ def _pass(prob, free, fixed_vals=None, theta=None, with_r: bool = True, first: b
     return R, g, rf
 
 
-def weighted_step(prob, free, h, rhs, rank):
-    """`fit._weighted_step` in row blocks, for the steps of the robust fit: the Gram matrix of the columns weighted
-    w h (one pass, no QR) restricted to its `rank` leading eigenvectors (h > 0 keeps the null space of the columns
-    weighted w, found by the QR of the least-squares fit). The step is the minimum-norm solution, as in memory; the
-    Gram squares the condition number, which the robust steps tolerate (they are iterated to convergence)."""
+def weighted_step(prob, free, h, rhs, idf0):
+    """`fit._weighted_step` in row blocks, for the steps of the robust fit. The normal matrix of the columns
+    weighted w h is that of the columns weighted w (from idf0, the least-squares fit's SVD: D V S^2 V^T D, D the
+    column norms) less the Gram matrix of the rows whose weight the step lowers (h < 1, a fraction of them): one
+    pass, no QR. It is restricted to idf0's rank (positive weights keep the null space). The step is the
+    minimum-norm solution, as in memory; the normal matrix squares the condition number, which the robust steps
+    tolerate (they are iterated to convergence)."""
     p = int(free.sum())
+    rank = idf0.rank
     parts = runner().map(prob, partial(_gram_block, free=free), (h, rhs))
-    M = np.sum([m for m, _ in parts], axis=0) if parts else np.zeros((p, p))
+    D = idf0.norms
+    M = (idf0.Vt.T * idf0.s ** 2) @ idf0.Vt * np.outer(D, D)
+    if parts:
+        M -= np.sum([m for m, _ in parts], axis=0)
     g = np.sum([gb for _, gb in parts], axis=0) if parts else np.zeros(p)
     norms = np.sqrt(np.clip(np.diag(M), 0.0, None))
     norms = np.where(norms > F.ZERO_COLUMN_RTOL * norms.max(initial=0.0), norms, 0.0)

@@ -578,7 +578,7 @@ def _without_outliers(prob: Problem, res: FitResult, refine, max_iter, flags=Non
         return res
     for _ in range(20):
         h = np.sqrt(np.minimum(1.0, HUBER_C * s / np.maximum(np.abs(z), 1e-300)))
-        idf, step = _weighted_step(prob, free, h, z * h, res.idf.rank)
+        idf, step = _weighted_step(prob, free, h, z * h, res.idf)
         theta[free] = theta[free] + step
         r = prob.d - prob.predict(theta, exact=refine)
         z = r * w
@@ -606,13 +606,13 @@ def _refit_without(prob: Problem, flags, refine, max_iter, thr, known) -> FitRes
     return out
 
 
-def _weighted_step(prob, free, h, rhs, rank):
-    """Least-squares step of the free parameters for row weights w h (h > 0) and right-hand side rhs (m,): (idf of
-    the weighted free columns, step). rank: that of the columns weighted w alone (positive weights keep it). In
-    memory, or in row blocks for a problem without its design."""
+def _weighted_step(prob, free, h, rhs, idf0):
+    """Least-squares step of the free parameters for row weights w h (0 < h <= 1) and right-hand side rhs (m,):
+    (idf of the weighted free columns, step). idf0: that of the columns weighted w alone (h = 1; positive weights
+    keep its rank). In memory, or in row blocks for a problem without its design."""
     if prob.in_blocks:
         from . import blocked
-        return blocked.weighted_step(prob, free, h, rhs, rank)
+        return blocked.weighted_step(prob, free, h, rhs, idf0)
     idf = identify(prob.A[:, free] * (prob.w * h)[:, None])
     return idf, _solve(idf, rhs)
 

@@ -119,41 +119,53 @@ def design(obs: Observations, J: np.ndarray, K: np.ndarray) -> np.ndarray:
     """Design columns (m, n_params) of parameters whose tip and axis error vectors at each pose are J, K
     (n, n_params, 3): row o is h_o . (J, K) at its pose."""
     A = np.zeros((obs.m, J.shape[1]))
-    _design_kernel()(obs.row, obs.H, J, K, A)
+    _kernel("design")(obs.row, obs.H, J, K, A)
     return A
 
 
-_KERNEL: list = []
+_KERNELS: dict = {}
 
 
-def _design_kernel():
-    """The row loop of `design`, compiled on first use (numba; cached on disk where numba can write)."""
-    if not _KERNEL:
+def _design_rows(row, H, J, K, A):
+    ne = J.shape[1]
+    for o in range(row.shape[0]):
+        i = row[o]
+        for k in range(3):
+            hp = H[o, k]
+            if hp != 0.0:
+                for e in range(ne):
+                    A[o, e] += hp * J[i, e, k]
+            hv = H[o, 3 + k]
+            if hv != 0.0:
+                for e in range(ne):
+                    A[o, e] += hv * K[i, e, k]
+
+
+def _apply_rows(row, H, P, V, out):
+    for o in range(row.shape[0]):
+        i = row[o]
+        out[o] = (H[o, 0] * P[i, 0] + H[o, 1] * P[i, 1] + H[o, 2] * P[i, 2]
+                  + H[o, 3] * V[i, 0] + H[o, 4] * V[i, 1] + H[o, 5] * V[i, 2])
+
+
+def _kernel(name: str):
+    """The row loops of `design` and `apply`, compiled on first use (numba; cached on disk where numba can
+    write)."""
+    if name not in _KERNELS:
         from numba import njit
-
-        def rows(row, H, J, K, A):
-            ne = J.shape[1]
-            for o in range(row.shape[0]):
-                i = row[o]
-                for k in range(3):
-                    hp = H[o, k]
-                    if hp != 0.0:
-                        for e in range(ne):
-                            A[o, e] += hp * J[i, e, k]
-                    hv = H[o, 3 + k]
-                    if hv != 0.0:
-                        for e in range(ne):
-                            A[o, e] += hv * K[i, e, k]
+        fn = {"design": _design_rows, "apply": _apply_rows}[name]
         try:
-            _KERNEL.append(njit(cache=True, nogil=True)(rows))
+            _KERNELS[name] = njit(cache=True, nogil=True)(fn)
         except RuntimeError:              # no folder numba can cache in: compile for this process only
-            _KERNEL.append(njit(nogil=True)(rows))
-    return _KERNEL[0]
+            _KERNELS[name] = njit(nogil=True)(fn)
+    return _KERNELS[name]
 
 
 def apply(obs: Observations, P: np.ndarray, V: np.ndarray) -> np.ndarray:
     """What each row reads (m,) for tool-tip errors P (n, 3, mm) and tool-axis errors V (n, 3) at the poses."""
-    return np.einsum("mk,mk->m", obs.H[:, :3], P[obs.row]) + np.einsum("mk,mk->m", obs.H[:, 3:], V[obs.row])
+    out = np.empty(obs.m)
+    _kernel("apply")(obs.row, obs.H, np.ascontiguousarray(P, dtype=float), np.ascontiguousarray(V, dtype=float), out)
+    return out
 
 
 def tip_column(obs: Observations, vectors: np.ndarray) -> np.ndarray:
