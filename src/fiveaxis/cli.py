@@ -65,7 +65,15 @@ TRANSLATIONS = (("(force=True replaces it)", "(use --force to replace it)"),
                 ("L0/LE: expected", "--l0/--le: expected"),
                 ("worker_kernel: expected", "--worker-kernel: expected"),
                 ("chunk: expected", "--chunk: expected"),
-                ("cone: expected", "--cone: expected"))
+                ("cone: expected", "--cone: expected"),
+                ("axis spec '", "--axis '"),
+                ("order: the Gauss-Legendre order", "--order: the Gauss-Legendre order"),
+                ("give order=N", "give --order N"),
+                ("normal_mode: expected", "--normal-mode: expected"),
+                ("effect value ", "--effect "),
+                ("bound: expected a positive", "--bound: expected a positive"),
+                ("samples: expected a power of 2", "--samples: expected a power of 2"),
+                ("poses: give a normal", "--pose: give a normal"))
 
 
 def to_command_line(message: str) -> str:

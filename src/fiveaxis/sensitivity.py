@@ -52,7 +52,7 @@ def quadrature(L0: float, LE: float, order: int) -> tuple[np.ndarray, np.ndarray
                          f"mm: the cutting edge would reach behind the gauge line (tool lengths L0 - LE = "
                          f"{L0 - LE:g} mm < 0); expected LE <= L0")
     if int(order) != order or not 1 <= order <= 200:
-        raise InputError(f"--order: the Gauss-Legendre order must be an integer from 1 to 200, got {order}")
+        raise InputError(f"order: the Gauss-Legendre order must be an integer from 1 to 200, got {order}")
     x, w = np.polynomial.legendre.leggauss(int(order))
     return L0 - 0.5 * LE + 0.5 * LE * x, 0.5 * LE * w
 
@@ -75,7 +75,7 @@ def kernel_w(model, poses, E, L0, LE, order, rel_tiny=REL_TINY, normals=None, mo
     E = np.ascontiguousarray(E, dtype=float)
     if order == "exact":
         if mode != 0:
-            raise InputError("the exact integral over L is for W_i alone (normal mode 0); give --order N")
+            raise InputError("the exact integral over L is for W_i alone (normal mode 0); give order=N")
         lo, hi = float(L0 - LE), float(L0)
         if each:
             W = np.zeros((len(poses), len(E)))
@@ -309,12 +309,12 @@ def lsil(model, poses, errors=None, L0=None, LE=None, order=2 * DEFAULT_ORDER, m
     """LSIL_i: the mean over the poses of a PoseList of W_i (mode 0) or of its projection on the surface normal
     (mode 1, normals required); per-pose values in `per_pose`."""
     if mode not in (0, 1):
-        raise InputError(f"--normal-mode: expected 0 (W_i alone) or 1 (projection on the normal N), got {mode}")
+        raise InputError(f"normal_mode: expected 0 (W_i alone) or 1 (projection on the normal N), got {mode}")
     L0 = model.machine.tool_length if L0 is None else float(L0)
     LE = model.machine.cutting_length if LE is None else float(LE)
     _validate(L0, LE, order)
     if order == "exact" and mode != 0:
-        raise InputError("the exact integral over L is for W_i alone (normal mode 0); give --order N")
+        raise InputError("the exact integral over L is for W_i alone (normal mode 0); give order=N")
     E, label = error_values(model, errors)
     normals = getattr(poses, "normals", None)
     if mode == 1 and normals is None:

@@ -64,7 +64,7 @@ def parse_effect(spec: str, model):
         eff = load_custom(model.machine, ident)
         vals = _floats(spec, value) if value else None
         if vals is not None and len(vals) != len(eff.names):
-            raise InputError(f"--effect {spec}: expected {len(eff.names)} values ({', '.join(eff.params)})")
+            raise InputError(f"effect value {spec}: expected {len(eff.names)} values ({', '.join(eff.params)})")
         return eff, (np.array(vals) if vals else np.full(len(eff.names), EFFECT_LINEAR_MM))
     eff = fx.parse(ident, model.machine, model.errors, "--effect")
     k = len(eff.names)
@@ -73,7 +73,7 @@ def parse_effect(spec: str, model):
         if len(vals) == 1 and k > 1:
             vals = vals + [0.0] * (k - 1)
         if len(vals) != k:
-            raise InputError(f"--effect {spec}: expected {k} value(s) after '='")
+            raise InputError(f"effect value {spec}: expected {k} value(s) after '='")
     else:
         angular = eff.param != fx.TOOL and model.machine.is_angular(eff.param)
         vals = [EFFECT_ANGULAR_RAD if angular else EFFECT_LINEAR_MM] + [0.0] * (k - 1)
@@ -84,9 +84,9 @@ def _floats(spec, text):
     try:
         vals = [float(x) for x in text.split(",")]
     except ValueError:
-        raise InputError(f"--effect {spec}: expected numbers after '=', got {text!r}") from None
+        raise InputError(f"effect value {spec}: expected numbers after '=', got {text!r}") from None
     if not all(np.isfinite(vals)):
-        raise InputError(f"--effect {spec}: expected finite numbers after '=', got {text!r}")
+        raise InputError(f"effect value {spec}: expected finite numbers after '=', got {text!r}")
     return vals
 
 
