@@ -177,6 +177,12 @@ def moves(stdout: str) -> list[tuple[str, dict]]:
     return out
 
 
+def _turn_xy(x: float, y: float, deg: float) -> tuple[float, float]:
+    """(x, y) turned by deg degrees counter-clockwise about Z (the XY rotation of G10 L2 R)."""
+    t = math.radians(deg)
+    return x * math.cos(t) - y * math.sin(t), x * math.sin(t) + y * math.cos(t)
+
+
 def parse_canon(stdout: str, path, lines=()) -> Program:
     """The straight moves of rs274's canonical output (see interpret), in machine axis positions."""
     path = Path(path)
@@ -189,6 +195,12 @@ def parse_canon(stdout: str, path, lines=()) -> Program:
 
     def conv(vals):                               # program units -> mm for X Y Z; degrees stay
         return [v * scale if i < 3 else v for i, v in enumerate(vals)]
+
+    def to_machine(vals):                         # program position X Y Z A B C -> machine (emccanon from_prog)
+        v = conv(vals)
+        x, y = _turn_xy(v[0] + g92[0], v[1] + g92[1], rot)
+        pos = [x, y] + [v[i] + g92[i] for i in range(2, 6)]
+        return [p + g5x[i] + tool[i] for i, p in enumerate(pos)]
 
     for raw in stdout.splitlines():
         m = _LINE.match(raw)
@@ -216,12 +228,7 @@ def parse_canon(stdout: str, path, lines=()) -> Program:
             v = _numbers(args, where)          # x y z, a b c, u v w
             tool = conv(v[:6])
         elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
-            v = conv(_numbers(args, where)[:6])
-            x, y = v[0] + g92[0], v[1] + g92[1]
-            t = math.radians(rot)
-            x, y = x * math.cos(t) - y * math.sin(t), x * math.sin(t) + y * math.cos(t)
-            pos = [x, y] + [v[i] + g92[i] for i in range(2, 6)]
-            pos = [p + g5x[i] + tool[i] for i, p in enumerate(pos)]
+            pos = to_machine(_numbers(args, where)[:6])
             prog.moves.append(Move("traverse" if name == "STRAIGHT_TRAVERSE" else "feed", line,
                                    dict(zip(AXES, pos))))
         elif name in _OTHER_MOTION:
