@@ -2,8 +2,8 @@
 
 `interpret(path)` runs `/usr/bin/rs274 -g` on a program and reads the canonical machining commands it prints
 (`STRAIGHT_TRAVERSE(x, y, z, a, b, c)` for G0, `STRAIGHT_FEED(...)` for G1, with every axis, one per line;
-`ARC_FEED(...)` for G2/G3, below), so nothing of G-code is parsed here: modal state, expressions, parameters, subroutines and loops are the
-interpreter's. What this module does with the canonical commands:
+`ARC_FEED(...)` for G2/G3, below), so nothing of G-code is parsed here: modal state, expressions, parameters,
+subroutines and loops are the interpreter's. What this module does with the canonical commands:
 
 * Units: rs274 prints positions in the program's units (`USE_LENGTH_UNITS(CANON_UNITS_INCHES)` after G20);
   lengths are converted to mm (25.4 mm per inch); rotary axes are degrees whatever the units.
