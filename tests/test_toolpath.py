@@ -193,8 +193,10 @@ def test_inches_and_offsets_are_machine_positions_in_mm(rs274, tmp_path, trunnio
     ("G21\nG1 X10 F10\n", "rs274: File ended with no percent sign or program end"),
     ("G21\nG1 X500 Y0 Z0 A0 C0 F10\nM2\n", "line 2: X = 401 mm is outside the stroke [-400, 400] mm"),
     ("G21\nG1 X0 Y0 Z0 A0 B20 C0 F10\nM2\n", "line 2: the program moves B to 20, an axis ac_trunnion does not"),
-    ("G21\nG1 X10 F10\nG2 X20 Y0 I5 J0\nM2\n", "line 3: an arc (G2/G3) is not sampled"),
-    ("G21\nG0 X10\nM2\n", "no G1 (feed) move"),
+    ("G21\nG1 X10 F10\nG38.2 Z-10\nM2\n", "line 3: a probing move (G38) is not sampled"),
+    ("G21\nG0 X350 Y0 Z0 A0 C0\nG3 X350 Y0 I30 J0 F10\nM2\n", "line 3: X = "),          # the arc leaves the X stroke
+    ("G21\nG1 X10 F10\nG2 X20 Y0 I5 J0 P0\nM2\n", "line 3: rs274: "),
+    ("G21\nG0 X10\nM2\n", "no G1, G2 or G3 (feed) move"),
 ])
 def test_bad_gcode_is_one_line(rs274, capsys, tmp_path, text, needle):
     f = tmp_path / "bad.ngc"
@@ -287,3 +289,200 @@ def test_path_compensation_and_plots(rs274, capsys, tmp_path, program):
     written = {p.name for p in tmp_path.iterdir()}
     assert written == {"lsa_path_pie.png", "lsa_path_shares.png", "lsa_path_compensation.png"}
     assert all(f"fiveaxis: wrote {tmp_path / n}" in captured.err for n in written)
+
+
+# --- arcs (G2/G3) ------------------------------------------------------------------------------------------------
+
+def arc_poses(tmp_path, trunnion, text, step=1.0):
+    """Sampled poses (X Y Z mm, A C deg) and segment numbers of a program."""
+    f = tmp_path / "arc.ngc"
+    f.write_text(text)
+    tp = toolpath.from_program(gcode.interpret(f), trunnion.machine, step, step)
+    q = tp.poses.array.copy()
+    q[:, 3:] = np.degrees(q[:, 3:])
+    return q, tp.segment, tp.labels
+
+
+def swept(p, centre, e1, e2):
+    """Unwrapped angle (rad) of points p about centre, measured from axis e1 towards e2 (closed form)."""
+    d = p - centre
+    return np.unwrap(np.arctan2(d @ e2, d @ e1))
+
+
+def check_spacing(p, r, step):
+    """The documented rule, checked on the result: consecutive samples at most step mm apart and their chords
+    within toolpath.CHORD_FRACTION * step of the circle of radius r."""
+    chords = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    assert chords.max() <= step + 1e-9
+    half = np.arcsin(np.clip(chords / (2 * r), 0, 1))
+    assert np.all(r * (1 - np.cos(half)) <= toolpath.CHORD_FRACTION * step + 1e-12)
+
+
+EX, EY, EZ = np.eye(3)
+
+
+def test_full_circle_quarter_arc_and_helix_in_g17(rs274, tmp_path, trunnion):
+    q, seg, labels = arc_poses(tmp_path, trunnion, "G21 G90 G17\nG0 X30 Y20 Z-5 A0 C0\n"
+                               "G2 X30 Y20 I-10 J0 F100\n"             # full circle, clockwise, centre (20, 20)
+                               "G3 X20 Y30 I-10 J0\n"                  # quarter, counter-clockwise
+                               "G2 X20 Y30 Z15 I0 J-10 P2\n"           # helix: two clockwise turns, Z -5 -> 15
+                               "M2\n")
+    c = np.array([20.0, 20.0, -5.0])
+    assert labels == ("line 3", "line 4", "line 5")
+    circle, quarter, helix = (q[seg == k, :3] for k in range(3))
+    # distance R from the centre (to rs274's 4 decimals), in the plane Z = -5 for the first two
+    for p in (circle, quarter):
+        np.testing.assert_allclose(np.linalg.norm(p - c, axis=1), 10.0, atol=1e-4)
+        np.testing.assert_allclose(p[:, 2], -5.0, atol=1e-12)
+        check_spacing(p, 10.0, 1.0)
+    np.testing.assert_allclose(np.hypot(helix[:, 0] - 20, helix[:, 1] - 20), 10.0, atol=1e-4)
+    # direction and extent seen from +Z: G2 clockwise a whole turn, G3 counter-clockwise a quarter, P2 two turns
+    a = swept(circle, c, EX, EY)
+    assert np.all(np.diff(a) < 0) and a[-1] - a[0] == pytest.approx(-2 * math.pi, abs=1e-9)
+    b = swept(np.vstack([circle[-1:], quarter]), c, EX, EY)
+    assert np.all(np.diff(b) > 0) and b[-1] - b[0] == pytest.approx(math.pi / 2, abs=1e-9)
+    h = swept(np.vstack([quarter[-1:], helix]), c, EX, EY)
+    assert h[-1] - h[0] == pytest.approx(-4 * math.pi, abs=1e-9)
+    # angle linear in the parameter: equal angle steps; the polyline of n equal chords is 2 n R sin(pi / n)
+    n = len(circle) - 1
+    np.testing.assert_allclose(np.diff(a), -2 * math.pi / n, atol=1e-9)
+    length = np.linalg.norm(np.diff(circle, axis=0), axis=1).sum()
+    assert length == pytest.approx(2 * n * 10 * math.sin(math.pi / n), rel=1e-12)
+    half = math.acos(1 - toolpath.CHORD_FRACTION * 1.0 / 10)        # the largest half-angle the chord rule allows
+    assert 2 * math.pi * 10 * math.sin(half) / half <= length < 2 * math.pi * 10
+    # the helix: Z linear in the angle swept, -5 -> 15 over -4 pi
+    z = np.concatenate([quarter[-1:, 2], helix[:, 2]])
+    np.testing.assert_allclose(z, -5 + 20 * (h - h[0]) / (-4 * math.pi), atol=1e-9)
+
+
+def test_g18_g19_planes_and_inches(rs274, tmp_path, trunnion):
+    # G18: the plane Z, X (normal Y); G2 clockwise seen from +Y. G19: Y, Z (normal X); G3 counter-clockwise from +X
+    q, seg, _ = arc_poses(tmp_path, trunnion, "G21 G90\nG0 X10 Y5 Z0 A0 C0\n"
+                          "G18 G2 X-10 Z0 I-10 K0 F100\n"             # centre (0, 5, 0), R 10, through Z +10
+                          "G19 G3 Y5 Z20 J0 K10\n"                     # from (-10, 5, 0): centre (-10, 5, 10)
+                          "M2\n")
+    xz = q[seg == 0, :3]
+    assert np.all(xz[:, 1] == 5.0)
+    np.testing.assert_allclose(np.hypot(xz[:, 0], xz[:, 2]), 10.0, atol=1e-4)
+    a = swept(xz, np.array([0.0, 5, 0]), EZ, EX)                   # about +Y: from Z towards X
+    assert np.all(np.diff(a) < 0) and a[-1] - a[0] == pytest.approx(-math.pi, abs=1e-9)
+    assert xz[len(xz) // 2, 2] > 9.9                                # clockwise from +Y: over Z = +10
+    yz = np.vstack([xz[-1:], q[seg == 1, :3]])
+    assert np.all(yz[:, 0] == -10.0)
+    np.testing.assert_allclose(np.hypot(yz[:, 1] - 5, yz[:, 2] - 10), 10.0, atol=1e-4)
+    b = swept(yz, np.array([-10.0, 5, 10]), EY, EZ)                # about +X: from Y towards Z
+    assert np.all(np.diff(b) > 0) and b[-1] - b[0] == pytest.approx(math.pi, abs=1e-9)
+    # G20: the same circle in inches is 25.4 times larger, in mm
+    q, seg, _ = arc_poses(tmp_path, trunnion, "G20 G90 G17\nG0 X1 Y0 Z0 A0 C0\nG2 X1 Y0 I-1 J0 F10\nM2\n")
+    np.testing.assert_allclose(np.hypot(q[:, 0], q[:, 1]), 25.4, atol=1e-9)
+    check_spacing(q[:, :3], 25.4, 1.0)
+
+
+def test_r_format_work_offset_rotation_and_g92(rs274, tmp_path, trunnion):
+    # G54 at (100, 50, -20) turned 30 deg; an R-format half circle about program (0, 0), then after G92 X0 Y0 an
+    # I J half circle whose centre is the same point: machine positions turn about (100, 50)
+    q, seg, _ = arc_poses(tmp_path, trunnion, "G21 G90 G17\nG10 L2 P1 X100 Y50 Z-20 R30\nG54\n"
+                          "G0 X20 Y0 Z0 A0 C0\nG2 X-20 Y0 R20 F100\nG92 X0 Y0\nG3 X40 Y0 I20 J0\n"
+                          "G18 G3 X40 Z20 I0 K10\nM2\n")              # the XZ plane turned 30 deg about Z
+    c = np.array([100.0, 50.0, -20.0])
+    t = math.radians(30)
+
+    def machine(x, y):
+        return c + [x * math.cos(t) - y * math.sin(t), x * math.sin(t) + y * math.cos(t), 0]
+
+    g2, g3 = q[seg == 0, :3], q[seg == 1, :3]
+    np.testing.assert_allclose(g2[0], machine(20, 0), atol=1e-9)
+    np.testing.assert_allclose(g2[-1], machine(-20, 0), atol=1e-9)
+    np.testing.assert_allclose(g3[-1], machine(20, 0), atol=1e-9)
+    for p in (g2, g3):
+        np.testing.assert_allclose(np.linalg.norm(p - c, axis=1), 20.0, atol=1e-4)
+    # both pass program (0, -20): G2 clockwise from angle 0, G3 counter-clockwise from angle pi
+    a = swept(g2, c, EX, EY)
+    assert a[-1] - a[0] == pytest.approx(-math.pi, abs=1e-9)
+    b = swept(np.vstack([g2[-1:], g3]), c, EX, EY)
+    assert b[-1] - b[0] == pytest.approx(math.pi, abs=1e-9)
+    low = machine(0, -20)
+    assert min(np.linalg.norm(g2 - low, axis=1)) < 1.0 and min(np.linalg.norm(g3 - low, axis=1)) < 1.0
+    # G18 under the rotation: a half circle R10 about machine(20, 0) + 10 Z in the plane of Z and the turned X
+    xz = np.vstack([g3[-1:], q[seg == 2, :3]])
+    cz = machine(20, 0) + [0, 0, 10]
+    ux, normal = np.array([math.cos(t), math.sin(t), 0]), np.array([-math.sin(t), math.cos(t), 0])
+    np.testing.assert_allclose(np.linalg.norm(xz - cz, axis=1), 10.0, atol=1e-4)
+    np.testing.assert_allclose((xz - cz) @ normal, 0.0, atol=1e-9)
+    a = swept(xz, cz, EZ, ux)
+    assert np.all(np.diff(a) > 0) and a[-1] - a[0] == pytest.approx(math.pi, abs=1e-9)
+
+
+def test_an_arc_moves_the_rotary_axes_linearly(rs274, tmp_path, trunnion):
+    q, seg, _ = arc_poses(tmp_path, trunnion, "G21 G90 G17\nG0 X10 Y0 Z0 A-10 C20\n"
+                          "G3 X0 Y10 I-10 J0 A-40 C-70 F100\nM2\n")
+    a = swept(q[:, :3], np.zeros(3), EX, EY)
+    f = (a - a[0]) / (math.pi / 2)                                  # fraction of the angle swept
+    np.testing.assert_allclose(q[:, 3], -10 - 30 * f, atol=1e-9)
+    np.testing.assert_allclose(q[:, 4], 20 - 90 * f, atol=1e-9)
+    assert len(q) - 1 >= 90                                         # C moves 90 deg in steps of at most 1 deg
+    assert np.abs(np.diff(q[:, 3:], axis=0)).max() <= 1 + 1e-9
+
+
+def arc_reference(path, step):
+    """The interpreter's output read again here (G17, no offsets, mm) and sampled by the documented rule written
+    out again: X Y Z (mm) A C (deg) of every sample of the G1, G2 and G3 moves."""
+    out = subprocess.run([gcode.RS274, "-g", str(path)], capture_output=True, text=True, check=True).stdout
+    prev, prev_cut, rows = np.zeros(6), False, []
+    for m in re.finditer(r"(STRAIGHT_TRAVERSE|STRAIGHT_FEED|ARC_FEED)\(([^)]*)\)", out):
+        v = np.array([float(x) for x in m.group(2).split(",")])
+        if m.group(1) == "ARC_FEED":
+            end = np.array([v[0], v[1], v[5], v[6], v[7], v[8]])
+            cx, cy, rot = v[2], v[3], int(v[4])
+            th0 = math.atan2(prev[1] - cy, prev[0] - cx)
+            th1 = math.atan2(end[1] - cy, end[0] - cx)
+            r0, r1 = math.hypot(prev[0] - cx, prev[1] - cy), math.hypot(end[0] - cx, end[1] - cy)
+            if rot > 0:                                                  # counter-clockwise, in (0, 2 pi]
+                sweep = (th1 - th0) % (2 * math.pi) or 2 * math.pi
+            else:                                                        # clockwise, in [-2 pi, 0)
+                sweep = -((th0 - th1) % (2 * math.pi) or 2 * math.pi)
+            sweep += 2 * math.pi * (abs(rot) - 1) * np.sign(rot)
+            r = max(r0, r1)
+            tol = toolpath.CHORD_FRACTION * step
+            n = max(1, math.ceil(math.hypot(r * abs(sweep) + abs(r1 - r0), end[2] - prev[2]) / step),
+                    math.ceil(np.hypot(end[3] - prev[3], end[5] - prev[5]) / step),
+                    math.ceil(abs(sweep) / (2 * math.acos(1 - tol / r))))
+            for k in range(0 if not prev_cut else 1, n + 1):
+                t = k / n
+                th, rr = th0 + t * sweep, r0 + t * (r1 - r0)
+                rows.append(end if k == n else np.concatenate([
+                    [cx + rr * math.cos(th), cy + rr * math.sin(th)], prev[2:] + t * (end[2:] - prev[2:])]))
+            prev_cut = True
+        else:
+            end = v
+            if m.group(1) == "STRAIGHT_FEED":
+                d = end - prev
+                n = max(1, math.ceil(np.linalg.norm(d[:3]) / step), math.ceil(np.hypot(d[3], d[5]) / step))
+                rows += [prev + (k / n) * d if k < n else end for k in range(0 if not prev_cut else 1, n + 1)]
+            prev_cut = m.group(1) == "STRAIGHT_FEED"
+        prev = end
+    return np.array(rows)[:, [0, 1, 2, 3, 5]]
+
+
+def test_lsil_along_arcs_equals_numpy_on_poses_built_independently(rs274, capsys, tmp_path, trunnion):
+    f = tmp_path / "arcs.ngc"
+    f.write_text("G21 G90 G17\nG0 X40 Y-10 Z60 A-20 C0\nF500\nG1 X40 Y0\n"
+                 "G3 X0 Y40 I-40 J0 Z50 A-45 C90\n"                   # a quarter helix turning A and C
+                 "G2 X-20 Y20 R20\n"                                   # R format
+                 "G2 X-20 Y20 I20 J0 P2 Z70 C-30\n"                    # two turns about (0, 20)
+                 "G0 Z200\nM2\n")
+    out = run_json(capsys, ["lsa", "--machine", "ac_trunnion", "--toolpath", str(f)] + STEP)
+    q = toolpath.from_program(gcode.interpret(f), trunnion.machine, 4.0, 4.0).poses.array
+    ref = arc_reference(f, 4.0)
+    assert q.shape == ref.shape and len(q) > 100
+    np.testing.assert_allclose(q[:, :3], ref[:, :3], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(np.degrees(q[:, 3:]), ref[:, 3:], rtol=0, atol=1e-9)
+    qr = ref.copy()
+    qr[:, 3:] = np.radians(qr[:, 3:])
+    pl = numpy_pl(trunnion, qr, trunnion.error_vector(None), trunnion.machine.tool_length,
+                  trunnion.machine.cutting_length)
+    names = list(out["indices"])
+    assert out["settings"]["poses"] == len(ref)
+    np.testing.assert_allclose([out["indices"][n] for n in names], [pl[trunnion.errors.index(n)] for n in names],
+                               rtol=1e-9, atol=1e-15)
+    assert [s["label"] for s in out["segments"]] == ["line 4", "line 5", "line 6", "line 7"]

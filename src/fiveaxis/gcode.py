@@ -1,9 +1,9 @@
 """G-code (LinuxCNC dialect) through LinuxCNC's own standalone interpreter, `rs274` (Debian `linuxcnc-uspace`).
 
 `interpret(path)` runs `/usr/bin/rs274 -g` on a program and reads the canonical machining commands it prints
-(`STRAIGHT_TRAVERSE(x, y, z, a, b, c)` for G0, `STRAIGHT_FEED(...)` for G1, with every axis, one per line),
-so nothing of G-code is parsed here: modal state, expressions, parameters, subroutines and loops are the
-interpreter's. What this module does with the canonical commands:
+(`STRAIGHT_TRAVERSE(x, y, z, a, b, c)` for G0, `STRAIGHT_FEED(...)` for G1, with every axis, one per line;
+`ARC_FEED(...)` for G2/G3, below), so nothing of G-code is parsed here: modal state, expressions, parameters,
+subroutines and loops are the interpreter's. What this module does with the canonical commands:
 
 * Units: rs274 prints positions in the program's units (`USE_LENGTH_UNITS(CANON_UNITS_INCHES)` after G20);
   lengths are converted to mm (25.4 mm per inch); rotary axes are degrees whatever the units.
@@ -18,7 +18,18 @@ interpreter's. What this module does with the canonical commands:
   of every canonical command and of a rejected block.
 * Rejected programs: rs274's message and the line, as a one-line InputError (`prog.ngc: line 3: rs274: ...`).
 
-Moves other than straight ones (G2/G3 arcs, probing, rigid tapping, splines) are refused with their line.
+* Arcs (G2/G3, helices, P turns, R format, any other axis words): this build prints
+  `ARC_FEED(first_end, second_end, first_centre, second_centre, rotation, normal_end, a, b, c)` (no U V W), in
+  the plane of the last `SELECT_PLANE(CANON_PLANE_XY|XZ|YZ)` (G17, G18, G19): first and second are the in-plane
+  coordinates (XY: X, Y; XZ: Z, X; YZ: Y, Z), the centre is absolute whatever G90.1/G91.1 (the interpreter
+  resolves I J K and R), normal_end is the end along the plane's normal (Z, Y, X), and rotation the signed turn
+  count: positive counter-clockwise about the normal (G3; first x second = normal, so G18 is seen from +Y),
+  negative clockwise (G2), |rotation| - 1 extra whole turns (P word). As emccanon ARC_FEED does, the end point
+  and the centre (its normal coordinate that of the end) go through the conversion of the straight moves, and the
+  plane's axes are turned by the XY rotation (a G18/G19 arc under G10 L2 R lies in a turned plane). An arc is a
+  `Move` of kind "arc" with plane, centre, frame and rotation; it starts where the move before it ends.
+
+Other moves (probing, rigid tapping, NURBS, splines) are refused with their line.
 Positions are printed by rs274 to 4 decimals (0.1 um in G21, 2.54 um in G20; 1e-4 deg).
 """
 from __future__ import annotations
@@ -46,23 +57,34 @@ TIMEOUT = 300.0
 _LINE = re.compile(r"^\s*\d+\s+N(\d+|\.\.\.\.\.)\s*([A-Z_0-9]+)\((.*)\)\s*$")
 _NUM = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?(?:nan|inf)", re.IGNORECASE)
 _N_WORD = re.compile(r"^(\s*/?\s*)[Nn](?:\s*\d)+")
-_OTHER_MOTION = {"ARC_FEED": "an arc (G2/G3)", "STRAIGHT_PROBE": "a probing move (G38)",
+_OTHER_MOTION = {"STRAIGHT_PROBE": "a probing move (G38)",
                  "RIGID_TAP": "rigid tapping (G33.1)", "NURBS_FEED": "a NURBS move (G5.2)",
                  "SPLINE_FEED": "a spline (G5/G5.1)"}
 
 
 @dataclass(frozen=True)
 class Move:
-    """One straight move: kind "traverse" (G0) or "feed" (G1), the program line it comes from (1-based; 0 if
-    rs274 gave none), and its end point in machine axis positions: mm for X Y Z, degrees for A B C."""
+    """One move: kind "traverse" (G0), "feed" (G1) or "arc" (G2/G3), the program line it comes from (1-based; 0 if
+    rs274 gave none), and its end point in machine axis positions: mm for X Y Z, degrees for A B C. It starts where
+    the move before it ends (the program's start for the first).
+
+    An arc also has: `plane` ("XY", "XZ" or "YZ": G17, G18, G19), `centre` (X Y Z in mm, machine positions: the
+    programmed centre with the plane's normal coordinate of the end point, converted like an end point), `frame`
+    (three unit vectors in machine X Y Z: the plane's first axis, second axis and normal, i.e. X Y Z, Z X Y or
+    Y Z X turned by the XY rotation) and `rotation` (rs274's signed turn count: positive counter-clockwise about
+    the normal, |rotation| - 1 extra full turns; G2 gives -1, G3 1, P2 two turns)."""
     kind: str
     line: int
     end: dict
+    plane: str = ""
+    centre: tuple = ()
+    frame: tuple = ()
+    rotation: int = 0
 
 
 @dataclass
 class Program:
-    """The interpreted program: its straight moves in order and the interpreter's starting position."""
+    """The interpreted program: its moves (G0, G1, G2/G3) in order and the interpreter's starting position."""
     path: Path
     moves: list[Move] = field(default_factory=list)
     start: dict = field(default_factory=lambda: {a: 0.0 for a in AXES})
@@ -148,7 +170,7 @@ def run(path, rs274: str = RS274, var_file=None, timeout: float = TIMEOUT) -> tu
 
 
 def interpret(path, rs274: str = RS274, var_file=None, timeout: float = TIMEOUT) -> Program:
-    """Run the interpreter on a G-code file; its straight moves in machine axis positions (mm, degrees)."""
+    """Run the interpreter on a G-code file; its moves (G0, G1, G2/G3) in machine axis positions (mm, degrees)."""
     stdout, lines = run(path, rs274, var_file, timeout)
     return parse_canon(stdout, path, lines)
 
@@ -177,8 +199,18 @@ def moves(stdout: str) -> list[tuple[str, dict]]:
     return out
 
 
+#: The machine axes (0 X, 1 Y, 2 Z) of an arc's first and second in-plane coordinates and of its normal, by plane.
+PLANES = {"XY": (0, 1, 2), "XZ": (2, 0, 1), "YZ": (1, 2, 0)}
+
+
+def _turn_xy(x: float, y: float, deg: float) -> tuple[float, float]:
+    """(x, y) turned by deg degrees counter-clockwise about Z (the XY rotation of G10 L2 R)."""
+    t = math.radians(deg)
+    return x * math.cos(t) - y * math.sin(t), x * math.sin(t) + y * math.cos(t)
+
+
 def parse_canon(stdout: str, path, lines=()) -> Program:
-    """The straight moves of rs274's canonical output (see interpret), in machine axis positions."""
+    """The moves (G0, G1, G2/G3) of rs274's canonical output (see interpret), in machine axis positions."""
     path = Path(path)
     prog = Program(path)
     scale = 1.0                                   # mm per program length unit
@@ -186,9 +218,16 @@ def parse_canon(stdout: str, path, lines=()) -> Program:
     g5x = [0.0] * 6
     tool = [0.0] * 6
     rot = 0.0                                     # XY rotation, degrees
+    plane = "XY"
 
     def conv(vals):                               # program units -> mm for X Y Z; degrees stay
         return [v * scale if i < 3 else v for i, v in enumerate(vals)]
+
+    def to_machine(vals):                         # program position X Y Z A B C -> machine (emccanon from_prog)
+        v = conv(vals)
+        x, y = _turn_xy(v[0] + g92[0], v[1] + g92[1], rot)
+        pos = [x, y] + [v[i] + g92[i] for i in range(2, 6)]
+        return [p + g5x[i] + tool[i] for i, p in enumerate(pos)]
 
     for raw in stdout.splitlines():
         m = _LINE.match(raw)
@@ -197,6 +236,7 @@ def parse_canon(stdout: str, path, lines=()) -> Program:
         nfield, name, args = m.groups()
         line = int(nfield) if nfield.isdigit() else 0
         where = f"{path}: line {line}" if line else str(path)
+        text = f" ({_clip(lines[line - 1].strip())})" if line and line <= len(lines) else ""
         if name == "USE_LENGTH_UNITS":
             if "INCHES" in args:
                 scale, unit = MM_PER_INCH, "inch"
@@ -215,17 +255,42 @@ def parse_canon(stdout: str, path, lines=()) -> Program:
         elif name == "USE_TOOL_LENGTH_OFFSET":
             v = _numbers(args, where)          # x y z, a b c, u v w
             tool = conv(v[:6])
+        elif name == "SELECT_PLANE":
+            plane = args.strip().removeprefix("CANON_PLANE_")
         elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
-            v = conv(_numbers(args, where)[:6])
-            x, y = v[0] + g92[0], v[1] + g92[1]
-            t = math.radians(rot)
-            x, y = x * math.cos(t) - y * math.sin(t), x * math.sin(t) + y * math.cos(t)
-            pos = [x, y] + [v[i] + g92[i] for i in range(2, 6)]
-            pos = [p + g5x[i] + tool[i] for i, p in enumerate(pos)]
+            pos = to_machine(_numbers(args, where)[:6])
             prog.moves.append(Move("traverse" if name == "STRAIGHT_TRAVERSE" else "feed", line,
                                    dict(zip(AXES, pos))))
+        elif name == "ARC_FEED":
+            prog.moves.append(_arc(_numbers(args, where), plane, line, where, text, to_machine, rot))
         elif name in _OTHER_MOTION:
-            text = f" ({_clip(lines[line - 1].strip())})" if line and line <= len(lines) else ""
-            raise InputError(f"{where}: {_OTHER_MOTION[name]} is not sampled; only straight moves G0/G1 "
+            raise InputError(f"{where}: {_OTHER_MOTION[name]} is not sampled; only moves G0, G1, G2 and G3 "
                              f"are{text}")
     return prog
+
+
+def _arc(vals, plane, line, where, text, to_machine, rot) -> Move:
+    """An ARC_FEED(first_end, second_end, first_centre, second_centre, rotation, normal_end, a, b, c[, u, v, w])
+    as a Move of kind "arc": end and centre through to_machine (the conversion of the straight moves), the
+    plane's axes turned by the XY rotation rot (degrees), as emccanon ARC_FEED does."""
+    if plane not in PLANES:
+        raise InputError(f"{where}: an arc in the {plane} plane is not sampled; only G17, G18 and G19 arcs "
+                         f"(XY, XZ, YZ) are{text}")
+    if len(vals) < 9:
+        raise InputError(f"{where}: rs274 printed an arc with {len(vals)} numbers, expected 9 or more{text}")
+    first_end, second_end, first_c, second_c, rotation, normal_end, a, b, c = vals[:9]
+    i1, i2, iN = PLANES[plane]
+    end, centre = [0.0] * 3 + [a, b, c], [0.0] * 6
+    end[i1], end[i2], end[iN] = first_end, second_end, normal_end
+    centre[i1], centre[i2], centre[iN] = first_c, second_c, normal_end
+    pos = to_machine(end)
+    if int(rotation) == 0:                         # P0 is refused by rs274; emccanon makes it a straight move
+        return Move("feed", line, dict(zip(AXES, pos)))
+    frame = []
+    for i in (i1, i2, iN):
+        e = [0.0, 0.0, 0.0]
+        e[i] = 1.0
+        x, y = _turn_xy(e[0], e[1], rot)
+        frame.append((x, y, e[2]))
+    return Move("arc", line, dict(zip(AXES, pos)), plane, tuple(to_machine(centre)[:3]), tuple(frame),
+                int(rotation))

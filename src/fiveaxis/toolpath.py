@@ -9,8 +9,12 @@ Three sources, one record (`Toolpath`: a PoseList of mm and rad, a segment numbe
   straight line in axis space (LinuxCNC with trivial kinematics interpolates the joints linearly): a move gets
   n = max(1, ceil(d_lin / step_mm), ceil(d_rot / step_deg)) samples at fractions k/n, k = 1..n, where d_lin is
   the length of the move in the linear axes (mm) and d_rot in the rotary axes (degrees); the start of a cut
-  (a G1 after a G0, or the first move) is sampled too. G0 moves do not cut and are not sampled. One segment per
-  G1 move, labelled with its program line;
+  (a G1 after a G0, or the first move) is sampled too. G0 moves do not cut and are not sampled. A G2/G3 arc
+  (`gcode.Move` of kind "arc") is sampled the same way at t = k/n along the arc: the angle about its normal, the
+  radius (the interpreter's 4 decimals may leave start and end radii apart), the travel along the normal (a
+  helix) and the rotary axes linear in t, as LinuxCNC moves an arc with its other axes; its n also keeps every
+  chord within CHORD_FRACTION * step_mm of the arc (`move_samples`). One segment per G1 or arc move, labelled
+  with its program line;
 * explicit poses (`from_specs`): `X=..,Y=..,Z=..,A=..,C=..` with optional `nx=..,ny=..,nz=..`, one segment each.
 
 The program or file must move exactly the machine's axes: a column or an axis word the machine does not have
@@ -34,6 +38,10 @@ NORMAL_COLUMNS = ("nx", "ny", "nz")
 #: Default sampling steps of G-code moves: mm along the linear axes, degrees along the rotary axes.
 STEP_MM = 1.0
 STEP_DEG = 1.0
+#: The chord tolerance of sampled arcs, as a fraction of the step in mm (see move_samples).
+CHORD_FRACTION = 0.01
+#: The moves that cut and are sampled: G1 ("feed") and G2/G3 ("arc").
+CUTS = ("feed", "arc")
 
 
 @dataclass(frozen=True)
@@ -174,9 +182,71 @@ def _check_names(names, machine, where: str, label: str, extra=()) -> bool:
     return bool(given)
 
 
+def arc_sweep(start: dict, move) -> tuple[float, float, float, float, float]:
+    """(theta0, sweep, r0, r1, h1 - h0) of an arc move (fiveaxis.gcode.Move of kind "arc") from `start` (machine
+    positions, mm): the start angle and the signed angle swept about the normal (rad, positive counter-clockwise),
+    the start and end radii and the travel along the normal (mm). As emccanon ARC_FEED: angles of the start and
+    end projected on the plane's axes, the end angle moved by a turn so that a clockwise arc (rotation < 0) sweeps
+    a negative angle and a counter-clockwise one a positive angle (a full circle: a whole turn), plus
+    |rotation| - 1 whole turns."""
+    c = np.array(move.centre)
+    u, v, n = (np.array(e) for e in move.frame)
+    s = np.array([start[a] for a in "XYZ"]) - c
+    e = np.array([move.end[a] for a in "XYZ"]) - c
+    th0, th1 = math.atan2(s @ v, s @ u), math.atan2(e @ v, e @ u)
+    if move.rotation < 0:
+        if th1 + 1e-12 >= th0:
+            th1 -= 2 * math.pi
+    elif th1 - 1e-12 <= th0:
+        th1 += 2 * math.pi
+    turns = move.rotation - 1 if move.rotation > 1 else move.rotation + 1 if move.rotation < -1 else 0
+    return (th0, th1 - th0 + 2 * math.pi * turns, math.hypot(s @ u, s @ v), math.hypot(e @ u, e @ v),
+            float((e - s) @ n))
+
+
+def arc_points(start: dict, move, t: np.ndarray, axes) -> np.ndarray:
+    """Points of an arc move at parameters t in [0, 1], columns `axes` (machine positions, mm and degrees): the
+    angle about the normal, the radius, the travel along the normal (a helix) and every other axis (A B C) linear
+    in t, as LinuxCNC interpolates an arc with its other axes."""
+    th0, sweep, r0, r1, dh = arc_sweep(start, move)
+    c = np.array(move.centre)
+    u, v, n = (np.array(e) for e in move.frame)
+    s = np.array([start[a] for a in "XYZ"]) - c
+    h0 = float(s @ n)
+    th, r, h = th0 + t * sweep, r0 + t * (r1 - r0), h0 + t * dh
+    xyz = c[None, :] + r[:, None] * (np.cos(th)[:, None] * u + np.sin(th)[:, None] * v) + h[:, None] * n
+    out = np.empty((len(t), len(axes)))
+    for j, a in enumerate(axes):
+        if a in "XYZ":
+            out[:, j] = xyz[:, "XYZ".index(a)]
+        else:
+            out[:, j] = start[a] + t * (move.end[a] - start[a])
+    return out
+
+
+def move_samples(start: dict, move, lin, rot, step_mm: float, step_deg: float) -> int:
+    """The number n of samples (at t = k/n, k = 1..n) of a G1 or arc move: n = max(1, ceil(d_lin / step_mm),
+    ceil(d_rot / step_deg), n_chord). d_rot: the move's length in the rotary axes `rot` (deg). G1: d_lin its
+    length in the linear axes `lin` (mm), n_chord = 1. Arc: d_lin = hypot(r_max |sweep| + |r1 - r0|, |dh|), a
+    bound of its path length (mm), and n_chord the fewest equal angle steps whose chords stay within
+    CHORD_FRACTION * step_mm of the arc (radius r_max): step angle 2 acos(1 - tol / r_max), no bound when
+    r_max <= tol / 2."""
+    d_rot = math.sqrt(sum((move.end[a] - start[a]) ** 2 for a in rot))
+    if move.kind != "arc":
+        d_lin = math.sqrt(sum((move.end[a] - start[a]) ** 2 for a in lin))
+        return max(1, math.ceil(d_lin / step_mm), math.ceil(d_rot / step_deg))
+    _, sweep, r0, r1, dh = arc_sweep(start, move)
+    r = max(r0, r1)
+    d_lin = math.hypot(r * abs(sweep) + abs(r1 - r0), dh)
+    tol = CHORD_FRACTION * step_mm
+    n_chord = math.ceil(abs(sweep) / (2 * math.acos(1 - tol / r))) if r > tol / 2 else 1
+    return max(1, math.ceil(d_lin / step_mm), math.ceil(d_rot / step_deg), n_chord)
+
+
 def from_program(program, machine, step_mm: float = STEP_MM, step_deg: float = STEP_DEG,
                  max_samples: int | None = None, how: str = "max_size={n}") -> Toolpath:
-    """Sample the G1 moves of an interpreted program (fiveaxis.gcode.Program) into a toolpath (no normals)."""
+    """Sample the cutting moves (G1, G2/G3) of an interpreted program (fiveaxis.gcode.Program) into a toolpath
+    (no normals)."""
     from .gcode import AXES
     from .guards import check_size
     path = program.path
@@ -193,20 +263,18 @@ def from_program(program, machine, step_mm: float = STEP_MM, step_deg: float = S
             if abs(mv.end[a]) > 1e-9:
                 raise InputError(f"{path}: line {mv.line}: the program moves {a} to {mv.end[a]:g}, an axis "
                                  f"{machine.name} does not have (axes {' '.join(variables)})")
-    feeds = [k for k, mv in enumerate(program.moves) if mv.kind == "feed"]
-    if not feeds:
-        raise InputError(f"{path}: the program has no G1 (feed) move to sample")
+    cuts = [mv for mv in program.moves if mv.kind in CUTS]
+    if not cuts:
+        raise InputError(f"{path}: the program has no G1, G2 or G3 (feed) move to sample")
     rot = [a for a in variables if machine.axis(a).type == "rotary"]
     lin = [a for a in variables if a not in rot]
     plan = []                                      # (move index, start point, samples, include start)
     prev, prev_kind = program.start, None
     total = 0
     for k, mv in enumerate(program.moves):
-        if mv.kind == "feed":
-            d_lin = math.sqrt(sum((mv.end[a] - prev[a]) ** 2 for a in lin))
-            d_rot = math.sqrt(sum((mv.end[a] - prev[a]) ** 2 for a in rot))
-            n = max(1, math.ceil(d_lin / step_mm), math.ceil(d_rot / step_deg))
-            first = prev_kind != "feed"
+        if mv.kind in CUTS:
+            n = move_samples(prev, mv, lin, rot, step_mm, step_deg)
+            first = prev_kind not in CUTS
             plan.append((k, prev, n, first))
             total += n + first
             check_size(total, "toolpath samples", max_samples, how)
@@ -215,10 +283,13 @@ def from_program(program, machine, step_mm: float = STEP_MM, step_deg: float = S
     labels = []
     for s, (k, start, n, first) in enumerate(plan):
         mv = program.moves[k]
-        a0 = np.array([start[v] for v in variables])
-        a1 = np.array([mv.end[v] for v in variables])
         t = np.arange(0 if first else 1, n + 1) / n
-        pts = a0[None, :] + t[:, None] * (a1 - a0)[None, :]
+        a1 = np.array([mv.end[v] for v in variables])
+        if mv.kind == "arc":
+            pts = arc_points(start, mv, t, variables)
+        else:
+            a0 = np.array([start[v] for v in variables])
+            pts = a0[None, :] + t[:, None] * (a1 - a0)[None, :]
         pts[-1] = a1                               # the end point exactly as the interpreter gave it
         poses.append(pts)
         seg.append(np.full(len(t), s))
@@ -230,9 +301,10 @@ def from_program(program, machine, step_mm: float = STEP_MM, step_deg: float = S
             q[:, j] = np.radians(q[:, j])
     check_strokes(machine, q, lambda i: f"{path}: line {line_of[i]}")
     units = "/".join(program.units) or "mm"
+    arcs = sum(program.moves[k].kind == "arc" for k, *_ in plan)
     return Toolpath(PoseList(q), np.concatenate(seg), tuple(labels),
-                    f"{path} (rs274: {len(program.moves)} moves, {len(plan)} G1 sampled every {step_mm:g} mm / "
-                    f"{step_deg:g} deg into {len(q)} poses; program units {units})", "")
+                    f"{path} (rs274: {len(program.moves)} moves, {len(plan) - arcs} G1 and {arcs} G2/G3 sampled "
+                    f"every {step_mm:g} mm / {step_deg:g} deg into {len(q)} poses; program units {units})", "")
 
 
 def with_surface(toolpath: Toolpath, surface, model, L0: float) -> Toolpath:

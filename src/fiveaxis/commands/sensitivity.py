@@ -328,7 +328,7 @@ def register_lsa(p):
     where.add_argument("--toolpath", type=Path, metavar="FILE",
                        help="a CSV of tool poses (the machine's axes, mm and degrees; optional nx,ny,nz surface "
                             "normals in the workpiece frame and a segment column) or a G-code program (LinuxCNC "
-                            "dialect, read by rs274; G1 moves sampled along the path)")
+                            "dialect, read by rs274; G1 moves and G2/G3 arcs sampled along the path)")
     where.add_argument("--pose", action="append", default=None, metavar="X=..,Y=..,...",
                        help="an explicit pose (mm, degrees; optional nx=,ny=,nz=); repeatable")
     where.add_argument("--cone", type=int, default=None, choices=(1, 2),
