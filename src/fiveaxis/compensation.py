@@ -21,6 +21,13 @@ The table: corrections at the nodes of a full grid over the strokes, C order (th
 A controller interpolates multilinearly (the tensor product of linear interpolation on each axis, the 2^nvar
 nodes of the cell around the pose) and adds the result to the commanded pose; outside the strokes it holds the
 edge values. Density: see docs/compensation.md (measured) and DEFAULT_* below.
+
+Tool lengths: the tip correction depends on the tool length L (an angular error e moves the tip by about e * L), so
+a table solved at one L (the machine's L0) leaves about |e| * |L - L0| at another. With tool_lengths (mm, at least
+2, ascending) the table gets a tool-length dimension L, FIRST in the grid (L varies slowest: the rows of one tool
+length are one contiguous block, a full one-length table), and the corrections are solved exactly at every
+(L, pose) node. Interpolation is multilinear over (L, variables) - the same rule, with L as one more axis; outside
+the table's lengths the edge length's values are held (clamped) and `length_warning` says so.
 """
 from __future__ import annotations
 
@@ -47,6 +54,8 @@ MAX_NODES = 200_000
 CHUNK = 20_000
 #: Poses for the predicted error over the workspace.
 ACCOUNT_POSES = 4000
+#: Tolerance (mm) within which a tool length counts as inside the table's lengths.
+LENGTH_TOL_MM = 1e-9
 
 
 # -- the exact erroneous machine ---------------------------------------------------------------------------------
@@ -182,24 +191,42 @@ def _solve_chunk(model, errors_fn, q, L, mu, max_iter) -> Corrections:
 # -- the table -----------------------------------------------------------------------------------------------------
 @dataclass
 class Table:
-    """Corrections at the nodes of a full grid over the workspace (model units: mm, rad)."""
+    """Corrections at the nodes of a full grid over the workspace (model units: mm, rad), optionally also over the
+    tool length L (mm; the first grid dimension)."""
     variables: tuple           # the machine's variables, in order
     rotary: tuple              # bool per variable
     nodes: tuple               # node values per variable (ascending arrays, mm or rad)
     c: np.ndarray              # shape counts + (nvar,): the corrections at the nodes (mm, rad)
+    tool_lengths: np.ndarray | None = None   # ascending tool lengths (mm), the first grid dimension; None: one L
+
+    @property
+    def grid(self) -> tuple:
+        """Node values per grid dimension: (tool lengths (mm),) if any, then the variables' nodes (mm, rad)."""
+        return ((self.tool_lengths,) if self.tool_lengths is not None else ()) + tuple(self.nodes)
 
     @property
     def counts(self) -> tuple:
-        return tuple(len(a) for a in self.nodes)
+        """Nodes per grid dimension (the tool length first when the table has one)."""
+        return tuple(len(a) for a in self.grid)
 
     @property
     def size(self) -> int:
         return math.prod(self.counts)
 
-    def poses(self) -> np.ndarray:
-        """The node poses (size, nvar) in C order (last variable fastest), mm and rad."""
-        mesh = np.meshgrid(*self.nodes, indexing="ij")
+    def points(self) -> np.ndarray:
+        """The grid points (size, ndim) in C order (last dimension fastest): [L (mm),] then the variables."""
+        mesh = np.meshgrid(*self.grid, indexing="ij")
         return np.stack([m.ravel() for m in mesh], axis=1)
+
+    def poses(self) -> np.ndarray:
+        """The node poses (size, nvar) in C order (last variable fastest), mm and rad; with a tool-length
+        dimension, the poses of every grid point (each pose repeated per tool length, see lengths())."""
+        p = self.points()
+        return p[:, 1:] if self.tool_lengths is not None else p
+
+    def lengths(self):
+        """Tool length (mm) of each grid point (size,), or None for a one-length table."""
+        return None if self.tool_lengths is None else self.points()[:, 0]
 
 
 def default_counts(machine) -> dict:
@@ -235,40 +262,98 @@ def table_nodes(machine, counts: dict, max_nodes: int | None = MAX_NODES) -> tup
     return tuple(np.linspace(*machine.axis(v).model_stroke, full[v]) for v in machine.variables)
 
 
+def check_tool_lengths(lengths, key: str = "tool_lengths") -> np.ndarray:
+    """Tool lengths of a table (mm) as an ascending array; InputError naming `key` unless they are at least 2
+    finite, positive, strictly ascending lengths."""
+    try:
+        a = np.asarray(lengths, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise InputError(f"{key}: expected tool lengths in mm (numbers), got {lengths!r}") from None
+    if len(a) < 2:
+        raise InputError(f"{key}: expected at least 2 tool lengths in mm to interpolate between, got {len(a)} (for "
+                         f"the machine's own tool length leave the option out)")
+    if not np.all(np.isfinite(a)) or np.any(a <= 0):
+        raise InputError(f"{key}: expected positive, finite tool lengths in mm, got "
+                         f"{', '.join(f'{x:g}' for x in a)}")
+    if np.any(np.diff(a) <= 0):
+        raise InputError(f"{key}: expected ascending tool lengths in mm without duplicates, got "
+                         f"{', '.join(f'{x:g}' for x in a)}")
+    return a
+
+
 def build_table(model, errors_fn, counts: dict | None = None, max_nodes: int | None = MAX_NODES, L=None,
-                damping: float = DAMPING):
-    """The table (and the Corrections at its nodes) for a machine whose errors errors_fn gives."""
+                damping: float = DAMPING, tool_lengths=None):
+    """The table (and the Corrections at its nodes) for a machine whose errors errors_fn gives: at the tool length
+    L (mm; None: the machine's L0), or, with tool_lengths (mm, ascending, at least 2), at every (L, pose) node of a
+    grid whose first dimension is the tool length."""
     machine = model.machine
-    nodes = table_nodes(machine, dict(counts or {}), max_nodes)
+    nodes = table_nodes(machine, dict(counts or {}), None)
+    lengths = None if tool_lengths is None else check_tool_lengths(tool_lengths)
     tab = Table(tuple(model.variables), tuple(bool(r) for r in _rotary_mask(model)), nodes,
-                np.zeros(tuple(len(a) for a in nodes) + (len(nodes),)))
-    corr = solve(model, errors_fn, tab.poses(), L, damping)
+                np.zeros(()), lengths)
+    tab.c = np.zeros(tab.counts + (len(nodes),))
+    if max_nodes is not None and tab.size > max_nodes:
+        raise InputError(f"a table of {tab.size} nodes ({' x '.join(str(c) for c in tab.counts)}) is over the size "
+                         f"limit of {max_nodes} nodes")
+    corr = solve(model, errors_fn, tab.poses(), L if lengths is None else tab.lengths(), damping)
     tab.c = corr.c.reshape(tab.c.shape)
     return tab, corr
 
 
-def interpolate(table: Table, poses) -> np.ndarray:
+def _lengths_for(table: Table, L, n: int):
+    if table.tool_lengths is None:
+        return None
+    if L is None:
+        raise InputError("the compensation table has a tool-length dimension (L): the tool length (mm) of the "
+                         "poses is needed")
+    return np.broadcast_to(np.asarray(L, dtype=float), (n,))
+
+
+def interpolate(table: Table, poses, L=None) -> np.ndarray:
     """Multilinear interpolation of the table's corrections at poses (n, nvar; mm, rad) -> (n, nvar); poses outside
-    the grid take the values at its edge (clamped)."""
+    the grid take the values at its edge (clamped). L: tool length(s) (mm; scalar or (n,)), needed for a table with
+    a tool-length dimension (interpolated over it too, clamped to its lengths), ignored otherwise."""
     from scipy.interpolate import RegularGridInterpolator
     q = np.atleast_2d(np.asarray(poses, float))
-    qc = np.column_stack([np.clip(q[:, j], a[0], a[-1]) for j, a in enumerate(table.nodes)])
-    rgi = RegularGridInterpolator(table.nodes, table.c, method="linear")
+    Ls = _lengths_for(table, L, len(q))
+    if Ls is not None:
+        q = np.column_stack([Ls, q])
+    grid = table.grid
+    qc = np.column_stack([np.clip(q[:, j], a[0], a[-1]) for j, a in enumerate(grid)])
+    rgi = RegularGridInterpolator(grid, table.c, method="linear")
     return rgi(qc)
 
 
-def compensated_commands(table: Table, poses) -> np.ndarray:
-    """The commands with the table's corrections added: poses + interpolate(table, poses) (mm, rad)."""
+def compensated_commands(table: Table, poses, L=None) -> np.ndarray:
+    """The commands with the table's corrections added: poses + interpolate(table, poses, L) (mm, rad)."""
     q = np.atleast_2d(np.asarray(poses, float))
-    return q + interpolate(table, q)
+    return q + interpolate(table, q, L)
+
+
+def length_warning(table: Table, L) -> str | None:
+    """A one-line warning when tool lengths L (mm) lie outside the table's lengths (their corrections are those of
+    the edge length), else None (also for a one-length table)."""
+    if table.tool_lengths is None or L is None:
+        return None
+    Ls = np.atleast_1d(np.asarray(L, dtype=float))
+    lo, hi = float(table.tool_lengths[0]), float(table.tool_lengths[-1])
+    out = (Ls < lo - LENGTH_TOL_MM) | (Ls > hi + LENGTH_TOL_MM)
+    if not np.any(out):
+        return None
+    return (f"{int(out.sum())} of {len(Ls)} tool lengths ({float(Ls[out].min()):g} to {float(Ls[out].max()):g} mm) "
+            f"are outside the table's {lo:g} to {hi:g} mm: the corrections of the nearest table length are used "
+            f"(not right for those tools)")
 
 
 def table_frame(table: Table):
-    """The table as a DataFrame in file units: the variables (mm, degrees) then c_<var> (mm, degrees)."""
+    """The table as a DataFrame in file units: [L (mm) if the table has tool lengths,] the variables (mm, degrees)
+    then c_<var> (mm, degrees); C order over the grid (L slowest, the last variable fastest)."""
     import pandas as pd
     q = table.poses()
     c = table.c.reshape(-1, len(table.variables))
     cols = {}
+    if table.tool_lengths is not None:
+        cols["L"] = table.lengths()
     for j, v in enumerate(table.variables):
         cols[v] = np.degrees(q[:, j]) if table.rotary[j] else q[:, j]
     for j, v in enumerate(table.variables):
@@ -278,7 +363,7 @@ def table_frame(table: Table):
 
 def read_table(path, machine) -> Table:
     """A table file (CSV or Parquet, as table_frame writes it) for a machine; InputError if it is not a full grid
-    of the machine's variables."""
+    of the machine's variables (and of the tool length, mm, when it has an L column)."""
     from pathlib import Path
 
     import pandas as pd
@@ -290,7 +375,9 @@ def read_table(path, machine) -> Table:
     except Exception as exc:   # pandas/pyarrow raise many types for damaged files
         raise InputError(f"{path}: not a readable table ({str(exc).splitlines()[0]})") from None
     variables = tuple(machine.variables)
-    want = list(variables) + [f"c_{v}" for v in variables]
+    has_L = "L" in df.columns
+    dims = (["L"] if has_L else []) + list(variables)
+    want = dims + [f"c_{v}" for v in variables]
     missing = [c for c in want if c not in df.columns]
     if missing:
         raise InputError(f"{path}: header: missing column(s) {', '.join(missing)} (expected {','.join(want)})")
@@ -299,26 +386,30 @@ def read_table(path, machine) -> Table:
         row = int(np.flatnonzero(~np.all(np.isfinite(data), axis=1))[0]) + 1
         raise InputError(f"{path}: data row {row}: expected finite numbers")
     rotary = tuple(machine.axis(v).type == "rotary" for v in variables)
+    nd = len(dims)
     nodes = []
-    for j, v in enumerate(variables):
+    for j, v in enumerate(dims):
         vals = np.unique(data[:, j])
         if len(vals) < 2:
             raise InputError(f"{path}: column {v}: a table needs at least 2 nodes per axis, got {len(vals)}")
         nodes.append(vals)
+    if has_L:
+        check_tool_lengths(nodes[0], f"{path}: column L")
     counts = tuple(len(a) for a in nodes)
     if math.prod(counts) != len(data):
         raise InputError(f"{path}: {len(data)} rows are not a full grid of {' x '.join(map(str, counts))} nodes")
-    order = np.lexsort(tuple(data[:, j] for j in reversed(range(len(variables)))))
+    order = np.lexsort(tuple(data[:, j] for j in reversed(range(nd))))
     data = data[order]
     mesh = np.stack([m.ravel() for m in np.meshgrid(*nodes, indexing="ij")], axis=1)
-    if not np.allclose(data[:, :len(variables)], mesh, rtol=0, atol=1e-9):
+    if not np.allclose(data[:, :nd], mesh, rtol=0, atol=1e-9):
         raise InputError(f"{path}: the rows are not a full grid of {' x '.join(map(str, counts))} nodes")
-    c = data[:, len(variables):].copy()
+    c = data[:, nd:].copy()
     for j, r in enumerate(rotary):
         if r:
             c[:, j] = np.radians(c[:, j])
-    nodes = [np.radians(a) if r else a for a, r in zip(nodes, rotary)]
-    return Table(variables, rotary, tuple(nodes), c.reshape(counts + (len(variables),)))
+    lengths = nodes[0] if has_L else None
+    nodes = [np.radians(a) if r else a for a, r in zip(nodes[nd - len(variables):], rotary)]
+    return Table(variables, rotary, tuple(nodes), c.reshape(counts + (len(variables),)), lengths)
 
 
 # -- the account: predicted tip error over the workspace -------------------------------------------------------------
@@ -333,7 +424,12 @@ def account(model, errors_fn, table: Table | None, lc=None, n: int = ACCOUNT_POS
     """Predicted tool-tip error (mm) over n random poses within the strokes: before, after LinuxCNC (lc: a
     linuxcnc.LinuxCNCCompensation), after the volumetric table, and after the exact correction. Approach
     directions are random (+1/-1 per joint and pose) for the errors that depend on them. Also the tool-axis
-    error (rad) before and after the table."""
+    error (rad) before and after the table. L: the tool length (mm; None: the machine's L0).
+
+    With a table that has a tool-length dimension, also `by_tool_length`: the same figures (before, after the
+    table, after the exact correction; mm and rad) at each of the table's lengths and at the midpoints between
+    them, over n // 2 (at least 200) random poses each (seed + 1 + i), and `warnings` when L lies outside the
+    table's lengths."""
     from .linuxcnc import linuxcnc_commands
     rng = np.random.default_rng(seed)
     q = model.machine.random_poses(n, rng)
@@ -352,14 +448,52 @@ def account(model, errors_fn, table: Table | None, lc=None, n: int = ACCOUNT_POS
         Pl, _ = at(linuxcnc_commands(lc, model, q, dirs, L))
         out["tip_error_mm"]["after_linuxcnc"] = stats(Pl - P0)
     if table is not None:
-        Pt, Vt = at(compensated_commands(table, q))
+        Pt, Vt = at(compensated_commands(table, q, Ls))
         out["tip_error_mm"]["after_table"] = stats(Pt - P0)
         out["axis_error_rad"]["after_table"] = stats(Vt - V0)
     ex = solve(model, errors_fn, q, L, damping)        # direction-independent, as the table
     Pe, Ve = at(q + ex.c)
     out["tip_error_mm"]["after_exact_correction"] = stats(Pe - P0)
     out["axis_error_rad"]["after_exact_correction"] = stats(Ve - V0)
+    if table is not None and table.tool_lengths is not None:
+        warn = length_warning(table, Ls[:1])
+        out["warnings"] = [] if warn is None else [f"account at tool length {Ls[0]:g} mm: {warn}"]
+        out["by_tool_length"] = [account_at_length(model, errors_fn, table, float(Lk), max(200, n // 2),
+                                                   seed + 1 + i, damping, node)
+                                 for i, (Lk, node) in enumerate(account_lengths(table.tool_lengths))]
     return out
+
+
+def account_lengths(lengths) -> list:
+    """(tool length (mm), is a table node) at each table length and at the midpoints between them, ascending."""
+    a = np.asarray(lengths, float)
+    out = [(float(a[0]), True)]
+    for lo, hi in zip(a[:-1], a[1:]):
+        out += [(float(0.5 * (lo + hi)), False), (float(hi), True)]
+    return out
+
+
+def account_at_length(model, errors_fn, table: Table, L: float, n: int, seed: int, damping: float = DAMPING,
+                      node: bool = False) -> dict:
+    """Predicted tool-tip error (mm) and tool-axis error (rad) at one tool length L (mm) over n random poses:
+    before, after the table (interpolated at L), after the exact correction at L."""
+    rng = np.random.default_rng(seed)
+    q = model.machine.random_poses(n, rng)
+    dirs = rng.choice([-1.0, 1.0], size=q.shape)
+    Ls = model.tool_lengths(L, n)
+    P0, V0 = model.ideal_tool(q, Ls)
+
+    def at(positions):
+        E, dL = errors_fn(positions, dirs)
+        return actual_tool(model, positions, E, dL, Ls)
+    P, V = at(q)
+    Pt, Vt = at(compensated_commands(table, q, Ls))
+    Pe, Ve = at(q + solve(model, errors_fn, q, Ls, damping).c)
+    return {"tool_length_mm": float(L), "table_node": bool(node), "poses": int(n), "seed": int(seed),
+            "tip_error_mm": {"before": stats(P - P0), "after_table": stats(Pt - P0),
+                             "after_exact_correction": stats(Pe - P0)},
+            "axis_error_rad": {"before": stats(V - V0), "after_table": stats(Vt - V0),
+                               "after_exact_correction": stats(Ve - V0)}}
 
 
 # -- a fitted model's compensation, and its files ---------------------------------------------------------------------
@@ -367,6 +501,10 @@ INTERPOLATION = ("multilinear: for a commanded pose, find the grid cell around i
                  "bracket the value; outside the strokes, the edge), weight each of the cell's 2^n corners by the "
                  "product over axes of (1 - |x - node| / spacing), sum the corners' corrections, add the sum to the "
                  "command; rotary corrections in degrees, linear in mm")
+INTERPOLATION_L = ("multilinear over the tool length L (mm, the first column and the first grid dimension) and the "
+                   "machine's variables: the same rule with L as one more axis (2^(n+1) corners); a tool length "
+                   "outside the table's lengths takes the values of the nearest table length (held, not "
+                   "extrapolated)")
 
 
 @dataclass
@@ -383,8 +521,11 @@ class Compensation:
 
 
 def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, damping: float = DAMPING,
-               comp_points: int | None = None, poses: int = ACCOUNT_POSES, seed: int = 0) -> Compensation:
-    """The volumetric table, LinuxCNC's parameters and the predicted error account for a fitted model."""
+               comp_points: int | None = None, poses: int = ACCOUNT_POSES, seed: int = 0,
+               tool_lengths=None) -> Compensation:
+    """The volumetric table, LinuxCNC's parameters and the predicted error account for a fitted model.
+    tool_lengths: None (a table for the machine's tool length L0 only, no L column) or at least 2 ascending tool
+    lengths (mm): the table gets a tool-length dimension with nodes there (see the module docstring)."""
     from . import linuxcnc as lx
     from .model_file import check_model
     check_model(fm, model)
@@ -392,8 +533,9 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
         raise InputError(f"poses for the account: expected a positive number, got {poses}")
     if damping < 0 or not math.isfinite(damping):
         raise InputError(f"damping: expected a number >= 0, got {damping}")
+    lengths = None if tool_lengths is None else check_tool_lengths(tool_lengths)
     errors_fn = fitted_errors(fm, model)
-    table, nodes = build_table(model, errors_fn, counts, max_nodes, None, damping)
+    table, nodes = build_table(model, errors_fn, counts, max_nodes, None, damping, lengths)
     reversal = [v for v in model.variables if _token(model, v) in fm.reversal_variables()]
     lc = lx.fit(tip_error_function(model, errors_fn), model, comp_points or lx.COMP_POINTS, reversal=reversal)
     acc = account(model, errors_fn, table, lc, poses, seed, damping=damping)
@@ -417,13 +559,14 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
         nodes[v] = {"min": float(f(a[0])), "max": float(f(a[-1])), "count": int(len(a)), "unit": units[v]}
     tip, axis = comp.account["tip_error_mm"], comp.account["axis_error_rad"]
     time_effects = [e.id for e in fm.effects if e.var == TIME]
-    return {
+    dims = (["L"] if tab.tool_lengths is not None else []) + list(tab.variables)
+    out = {
         "format": "fiveaxis compensation", "version": 1,
         "machine": {"name": fm.machine, "file": fm.machine_file, "sha256": fm.machine_sha256},
         "convention": fm.convention, "model_file": str(model_path), "tool_length_mm": comp.tool_length,
         "table": {"files": ["table.csv", "table.parquet"], "variables": list(tab.variables), "units": units,
                   "nodes": nodes, "size": int(tab.size), "interpolation": INTERPOLATION,
-                  "columns": list(tab.variables) + [f"c_{v}" for v in tab.variables],
+                  "columns": dims + [f"c_{v}" for v in tab.variables],
                   "damping": comp.damping,
                   "solver": "Gauss-Newton on the exact chain with the identified errors, Jacobian by central "
                             "differences, tip weighted to be exact, rotary corrections penalised by "
@@ -447,12 +590,26 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
             "tool_axis_note": "where the rotary axes hardly turn the tool axis (a trunnion near A = 0) its error "
                               "is corrected only partly (damping); the tip is corrected everywhere"},
     }
+    if tab.tool_lengths is None:
+        out["not_compensated"]["tool_length_note"] = (
+            f"the table is for the tool length {comp.tool_length:g} mm only; other tools get a correction wrong by "
+            f"about the angular errors times the difference in length (compensate --tool-lengths)")
+        return out
+    t = out["table"]
+    t["tool_lengths_mm"] = [float(x) for x in tab.tool_lengths]
+    t["dimensions"] = dims
+    t["interpolation"] = INTERPOLATION_L
+    t["tool_length_note"] = ("L (mm) is the first grid dimension and the first column (rows of one tool length "
+                             "are contiguous); outside the table's lengths the nearest length's values are held")
+    out["predicted_by_tool_length"] = comp.account.get("by_tool_length", [])
+    out["warnings"] = list(comp.account.get("warnings", []))
+    return out
 
 
 README = """fiveaxis compensate: the files in this folder
 
 table.csv, table.parquet  the volumetric compensation table. One row per node of a full grid over the strokes
-    (the last variable varies fastest). Columns: the machine's variables (the nominal command: mm for linear
+    (the last variable varies fastest). Columns: {lcol}the machine's variables (the nominal command: mm for linear
     axes, degrees for rotary axes), then c_<variable>: the correction to ADD to the command (mm, degrees), so that
     the machine with the identified errors puts the tool tip and the tool axis where the nominal machine would.
     Interpolation a controller is expected to use: {interpolation}.
@@ -498,7 +655,11 @@ def write(comp: Compensation, folder, force: bool = False, plot: bool = False, m
                write_frame(frame, folder / "table.parquet", force=force)]
     for name, text in lfiles.items():
         written.append(_written(lcdir / name, text, force=force))
-    written.append(_written(folder / "README.txt", README.format(interpolation=INTERPOLATION), force=force))
+    has_L = comp.table.tool_lengths is not None
+    lcol = ("L (the tool length, mm; the slowest-varying: each tool length is a contiguous block), " if has_L
+            else "")
+    written.append(_written(folder / "README.txt", README.format(
+        interpolation=INTERPOLATION_L if has_L else INTERPOLATION, lcol=lcol), force=force))
     if plot:
         from .plots.compensation import error_map
         written.append(error_map(comp.model, fitted_errors(comp.fm, comp.model), comp.table, comp.lc,
@@ -516,7 +677,7 @@ def report(comp: Compensation, folder="") -> str:
     grid = " x ".join(str(c) for c in tab.counts)
     lines = [f"fiveaxis compensate: machine {comp.fm.machine} ({comp.fm.convention}), tool length "
              f"{comp.tool_length:g} mm",
-             f"  table: {grid} = {tab.size} nodes over the strokes ({', '.join(tab.variables)}); exact-model "
+             f"  table: {grid} = {tab.size} nodes over the strokes ({', '.join(('L (mm)',) * (tab.tool_lengths is not None) + tab.variables)}); exact-model "
              f"residual at the nodes <= {np.max(comp.nodes.tip_residual):.1e} mm",
              f"  predicted tool-tip error over {comp.account['poses']} random poses (um):   max      RMS      p95"]
     what = lc.trt.component + " + " if lc.trt is not None else ""
@@ -529,6 +690,18 @@ def report(comp: Compensation, folder="") -> str:
         lines.append(f"    {label:56s} {1e3 * s['max']:8.3f} {1e3 * s['rms']:8.3f} {1e3 * s['p95']:8.3f}")
     lines.append(f"  tool-axis error RMS (urad): before {1e6 * ax['before']['rms']:.3g}, after the table "
                  f"{1e6 * ax['after_table']['rms']:.3g} (damping {comp.damping:g} near singular poses)")
+    if tab.tool_lengths is not None:
+        lines.append(f"  tool lengths (mm) {', '.join(f'{x:g}' for x in tab.tool_lengths)} (first grid dimension); "
+                     f"predicted tool-tip error by tool length (um):")
+        lines.append(f"    {'L (mm)':>10s} {'':6s} {'before RMS':>11s} {'after table RMS':>16s} {'max':>9s} "
+                     f"{'after exact RMS':>16s}")
+        for r in comp.account.get("by_tool_length", []):
+            b, a, e = (r["tip_error_mm"][k] for k in ("before", "after_table", "after_exact_correction"))
+            lines.append(f"    {r['tool_length_mm']:10.3f} {'node' if r['table_node'] else 'mid':6s} "
+                         f"{1e3 * b['rms']:11.3f} {1e3 * a['rms']:16.3f} {1e3 * a['max']:9.3f} "
+                         f"{1e3 * e['rms']:16.3f}")
+        for w in comp.account.get("warnings", []):
+            lines.append(f"  warning: {w}")
     if lc.trt is not None:
         pins = ", ".join(f"{k} {v:+.4f}" for k, v in lc.trt.pins().items())
         o = lc.trt.origin
@@ -566,10 +739,13 @@ def load_table(folder, model) -> Table:
     return read_table(path, machine)
 
 
-def command_function(folder, model):
-    """poses -> compensated commands (mm, rad) with the table of a compensate output folder."""
-    table = load_table(folder, model)
-    return lambda poses: compensated_commands(table, poses)
+def command_function(folder, model, table: Table | None = None):
+    """(poses, L=None) -> compensated commands (mm, rad) with the table of a compensate output folder (or the
+    table given): at each pose's own tool length L (mm; (n,) or scalar; None: the machine's L0) when the table has
+    a tool-length dimension."""
+    table = load_table(folder, model) if table is None else table
+    L0 = model.machine.tool_length
+    return lambda poses, L=None: compensated_commands(table, poses, L0 if L is None else L)
 
 
 def _written(path, text: str, force: bool = False) -> Path:

@@ -118,8 +118,9 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
     relative to SETUP_OFFSET_MM and SETUP_ROTATION_RAD; errors: {name: value} (mm, rad) set instead of drawn;
     setup_kind: the kind of every setup of the plan (point, rigid, planar) instead of the instrument's;
     placements: {setup id: {"c_mm": [3], "l_mm": x, "w_rad": [3]}} set instead of drawn (any key may be left out);
-    commands: None, or a function of the poses (n, nvar; mm, rad) giving the positions the axes are actually sent
-    to (a compensation); the readings are then those of the machine there against the nominal tool of the poses."""
+    commands: None, or a function of the poses (n, nvar; mm, rad) and their tool lengths (n,; mm) giving the
+    positions the axes are actually sent to (a compensation); the readings are then those of the machine there
+    against the nominal tool of the poses."""
     _check(n, noise, noise_axis, duration, tool_lengths)
     rng = np.random.default_rng(seed)
     machine = model.machine
@@ -141,7 +142,7 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
         if name not in model.errors:
             raise InputError(f"error '{name}': unknown error name (expected one of {', '.join(model.errors[:3])} ...)")
         base[list(model.errors).index(name)] = float(value)
-    at = plan.poses if commands is None else commands(plan.poses)    # where the axes go
+    at = plan.poses if commands is None else commands(plan.poses, plan.L)    # where the axes go
     ctx = fx.context(machine, at, t, plan.dirs)
     E = np.tile(base, (m, 1))
     dL = np.zeros(m)

@@ -20,6 +20,12 @@ def register_compensate(p):
     p.add_argument("--nodes", action="append", default=[], metavar="AXIS=COUNT",
                    help="table nodes over an axis' stroke, e.g. X=9 or A=31 (repeatable; default: 5 per linear "
                         "axis, one every 10 degrees on rotary axes)")
+    p.add_argument("--tool-lengths", default=None, metavar="L1,L2,...|LO:HI:COUNT",
+                   help="tool lengths (mm) for the table's tool-length dimension: a list, e.g. 80,120,160, or LO:HI:"
+                        "COUNT evenly spaced, e.g. 60:200:8 (at least 2, positive, ascending). The table gets a first "
+                        "column L and is solved exactly at every (L, pose) node; a controller interpolates "
+                        "multilinearly over L and the axes and holds the edge values outside the lengths. Default: "
+                        "the machine's tool length only (no L column)")
     p.add_argument("--max-nodes", type=int, default=None, metavar="N",
                    help="allow tables of up to N nodes (default limit 200000)")
     p.add_argument("--damping", type=float, default=None,
@@ -52,6 +58,24 @@ def _counts(specs) -> dict:
     return out
 
 
+def _tool_lengths(spec):
+    """--tool-lengths L1,L2,... or LO:HI:COUNT -> a list of lengths (mm); InputError naming the option."""
+    if spec is None:
+        return None
+    expected = "expected L1,L2,... or LO:HI:COUNT in mm, e.g. 80,120,160 or 60:200:8"
+    try:
+        if ":" in spec:
+            lo, hi, count = spec.split(":")
+            lo, hi, n = float(lo), float(hi), float(count)
+            if n != int(n) or n < 2 or not hi > lo:
+                raise InputError(f"--tool-lengths {spec!r}: LO:HI:COUNT needs LO < HI and an integer COUNT >= 2")
+            import numpy as np
+            return [float(x) for x in np.linspace(lo, hi, int(n))]
+        return [float(x) for x in spec.split(",")]
+    except ValueError:
+        raise InputError(f"--tool-lengths {spec!r}: {expected}") from None
+
+
 def run_compensate(args) -> int:
     from .. import compensation as C
     from .. import model_file as MF
@@ -74,8 +98,15 @@ def run_compensate(args) -> int:
         size = math.prod(len(a) for a in C.table_nodes(model.machine, counts, None))
     except InputError as exc:
         raise InputError(f"--nodes: {exc}") from None
+    lengths = _tool_lengths(args.tool_lengths)
+    if lengths is not None:
+        try:
+            lengths = C.check_tool_lengths(lengths, "--tool-lengths")
+        except InputError as exc:
+            raise InputError(f"{exc} (from {args.tool_lengths!r})") from None
+        size *= len(lengths)
     if size > limit:
-        raise InputError(f"--nodes: a table of {size} nodes is over the limit of {limit} nodes (ask for it with "
+        raise InputError(f"--nodes{'/--tool-lengths' if lengths is not None else ''}: a table of {size} nodes is over the limit of {limit} nodes (ask for it with "
                          f"--max-nodes {size})")
     if args.comp_points is not None and not 2 <= args.comp_points <= 256:
         raise InputError(f"--comp-points: expected 2 to 256 (LinuxCNC reads at most 256 lines), got "
@@ -84,7 +115,8 @@ def run_compensate(args) -> int:
         if p.exists() and not args.force:
             raise InputError(f"{p}: exists; not overwriting it (use --force to replace it)")
     comp = C.compensate(fm, model, counts, limit, C.DAMPING if args.damping is None else args.damping,
-                        args.comp_points, args.poses if args.poses is not None else C.ACCOUNT_POSES, args.seed)
+                        args.comp_points, args.poses if args.poses is not None else C.ACCOUNT_POSES, args.seed,
+                        tool_lengths=lengths)
     C.write(comp, out, force=args.force, plot=args.plot, model_path=str(args.model))
     if args.json:
         print(json.dumps(C.summary(comp, str(args.model)), indent=1))

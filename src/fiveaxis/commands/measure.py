@@ -104,7 +104,8 @@ def register_simulate(p):
     p.add_argument("-o", "--output", type=Path, required=True, help="output file, .csv or .parquet")
     p.add_argument("--force", action="store_true", help="replace the output file if it exists")
     p.add_argument("--compensation", type=Path, default=None, metavar="DIR",
-                   help="apply the compensation table of `fiveaxis compensate -o DIR` to the commands")
+                   help="apply the compensation table of `fiveaxis compensate -o DIR` to the commands (a table with "
+                        "tool lengths: at each pose's own tool length; a warning for lengths outside the table's)")
     p.set_defaults(func=run_simulate)
 
 
@@ -263,9 +264,13 @@ def run_simulate(args) -> int:
         raise InputError("--with-sigma with --noise 0: a standard deviation of 0 is not a measurement (give a noise)")
     commands, comp = None, ""
     if args.compensation is not None:
-        from ..compensation import command_function
-        commands = command_function(args.compensation, model)
+        from ..compensation import command_function, load_table
+        table = load_table(args.compensation, model)
+        commands = command_function(args.compensation, model, table)
         comp = f", compensated by {args.compensation}"
+        if table.tool_lengths is not None:
+            comp += f" (at each pose's tool length L; table lengths {table.tool_lengths[0]:g} to " \
+                    f"{table.tool_lengths[-1]:g} mm)"
     plan = None
     if args.poses is not None:
         plan = _plan_from_file(args, model, lengths)
@@ -283,6 +288,11 @@ def run_simulate(args) -> int:
                    instrument=args.instrument, with_axis=args.with_axis, noise_axis=args.noise_axis, plan=plan,
                    setup_scale=args.setup_scale, errors=errors, setup_kind=args.setup_kind, commands=commands)
     meas = sim.meas
+    if commands is not None:
+        from ..compensation import length_warning
+        warn = length_warning(table, meas.L)
+        if warn:
+            print(f"fiveaxis: warning: --compensation {args.compensation}: {warn}", file=sys.stderr)
     if args.frame and args.frame != meas.frame:
         meas = in_frame(meas, model.machine, args.frame)
         sim.meas = meas

@@ -43,7 +43,7 @@ def error_map(model, errors_fn, table, lc, path, cells: int = 41) -> Path:
     if lc is not None:
         panels.append(("after LinuxCNC", rms_map(linuxcnc_commands(lc, model, q, 1.0))))
     if table is not None:
-        panels.append(("after the table", rms_map(compensated_commands(table, q))))
+        panels.append(("after the table", rms_map(compensated_commands(table, q, machine.tool_length))))
     vmax = max(float(np.max(p)) for _, p in panels)
     plt = _pyplot()
     fig, axes = plt.subplots(1, len(panels), figsize=(4.6 * len(panels), 4.2), squeeze=False)
