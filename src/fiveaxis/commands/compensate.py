@@ -64,16 +64,15 @@ def _tool_lengths(spec):
         return None
     expected = "expected L1,L2,... or LO:HI:COUNT in mm, e.g. 80,120,160 or 60:200:8"
     try:
-        if ":" in spec:
-            lo, hi, count = spec.split(":")
-            lo, hi, n = float(lo), float(hi), float(count)
-            if n != int(n) or n < 2 or not hi > lo:
-                raise InputError(f"--tool-lengths {spec!r}: LO:HI:COUNT needs LO < HI and an integer COUNT >= 2")
-            import numpy as np
-            return [float(x) for x in np.linspace(lo, hi, int(n))]
-        return [float(x) for x in spec.split(",")]
+        if ":" not in spec:
+            return [float(x) for x in spec.split(",")]
+        lo, hi, count = spec.split(":")
+        lo, hi, n = float(lo), float(hi), float(count)
     except ValueError:
         raise InputError(f"--tool-lengths {spec!r}: {expected}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo) or n != int(n) or n < 2:
+        raise InputError(f"--tool-lengths {spec!r}: LO:HI:COUNT needs LO < HI (mm) and an integer COUNT >= 2")
+    return [lo + (hi - lo) * i / (int(n) - 1) for i in range(int(n))]
 
 
 def run_compensate(args) -> int:
