@@ -155,7 +155,8 @@ def test_tool_length_table_on_the_simulated_machine(capsys, tmp_path):
     --tool-lengths 60:400:3 and without, measure the same simulated machine (noise-free) through each table at
     each pose's own L. The L-table's measured RMS is close to what the fitted model predicts for those poses and
     lengths (within 20 % plus 0.1 um for the fit's error), and below the one-length table's (which leaves the
-    damped tool-axis error times |L - L0|). Without the option the table has no L column."""
+    damped tool-axis error times |L - L0|). Without the option the table has no L column. Measured (3 nodes per
+    linear axis): 2.03 um after the L-table (model 2.03 um), 4.42 um after the one-length table."""
     d = tmp_path
     sim = ["simulate", "--machine", "ac_trunnion", "--n", "800", "--seed", "4", "--effect", "dx_x:x2",
            "--effect", "ex_x:x1", "--tool-lengths", "60,400"]
@@ -190,8 +191,9 @@ def test_tool_length_table_on_the_simulated_machine(capsys, tmp_path):
     P, _ = C.actual_tool(model, cmd, E, dL, meas.L)
     P0, _ = model.ideal_tool(meas.poses, meas.L)
     pred = math.sqrt(np.mean(np.sum((P - P0) ** 2, axis=1)))
-    print(f"measured RMS after the L-table {1e3 * measured['tl']:.3f} um (model {1e3 * pred:.3f} um), after the "
-          f"one-length table {1e3 * measured['one']:.3f} um")
+    with capsys.disabled():
+        print(f"measured RMS after the L-table {1e3 * measured['tl']:.3f} um (model {1e3 * pred:.3f} um), after the "
+              f"one-length table {1e3 * measured['one']:.3f} um")
     assert abs(measured["tl"] - pred) < 0.2 * pred + 1e-4
     assert measured["tl"] < measured["one"]
     # a tool outside the table's lengths: held at the edge, and said
