@@ -431,16 +431,7 @@ def account(model, errors_fn, table: Table | None, lc=None, n: int = ACCOUNT_POS
     them, over n // 2 (at least 200) random poses each (seed + 1 + i), and `warnings` when L lies outside the
     table's lengths."""
     from .linuxcnc import linuxcnc_commands
-    rng = np.random.default_rng(seed)
-    q = model.machine.random_poses(n, rng)
-    dirs = rng.choice([-1.0, 1.0], size=q.shape)
-    Ls = model.tool_lengths(L, n)
-    P0, V0 = model.ideal_tool(q, Ls)
-
-    def at(positions):
-        E, dL = errors_fn(positions, dirs)
-        return actual_tool(model, positions, E, dL, Ls)
-
+    q, dirs, Ls, P0, V0, at = _random_poses(model, errors_fn, n, seed, L)
     P, V = at(q)
     out = {"poses": int(n), "seed": int(seed),
            "tip_error_mm": {"before": stats(P - P0)}, "axis_error_rad": {"before": stats(V - V0)}}
@@ -464,6 +455,21 @@ def account(model, errors_fn, table: Table | None, lc=None, n: int = ACCOUNT_POS
     return out
 
 
+def _random_poses(model, errors_fn, n: int, seed: int, L):
+    """n random poses in the strokes (mm, rad) with random approach directions, their tool lengths (mm), the ideal
+    tip (mm) and axis there, and at(positions) -> (tip, axis) of the erroneous machine at those tool lengths."""
+    rng = np.random.default_rng(seed)
+    q = model.machine.random_poses(n, rng)
+    dirs = rng.choice([-1.0, 1.0], size=q.shape)
+    Ls = model.tool_lengths(L, n)
+    P0, V0 = model.ideal_tool(q, Ls)
+
+    def at(positions):
+        E, dL = errors_fn(positions, dirs)
+        return actual_tool(model, positions, E, dL, Ls)
+    return q, dirs, Ls, P0, V0, at
+
+
 def account_lengths(lengths) -> list:
     """(tool length (mm), is a table node) at each table length and at the midpoints between them, ascending."""
     a = np.asarray(lengths, float)
@@ -477,15 +483,7 @@ def account_at_length(model, errors_fn, table: Table, L: float, n: int, seed: in
                       node: bool = False) -> dict:
     """Predicted tool-tip error (mm) and tool-axis error (rad) at one tool length L (mm) over n random poses:
     before, after the table (interpolated at L), after the exact correction at L."""
-    rng = np.random.default_rng(seed)
-    q = model.machine.random_poses(n, rng)
-    dirs = rng.choice([-1.0, 1.0], size=q.shape)
-    Ls = model.tool_lengths(L, n)
-    P0, V0 = model.ideal_tool(q, Ls)
-
-    def at(positions):
-        E, dL = errors_fn(positions, dirs)
-        return actual_tool(model, positions, E, dL, Ls)
+    q, dirs, Ls, P0, V0, at = _random_poses(model, errors_fn, n, seed, L)
     P, V = at(q)
     Pt, Vt = at(compensated_commands(table, q, Ls))
     Pe, Ve = at(q + solve(model, errors_fn, q, Ls, damping).c)
