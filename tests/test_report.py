@@ -155,6 +155,34 @@ def test_compensation_folder(tmp_path, example):
         C.read(d / "comp", "ac_trunnion")
 
 
+def test_compensation_by_tool_length(tmp_path, example):
+    """A table over tool lengths (`compensate --tool-lengths`): the report shows the predicted error at each length,
+    the numbers of summary.json's predicted_by_tool_length; a damaged length is a one-line error."""
+    from fiveaxis.cli import main
+    d = tmp_path
+    assert main(["simulate", "--n", "300", "--seed", "2", "--effect", "ex_x:x1", "-o", str(d / "m.csv")]) == 0
+    assert main(["fit", str(d / "m.csv"), "--add", "ex_x:x1", "-o", str(d / "model.json")]) == 0
+    nodes = [a for v in ("X=2", "Y=2", "Z=2", "A=3", "B=3") for a in ("--nodes", v)]
+    assert main(["compensate", str(d / "model.json"), "-o", str(d / "comp"), "--poses", "400",
+                 "--tool-lengths", "150,250", *nodes]) == 0
+    summary = json.loads((d / "comp" / "summary.json").read_text())
+    comp = C.read(d / "comp", "li2018")
+    by = comp["by_tool_length"]
+    assert [r["tool_length_mm"] for r in by] == [e["tool_length_mm"] for e in summary["predicted_by_tool_length"]]
+    assert [r["tool_length_mm"] for r in by] == [150.0, 200.0, 250.0] and [r["table_node"] for r in by] == \
+        [True, False, True]
+    for r, e in zip(by, summary["predicted_by_tool_length"]):
+        assert r["after_table"]["rms"] == e["tip_error_mm"]["after_table"]["rms"] < r["before"]["rms"]
+    rep = record.Report(dict(example.record, compensation=comp), dict(example.figures))
+    page = html.render(rep)
+    assert 'id="compensation-by-tool-length"' in page and "200 (between)" in page
+    bad = json.loads(json.dumps(summary))
+    bad["predicted_by_tool_length"][1]["tool_length_mm"] = -5
+    (d / "comp" / "summary.json").write_text(json.dumps(bad))
+    with pytest.raises(InputError, match=r"predicted_by_tool_length\[1\]\.tool_length_mm: expected a tool length"):
+        C.read(d / "comp", "li2018")
+
+
 def test_people_units():
     assert record.people(2e-6, "mm") == pytest.approx((2e-3, "um"))
     v, u = record.people(8e-9, "rad/mm")

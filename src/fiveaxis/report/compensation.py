@@ -3,7 +3,8 @@
 
 The report reads from summary.json: the machine (`machine.name`, must match the report's), the predicted tool-tip
 error over the workspace (`predicted_tip_error_mm`: `before`, `after_linuxcnc`, `after_table`, each
-{max, rms, p95} in mm: the largest, root-mean-square and 95th-percentile length over the evaluation poses), what is
+{max, rms, p95} in mm: the largest, root-mean-square and 95th-percentile length over the evaluation poses), for a
+table over tool lengths the same per tool length (`predicted_by_tool_length`) and its `warnings`, what is
 not compensated, and the files for the controller (the table, `linuxcnc/`). Any problem is an InputError naming the
 file and the key.
 """
@@ -31,6 +32,23 @@ def _stats(path, data, key) -> dict:
             raise InputError(f"{path}: {key}.{s}: expected a length >= 0 in mm, got {v!r}")
         out[s] = float(v)
     return out
+
+
+def _by_tool_length(path, data) -> list:
+    """Rows of `predicted_by_tool_length` (a table with a tool-length dimension, `compensate --tool-lengths`):
+    tool length (mm), whether it is a table node, and the tip error stages {max, rms, p95} (mm)."""
+    rows = []
+    for i, entry in enumerate(data.get("predicted_by_tool_length") or []):
+        key = f"predicted_by_tool_length[{i}]"
+        L = entry.get("tool_length_mm") if isinstance(entry, dict) else None
+        if isinstance(L, bool) or not isinstance(L, (int, float)) or not math.isfinite(L) or L <= 0:
+            raise InputError(f"{path}: {key}.tool_length_mm: expected a tool length > 0 in mm, got {L!r}")
+        tip = entry.get("tip_error_mm")
+        if not isinstance(tip, dict):
+            raise InputError(f"{path}: {key}.tip_error_mm: missing")
+        rows.append({"tool_length_mm": float(L), "table_node": bool(entry.get("table_node")),
+                     **{k: _stats(path, tip, k) for k in ("before", "after_table", "after_exact_correction")}})
+    return rows
 
 
 #: The stages of summary.json's predicted_tip_error_mm the report shows, in order, with their labels.
@@ -73,6 +91,7 @@ def read(folder, machine_name: str | None = None) -> dict:
     if lc.is_dir():
         files += [f"linuxcnc/{p.name}" for p in sorted(lc.iterdir())]
     out = {"folder": str(folder), "stages": stages, "files": files, "maps": [],
+           "by_tool_length": _by_tool_length(path, data), "warnings": [str(w) for w in data.get("warnings", [])],
            "not_compensated": data.get("not_compensated", {}),
            "method": "volumetric table solved on the exact model" + (" and LinuxCNC files" if lc.is_dir() else "")}
     f = folder / MAP[0]

@@ -318,6 +318,19 @@ def _compensation(rec: dict, figs: dict) -> str:
                  f"<span class=\"code\">{_e(c['folder'])}</span>)" + (f": {_e(c['method'])}" if c["method"] else "")
            + ".</p>", _table(["", "largest (\u00b5m)", "RMS (\u00b5m)", "95th percentile (\u00b5m)"], rows,
                              "compensation-summary", numeric=(1, 2, 3))]
+    by = c.get("by_tool_length") or []
+    if by:
+        rows = [[_num(r["tool_length_mm"], 4) + (" (table)" if r["table_node"] else " (between)"),
+                 _num(r["before"]["rms"] * 1e3, 3), _num(r["after_table"]["rms"] * 1e3, 3),
+                 _num(r["after_exact_correction"]["rms"] * 1e3, 3), _num(r["after_table"]["max"] * 1e3, 3)]
+                for r in by]
+        out.append("<p>The table has a tool-length dimension: the predicted tool-tip error at each of its tool "
+                   "lengths and between them (RMS over random poses at that length).</p>"
+                   + _table(["tool length (mm)", "before, RMS (\u00b5m)", "after the table, RMS (\u00b5m)",
+                             "exact correction, RMS (\u00b5m)", "after the table, largest (\u00b5m)"], rows,
+                            "compensation-by-tool-length", numeric=(1, 2, 3, 4)))
+    for w in c.get("warnings") or []:
+        out.append(f'<p class="warning">{_e(w)}</p>')
     for i, m in enumerate(c["maps"]):
         out.append(_figure(figs, f"compensation_{i}", m["caption"], _e(m["caption"])))
     if c["files"]:
