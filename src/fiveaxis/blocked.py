@@ -139,14 +139,20 @@ class Cluster:
             for r, pb in blocks(prob, design=False):
                 specs.append(replace(pb, model=None, effects=[e.id for e in pb.effects], w=None))
                 rows.append(r)
-            self._key, self._blocks = key, (self.client.scatter(specs), rows)
+            self._key, self._blocks = key, (self.client.scatter(specs, direct=True), rows)
         return self._blocks
 
     def map(self, prob, fn, arrays=(), design: bool = True) -> list:
         futures, rows = self._scattered(prob)
         where = (str(prob.model.machine.path), prob.model.convention)
-        tasks = [self.client.submit(_on_worker, f, where, design, fn, prob.w[r], *(a[r] for a in arrays),
-                                    pure=False) for f, r in zip(futures, rows)]
+        # The per-block arrays of this pass go to the workers directly (not through the scheduler), each beside
+        # its block (workers=...: no copy between workers).
+        who = self.client.who_has(futures)
+        tasks = []
+        for f, r in zip(futures, rows):
+            at = list(who.get(f.key, ())) or None
+            data = self.client.scatter([prob.w[r], *(a[r] for a in arrays)], direct=True, workers=at)
+            tasks.append(self.client.submit(_on_worker, f, where, design, fn, *data, pure=False, workers=at))
         return self.client.gather(tasks)
 
     def close(self):
