@@ -139,7 +139,7 @@ class Cluster:
             for r, pb in blocks(prob, design=False):
                 specs.append(replace(pb, model=None, effects=[e.id for e in pb.effects], w=None))
                 rows.append(r)
-            self._key, self._blocks = key, (self.client.scatter(specs, direct=True), rows)
+            self._key, self._blocks = key, (self.client.scatter(specs, direct=True, hash=False), rows)
         return self._blocks
 
     def map(self, prob, fn, arrays=(), design: bool = True) -> list:
@@ -148,12 +148,16 @@ class Cluster:
         # The per-block arrays of this pass go to the workers directly (not through the scheduler), each beside
         # its block (workers=...: no copy between workers).
         who = self.client.who_has(futures)
-        tasks = []
+        tasks, held = [], []            # held: the pass's data stay referenced until its tasks are gathered
         for f, r in zip(futures, rows):
             at = list(who.get(f.key, ())) or None
-            data = self.client.scatter([prob.w[r], *(a[r] for a in arrays)], direct=True, workers=at)
+            data = self.client.scatter([prob.w[r], *(a[r] for a in arrays)], direct=True, workers=at,
+                                       hash=False)          # unique keys: a pass never reuses a released one
+            held.append(data)
             tasks.append(self.client.submit(_on_worker, f, where, design, fn, *data, pure=False, workers=at))
-        return self.client.gather(tasks)
+        out = self.client.gather(tasks)
+        del held
+        return out
 
     def close(self):
         self._key = self._blocks = None
