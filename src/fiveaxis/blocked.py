@@ -376,12 +376,8 @@ def diagnose(model, meas, added=(), top: int = 10, fixed=None):
         present = {e.id for e in prob.effects}
         customs = D._customs(model, present)
         # 1. The screen: the in-memory candidates on a sample of poses, at the parameters of the fit.
-        sp, srows = take(prob, sample_poses(prob.meas.n))
-        r_s = res.residual[srows]
-        Aw_s = sp.A[:, free] * sp.w[:, None]
-        Q_s = F.identify(Aw_s).U
-        rw_s = r_s * sp.w
-        rw_s = rw_s - Q_s @ (Q_s.T @ rw_s)
+        sp, srows, Q_s = _sample(res)
+        rw_s = D.projected_residual(sp, res.residual[srows], Q_s)
         pool_s = D.build_pool(sp, Q_s, rw_s, present, customs)
         N_s = len(rw_s)
         rss_s = float(rw_s @ rw_s)
@@ -401,16 +397,9 @@ def diagnose(model, meas, added=(), top: int = 10, fixed=None):
         cands = singles + periodic + list(customs)
         families = fams + ["periodic"] * len(periodic) + ["custom"] * len(customs)
         # 2. One pass over all readings: the compressed columns per fold.
-        groups = ob.pose_groups(prob.meas)
-        ng = int(groups.max()) + 1 if len(groups) else 0
-        order = np.random.default_rng(0).permutation(ng)
-        fold_of = np.empty(ng, dtype=int)
-        for f, part in enumerate(np.array_split(order, D.K_FOLDS)):
-            fold_of[part] = f
-        pose_fold = fold_of[groups]
         p = int(free.sum())
         C = Compressed(p, cands, D.K_FOLDS)
-        fold = pose_fold[prob.obs.row]
+        fold = D.folds_of_readings(prob)             # the folds of the in-memory path
         for part in runner().map(prob, partial(_compress_block, free=free, fixed_vals=fixed_vals,
                                                ids=[e.id for e in cands], folds=D.K_FOLDS), (res.residual, fold)):
             C.merge(*part)
@@ -420,6 +409,13 @@ def diagnose(model, meas, added=(), top: int = 10, fixed=None):
             dg.absorbed = [pool_s.singles[j].id for j in absorbed if pool_s.single_family[j] != "thermal"]
             dg.hidden_by_placement = su.hidden_by_placement(sp, pool_s.singles, pool_s.G, absorbed)
         return dg
+
+
+def _sample(res: F.FitResult):
+    """The fitted problem on a sample of its poses, with its design: (sample problem, its readings among the
+    problem's, orthonormal basis of its weighted free columns)."""
+    sp, srows = take(res.problem, sample_poses(res.problem.meas.n))
+    return sp, srows, F.identify(sp.A[:, sp.free] * sp.w[:, None]).U
 
 
 def _clean(res: F.FitResult) -> F.FitResult:
@@ -435,17 +431,11 @@ def _robust(model, meas, fixed, res: F.FitResult) -> F.FitResult:
     the model alone, which only serves to find those effects); if none, the robust fit of the model alone."""
     from . import diagnose as D
     prob = res.problem
-    sp, srows = take(prob, sample_poses(prob.meas.n))
-    Q = F.identify(sp.A[:, sp.free] * sp.w[:, None]).U
-    rw = res.residual[srows] * sp.w
-    rw = rw - Q @ (Q.T @ rw)
-    present = {e.id for e in prob.effects}
-    pool = D.build_pool(sp, Q, rw, present, D._customs(model, present), periodic=False)
-    cands = D.project(Q, pool.G, rw, pool.singles)
-    forward, _, _ = D._forward(sp, pool, cands, Q, rw, len(rw), res.known_sigma)
+    sp, srows, Q = _sample(res)
+    forward = D.accepted_effects(model, sp, res.residual[srows], Q, res.known_sigma)
     if not forward:
         return F.robust(res)
-    richer = F.fit(model, meas, F.with_effects(prob, [f["id"] for f in forward]))
+    richer = F.fit(model, meas, F.with_effects(prob, forward))
     flags = np.zeros(len(prob.d), bool)
     flags[richer.outliers.index] = True
     del richer, res
@@ -471,13 +461,13 @@ def _decide(res, prob, sp, srows, pool_s, C: Compressed, cands, families, top, k
     _, rss = _lstsq(Z, base, C.ir)
     pens = [prior.penalty(f, N, len(e.names)) for e, f in zip(cands, families)]
 
-    def gain_of(k, used=()):
+    def gain_of(k, r0, used=()):
+        """(drop of the weighted RSS from r0, coefficients, columns) when candidate k joins base and `used`."""
         cols = base + [c for u in used for c in C.cols(u)]
-        _, r0 = _lstsq(Z, cols, C.ir)
         x, r1 = _lstsq(Z, cols + C.cols(k), C.ir)
         return r0 - r1, x, cols + C.cols(k)
 
-    scored = [gain_of(k) for k in range(len(cands))]
+    scored = [gain_of(k, rss) for k in range(len(cands))]
     deltas = np.array([D._deltas(rss, np.array([g]), N, np.array([pen]), known)[0]
                        for (g, _, _), pen in zip(scored, pens)]) if cands else np.zeros(0)
     jbest = int(np.argmin(deltas)) if len(deltas) else -1
@@ -505,7 +495,7 @@ def _decide(res, prob, sp, srows, pool_s, C: Compressed, cands, families, top, k
         for k in range(len(cands)):
             if k in used:
                 continue
-            g, x, cols = gain_of(k, used)
+            g, x, cols = gain_of(k, rss_cur, used)
             d = D._deltas(rss_cur, np.array([g]), N, np.array([pens[k]]), known)[0]
             if d < best[0]:
                 best = (d, k, x, cols, g)

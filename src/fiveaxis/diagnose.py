@@ -305,18 +305,24 @@ def build_pool(prob: F.Problem, Q: np.ndarray, rw: np.ndarray, present: set, cus
 
 
 # -- cross-validation ------------------------------------------------------------------------------------------
-def cross_validate(prob: F.Problem, pool: Pool, k: int = K_FOLDS, seed: int = 0):
-    """Nested K-fold CV of "add the best candidate": per fold, rank every candidate on the training poses (by
-    extended BIC, as on the whole data; the periods and time constants of the CV_SEARCH_PAIRS best searched pairs
-    of each family searched again there, all folds in one pass of the searches), evaluate held out. Returns
-    (held-out weighted SSE without, with the per-fold best candidate, ids chosen per fold)."""
-    groups = ob.pose_groups(prob.meas)[prob.obs.row]      # readings of one pose are held out together
+def folds_of_readings(prob: F.Problem, k: int = K_FOLDS, seed: int = 0) -> np.ndarray:
+    """The cross-validation fold (0..k-1) of every reading of prob: the readings of one pose (variables, L, t,
+    directions) are held out together, the poses shuffled with the seed and split into k folds."""
+    groups = ob.pose_groups(prob.meas)
     ng = int(groups.max()) + 1 if len(groups) else 0
     order = np.random.default_rng(seed).permutation(ng)
     fold_of = np.empty(ng, dtype=int)
     for f, part in enumerate(np.array_split(order, k)):
         fold_of[part] = f
-    row_fold = fold_of[groups]
+    return fold_of[groups][prob.obs.row]
+
+
+def cross_validate(prob: F.Problem, pool: Pool, k: int = K_FOLDS, seed: int = 0):
+    """Nested K-fold CV of "add the best candidate": per fold, rank every candidate on the training poses (by
+    extended BIC, as on the whole data; the periods and time constants of the CV_SEARCH_PAIRS best searched pairs
+    of each family searched again there, all folds in one pass of the searches), evaluate held out. Returns
+    (held-out weighted SSE without, with the per-fold best candidate, ids chosen per fold)."""
+    row_fold = folds_of_readings(prob, k, seed)
     Aw = prob.A[:, prob.free] * prob.w[:, None]
     dw = (prob.d - prob.A[:, ~prob.free] @ np.array([prob.fixed[n] for n, f in zip(prob.names, prob.free)
                                                      if not f])) * prob.w
@@ -550,21 +556,33 @@ def _recheck_outliers(model, meas, fixed, res: F.FitResult) -> F.FitResult:
     readings (forward selection), flag outliers again against the model with those effects, and fit the model
     without the readings flagged then."""
     prob = res.problem
-    rw = res.residual * prob.w
-    Q = res.idf.U
-    rw = rw - Q @ (Q.T @ rw)
-    present = {e.id for e in prob.effects}
-    # Without the period search: a periodic effect's residual has no long tails (|z| < 4 against the median scale
-    # even times a lever arm of 3), so the readings it would explain are not flagged in the first place.
-    pool = build_pool(prob, Q, rw, present, _customs(model, present), periodic=False)
-    cands = project(Q, pool.G, rw, pool.singles)
-    forward, _, _ = _forward(prob, pool, cands, Q, rw, len(rw), res.known_sigma)
+    forward = accepted_effects(model, prob, res.residual, res.idf.U, res.known_sigma)
     if not forward:
         return res
-    richer = F.fit(model, meas, list(prob.effects) + [f["id"] for f in forward], fixed=fixed, in_blocks=False)
+    richer = F.fit(model, meas, list(prob.effects) + forward, fixed=fixed, in_blocks=False)
     flags = np.zeros(res.outliers.readings, bool)
     flags[richer.outliers.index] = True
     return F.fit(model, meas, list(prob.effects), fixed=fixed, exclude=flags, in_blocks=False)
+
+
+def projected_residual(prob: F.Problem, residual: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """The weighted residual of prob's readings projected off span(Q) (the exact model's residual is orthogonal
+    to the design's column space only up to the nonlinearity)."""
+    rw = residual * prob.w
+    return rw - Q @ (Q.T @ rw)
+
+
+def accepted_effects(model, prob: F.Problem, residual: np.ndarray, Q: np.ndarray, known_sigma: bool) -> list:
+    """Ids of the effects the decision's rule accepts by forward selection against a residual (mm, rad) of prob's
+    readings, Q an orthonormal basis of its weighted design; without the period search: a periodic effect's
+    residual has no long tails (|z| < 4 against the median scale even times a lever arm of 3), so the readings it
+    would explain are not flagged as outliers in the first place."""
+    rw = projected_residual(prob, residual, Q)
+    present = {e.id for e in prob.effects}
+    pool = build_pool(prob, Q, rw, present, _customs(model, present), periodic=False)
+    cands = project(Q, pool.G, rw, pool.singles)
+    forward, _, _ = _forward(prob, pool, cands, Q, rw, len(rw), known_sigma)
+    return [f["id"] for f in forward]
 
 
 def _diagnose(model, meas, added, top, fixed=None) -> Diagnosis:
@@ -574,9 +592,8 @@ def _diagnose(model, meas, added, top, fixed=None) -> Diagnosis:
     prob = res.problem
     N = len(prob.d)
     w = prob.w
-    rw = res.residual * w
     Q = res.idf.U
-    rw = rw - Q @ (Q.T @ rw)           # the exact residual is orthogonal to Q up to the nonlinearity
+    rw = projected_residual(prob, res.residual, Q)
     rss = float(rw @ rw)
     known = res.known_sigma
     present = {e.id for e in prob.effects}
