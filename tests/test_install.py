@@ -31,13 +31,29 @@ def _run(cmd, **kw):
     return res
 
 
-def _as_other_user():
-    """Run as `nobody` when we are root (root writes anywhere, so read-only would not be read-only)."""
+def _closed_to_others(path: Path) -> Path | None:
+    """The first folder on the way to path that other users cannot enter or read (None: all open)."""
+    path = Path(path).resolve()
+    for p in [*reversed(path.parents), path]:
+        mode = p.stat().st_mode
+        if not mode & 0o001 or (p == path and not mode & 0o004):
+            return p
+    return None
+
+
+def _as_other_user(deps=()):
+    """Run as `nobody` when we are root (root writes anywhere, so read-only would not be read-only); deps: the
+    folders that user must read (this environment's site-packages)."""
     if os.geteuid() != 0:
         return []
     setpriv = shutil.which("setpriv")
     if setpriv is None:
         pytest.skip("running as root without setpriv: cannot run the install read-only as another user")
+    for d in deps:
+        closed = _closed_to_others(d)
+        if closed is not None:
+            pytest.skip(f"{closed} is closed to other users (mode {closed.stat().st_mode & 0o777:o}, e.g. a "
+                        f"`mktemp -d` checkout): the install cannot be run read-only as another user")
     return [setpriv, "--reuid=65534", "--regid=65534", "--clear-groups"]
 
 
@@ -84,7 +100,8 @@ def test_installed_package_diagnoses_the_example_read_only(installed):
             p.chmod((mode | 0o444 | (0o111 if p.is_dir() or mode & 0o100 else 0)) & 0o755)
     for p in (work, tmp):
         p.chmod(0o777)
-    user = _as_other_user()
+    deps = (site / "_fiveaxis_test_dependencies.pth").read_text().split()
+    user = _as_other_user(deps)
     if not user:                          # not root: make the install itself read-only
         for p in [site, *site.rglob("*")]:
             if p.is_dir():
