@@ -5,7 +5,7 @@ Gauss-Legendre rule in L:  W_i = sum_j w_j |J_i(L_j)E_i . P_err(L_j)| / |P_err(L
 They differ only in how J_i(L) is evaluated:
   lambdify_numpy  sympy.lambdify (NumPy, cse=True) of the derived J_i(X, Y, Z, A, B, L), once per node;
   symengine_llvm  SymEngine Lambdify (LLVM back end, cse=True) of the same expressions, once per node;
-  numpy_htm_fd    batched NumPy 4x4 transform chains (fiveaxis.htm), central differences per error.
+  numpy_htm_fd    batched NumPy 4x4 transform chains (fiveaxis.model.htm), central differences per error.
 """
 from __future__ import annotations
 
@@ -75,7 +75,7 @@ def symengine_llvm(machine, convention):
 
 def numpy_htm_fd(machine):
     """J_of(poses, L) by central differences of the exact NumPy chain (J at L = 0 and K, then J = a + L K)."""
-    from fiveaxis.htm import jk_finite_differences
+    from fiveaxis.model.htm import jk_finite_differences
     cache = {}
 
     def J_of(q, L):

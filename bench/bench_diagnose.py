@@ -20,10 +20,10 @@ import time
 import numpy as np
 
 import fiveaxis
-from fiveaxis import diagnose as D
-from fiveaxis import effect_search as es
-from fiveaxis import fit as F
-from fiveaxis.simulate import simulate
+from fiveaxis.diagnosis import diagnose as D
+from fiveaxis.diagnosis import searches as es
+from fiveaxis.estimation import fit as F
+from fiveaxis.measurement.simulate import simulate
 
 
 def _best(fn, repeat=3):
@@ -50,8 +50,8 @@ def main(n: int = 1500, subset_first: int = 60, subset_exact: int = 6, subset_pe
     fams = dg.decision["families"]
     res = dg.fit                                              # the fit diagnose made (outliers, if any, out)
     prob = res.problem
-    vocab = fiveaxis.effects.vocabulary(model.machine, model.errors, True) + \
-        fiveaxis.effects.reversals(model.machine, model.errors, meas.dirs)
+    vocab = fiveaxis.effects.families.vocabulary(model.machine, model.errors, True) + \
+        fiveaxis.effects.families.reversals(model.machine, model.errors, meas.dirs)
     G = D.candidate_matrix(prob, vocab)
     Aw = prob.A * prob.w[:, None]
     dw = prob.d * prob.w

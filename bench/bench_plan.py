@@ -21,9 +21,9 @@ import time
 import numpy as np
 
 import fiveaxis
-from fiveaxis import plan as P
-from fiveaxis.diagnose import diagnose
-from fiveaxis.simulate import simulate
+from fiveaxis.planning import plan as P
+from fiveaxis.diagnosis.diagnose import diagnose
+from fiveaxis.measurement.simulate import simulate
 
 CASES_D = [("ac_trunnion", "rtest", 20), ("ac_trunnion", "rtest", 40), ("li2018", "tip", 20), ("li2018", "tip", 40)]
 CASES_DETECT = [("li2018", "tip", "ex_x:x2=5e-6"), ("ac_trunnion", "rtest", "ex_A:A2=2e-5")]

@@ -70,8 +70,8 @@ def compile_times(machine="li2018") -> dict:
 
 def tensor_grid_row(model, E, threads, counts=(20, 20, 10, 25, 20)) -> dict:
     """GSIL over a tensor grid: every pose, versus the grid reduced over the axes that appear in no J."""
-    from fiveaxis.distributed import reduce_grid
-    from fiveaxis.grid import Grid, GridAxis
+    from fiveaxis.parallel import reduce_grid
+    from fiveaxis.sensitivity.grid import Grid, GridAxis
     grid = Grid(tuple(GridAxis(v, float(lo), float(hi), c) for v, (lo, hi), c in
                       zip(model.variables, WORKSPACE, counts)))
     k = model.kernels

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from fiveaxis.machine import LINE_KINDS, Axis, ChainEnd, Machine
+from fiveaxis.model.machine import LINE_KINDS, Axis, ChainEnd, Machine
 
 L = sp.Symbol("L", real=True)
 

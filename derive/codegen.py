@@ -12,9 +12,10 @@ import jinja2
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
-from fiveaxis import outputs, provenance
-from fiveaxis.errors import one_line
-from fiveaxis.machine import MACHINES_DIR, Machine, data_dir, load_machine, module_name
+from fiveaxis import outputs
+from fiveaxis.model import provenance
+from fiveaxis.exceptions import one_line
+from fiveaxis.model.machine import MACHINES_DIR, Machine, data_dir, load_machine, module_name
 
 from .model import Model, derive_model
 from .table2 import groups
@@ -35,7 +36,7 @@ _PRINTER = _Printer()
 
 
 def environment() -> jinja2.Environment:
-    """The jinja2 environment of the templates (`fiveaxis.provenance.TEMPLATES`)."""
+    """The jinja2 environment of the templates (`fiveaxis.model.provenance.TEMPLATES`)."""
     return jinja2.Environment(loader=jinja2.FileSystemLoader(str(provenance.TEMPLATES)), keep_trailing_newline=True,
                               undefined=jinja2.StrictUndefined, autoescape=False)
 

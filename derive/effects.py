@@ -14,13 +14,14 @@ from pathlib import Path
 
 import sympy as sp
 
-from fiveaxis import outputs, provenance
-from fiveaxis.errors import InputError
-from fiveaxis.expressions import check
+from fiveaxis import outputs
+from fiveaxis.model import provenance
+from fiveaxis.exceptions import InputError
+from fiveaxis.model.expressions import check
 
 from .codegen import BANNER, _assignments, environment, source_label
 
-#: SymPy function of each name in the whitelist of `fiveaxis.expressions.FUNCTIONS`.
+#: SymPy function of each name in the whitelist of `fiveaxis.model.expressions.FUNCTIONS`.
 _FUNCTIONS = {"sin": sp.sin, "cos": sp.cos, "tan": sp.tan, "asin": sp.asin, "acos": sp.acos, "atan": sp.atan,
               "sinh": sp.sinh, "cosh": sp.cosh, "tanh": sp.tanh, "exp": sp.exp, "log": sp.log, "sqrt": sp.sqrt,
               "Abs": sp.Abs}
@@ -34,7 +35,7 @@ def tokens(machine) -> list[str]:
 
 
 def to_sympy(node, symbols: dict):
-    """The SymPy expression of a tree vetted by `fiveaxis.expressions.check` (no parser, no eval)."""
+    """The SymPy expression of a tree vetted by `fiveaxis.model.expressions.check` (no parser, no eval)."""
     if isinstance(node, ast.Constant):
         v = node.value
         if isinstance(v, Fraction):
@@ -55,7 +56,7 @@ def to_sympy(node, symbols: dict):
 def parse_effect(machine, name: str):
     """(symbols of the variables, parameter symbols sorted by number, expression) of a custom effect.
 
-    The text is checked against the whitelist of `fiveaxis.expressions` first (it is data from a file, never
+    The text is checked against the whitelist of `fiveaxis.model.expressions` first (it is data from a file, never
     evaluated); the SymPy expression is then built from the vetted tree node by node, so no second parser ever
     reads the text."""
     spec = machine.effects[name]

@@ -12,7 +12,7 @@ from functools import lru_cache
 
 import sympy as sp
 
-from fiveaxis.machine import Machine
+from fiveaxis.model.machine import Machine
 
 from .chain import L, Chain, build_chain
 
@@ -115,5 +115,5 @@ def derive_model(machine: Machine, convention: str = "equations") -> Model:
 @lru_cache(maxsize=None)
 def derive_cached(machine_path: str, convention: str = "equations") -> Model:
     """derive_model for a machine file path, cached for the life of the process."""
-    from fiveaxis.machine import load_machine
+    from fiveaxis.model.machine import load_machine
     return derive_model(load_machine(machine_path), convention)

@@ -48,7 +48,7 @@ def latex_name(name: str) -> str:
 def to_json(model, iso: dict | None = None) -> dict:
     """The `fiveaxis table2 --json` document; iso (error name -> ISO 230 name or None) adds each group's ISO names.
 
-    The ISO names come from the runtime (`fiveaxis.iso`), which the derivation does not import."""
+    The ISO names come from the runtime (`fiveaxis.model.iso_names`), which the derivation does not import."""
     out = []
     for g in groups(model):
         row = {"errors": list(g.errors)}

@@ -4,7 +4,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fiveaxis.machine import MACHINES_DIR, load_machine
+from fiveaxis.model.machine import MACHINES_DIR, load_machine
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = Path(__file__).resolve().parent / "data"
@@ -26,7 +26,7 @@ def li2018():
 def worst_z(res, sim):
     """Largest |estimate - truth| / standard uncertainty over every parameter and combination a fit determines,
     with the truth of the simulation it fitted; and how many there were."""
-    from fiveaxis.simulate import truth_theta
+    from fiveaxis.measurement.simulate import truth_theta
     truth = truth_theta(res.problem, sim)
     idx = {n: i for i, n in enumerate(res.names)}
     std = res.std()
@@ -57,7 +57,7 @@ def rs274():
     import os
     import shutil
     import subprocess
-    from fiveaxis import gcode
+    from fiveaxis.linuxcnc import rs274 as gcode
     if not gcode.available():
         if shutil.which("apt-get") is None or os.geteuid() != 0:
             pytest.skip("rs274 (Debian linuxcnc-uspace) is missing and apt-get is unavailable")

@@ -1,4 +1,4 @@
-"""Row blocks (`fiveaxis.blocked`): the fit and the diagnosis of sets too large for memory give the results of the
+"""Row blocks (`fiveaxis.estimation.row_blocks`): the fit and the diagnosis of sets too large for memory give the results of the
 in-memory path, which is the reference here (the same data, small blocks and a small screening sample so that
 every code path of the blocks runs); on a Dask cluster they give the single-process results; and a 400,000-pose
 diagnosis (issue 13: `Unable to allocate 6.76 GiB` before) runs and finds its effect."""
@@ -11,11 +11,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from fiveaxis import blocked as B
-from fiveaxis import diagnose as D
-from fiveaxis import fit as F
-from fiveaxis.kernels import load
-from fiveaxis.measurements import read
+from fiveaxis.estimation import row_blocks as B
+from fiveaxis.diagnosis import diagnose as D
+from fiveaxis.estimation import fit as F
+from fiveaxis.model.error_model import load
+from fiveaxis.measurement.files import read
 
 FIVEAXIS = [sys.executable, "-m", "fiveaxis.cli"]
 
@@ -149,7 +149,7 @@ def test_diagnose_in_blocks_without_sigma_null_and_periodic(tmp_path, small_bloc
 
 
 def test_blocks_on_a_dask_cluster_give_the_single_process_result(tmp_path, small_blocks):
-    from fiveaxis import distributed
+    from fiveaxis import parallel as distributed
     path = simulate(tmp_path, "d.csv", "--machine", "li2018", "--n", "2500", "--effect", "ex_x:x1",
                     "--with-sigma", "--seed", "14")
     model = load("li2018")

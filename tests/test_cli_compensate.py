@@ -179,9 +179,9 @@ def test_tool_length_table_on_the_simulated_machine(capsys, tmp_path):
     assert "warning" not in capsys.readouterr().err
     measured = {n: rms_mm(d / f"after_{n}.csv") for n in ("one", "tl")}
     # the model's prediction at the same poses and tool lengths
-    from fiveaxis import compensation as C
-    from fiveaxis import model_file as MF
-    from fiveaxis.measurements import read
+    from fiveaxis.compensation import table as C
+    from fiveaxis.estimation import fitted_model as MF
+    from fiveaxis.measurement.files import read
     fm = MF.load(d / "model.json")
     model = MF.load_model(fm, str(d / "model.json"))
     meas = read(d / "after_tl.csv", model.machine)

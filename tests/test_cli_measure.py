@@ -73,7 +73,7 @@ def test_model_add_writes_a_copy_and_diagnose_uses_it(capsys, data, tmp_path, mo
     monkeypatch.setenv("FIVEAXIS_CACHE", str(tmp_path / "cache"))
     mine = tmp_path / "mine.toml"
     base = tmp_path / "base.toml"
-    from fiveaxis.machine import MACHINES_DIR
+    from fiveaxis.model.machine import MACHINES_DIR
     base.write_text((MACHINES_DIR / "li2018.toml").read_text() + LEADSCREW)
     original = base.read_bytes()
     rc, _, err = run_cli(capsys, "model", "add", "ex_x:x1", "--machine", base)

@@ -4,8 +4,8 @@ import json
 import pytest
 
 from fiveaxis.cli import main
-from fiveaxis.errors import InputError
-from fiveaxis.presets import PAPER_VITAL
+from fiveaxis.exceptions import InputError
+from fiveaxis.sensitivity.paper import PAPER_VITAL
 
 
 def run_json(capsys, argv):

@@ -8,15 +8,15 @@ import numpy as np
 import pytest
 
 from truth import truth_model
-from fiveaxis import compensation as C
-from fiveaxis import fit as F
-from fiveaxis import htm
-from fiveaxis import linuxcnc as LX
-from fiveaxis import model_file as MF
-from fiveaxis.errors import InputError
-from fiveaxis.kernels import load
-from fiveaxis.machine import load_machine
-from fiveaxis.simulate import simulate
+from fiveaxis.compensation import table as C
+from fiveaxis.estimation import fit as F
+from fiveaxis.model import htm
+from fiveaxis.linuxcnc import configuration as LX
+from fiveaxis.estimation import fitted_model as MF
+from fiveaxis.exceptions import InputError
+from fiveaxis.model.error_model import load
+from fiveaxis.model.machine import load_machine
+from fiveaxis.measurement.simulate import simulate
 
 EFFECTS = {"ac_trunnion": ["dx_x:x2", "ex_x:x1"], "li2018": ["ex_x:x1", "dz_x:x2"]}
 
@@ -207,7 +207,7 @@ def test_table_files_round_trip(fitted, tmp_path):
     table, _ = C.build_table(model, C.fitted_errors(fm, model), {v: 2 for v in model.variables})
     frame = C.table_frame(table)
     assert list(frame.columns) == list(model.variables) + [f"c_{v}" for v in model.variables]
-    from fiveaxis.measurements import write
+    from fiveaxis.measurement.files import write
     for suffix, tol in (("csv", 1e-11), ("parquet", 1e-15)):
         path = write(frame, tmp_path / f"t.{suffix}")
         back = C.read_table(path, model.machine)
@@ -405,7 +405,7 @@ def test_custom_effect_in_the_model_file(tmp_path):
     """A custom effect of the machine file (the lead-screw of test_cli_measure) is saved by name with its
     parameters and evaluated again from the machine file."""
     from test_cli_measure import LEADSCREW
-    from fiveaxis.machine import MACHINES_DIR
+    from fiveaxis.model.machine import MACHINES_DIR
     path = tmp_path / "screw.toml"
     path.write_text((MACHINES_DIR / "li2018.toml").read_text() + LEADSCREW)
     model = load(str(path))
@@ -474,7 +474,7 @@ def test_l_table_files_round_trip_and_hold_edge_values(ltables, tmp_path):
     assert list(C.table_frame(t1).columns) == list(model.variables) + [f"c_{v}" for v in model.variables]
     n1 = t1.size
     assert np.all(frame["L"].to_numpy()[:n1] == tL.tool_lengths[0])        # L first: contiguous blocks per length
-    from fiveaxis.measurements import write
+    from fiveaxis.measurement.files import write
     path = write(frame.sample(frac=1.0, random_state=0), tmp_path / "t.parquet")     # row order does not matter
     back = C.read_table(path, model.machine)
     assert np.array_equal(back.tool_lengths, tL.tool_lengths) and np.allclose(back.c, tL.c, rtol=0, atol=1e-15)

@@ -2,8 +2,8 @@
 import pytest
 
 from fiveaxis.cli import main
-from fiveaxis.distributed import scheduler_address
-from fiveaxis.errors import InputError
+from fiveaxis.parallel import scheduler_address
+from fiveaxis.exceptions import InputError
 
 
 @pytest.mark.parametrize("text, expect", [

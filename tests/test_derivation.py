@@ -4,8 +4,8 @@ import pytest
 import sympy as sp
 
 import fiveaxis
-from fiveaxis import htm
-from fiveaxis.machine import load_machine
+from fiveaxis.model import htm
+from fiveaxis.model.machine import load_machine
 from fiveaxis_derive.chain import L
 from fiveaxis_derive.model import derive_model
 

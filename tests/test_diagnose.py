@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 import fiveaxis
-from fiveaxis import diagnose as D
-from fiveaxis.simulate import simulate
+from fiveaxis.diagnosis import diagnose as D
+from fiveaxis.measurement.simulate import simulate
 
 NOISE = 1e-3
 
@@ -86,8 +86,8 @@ def test_json_shape(model):
 
 def test_candidate_columns_match_finite_differences(model):
     """The design column of an effect is the change of the exact model's deviation per unit coefficient."""
-    from fiveaxis import effects as fx
-    from fiveaxis import fit as F
+    from fiveaxis.effects import families as fx
+    from fiveaxis.estimation import fit as F
     meas = simulate(model, [], n=50, noise=0.0, seed=25).meas
     prob = F.build(model, meas, ["ex_y:z2", "L:t1", "dy_A:B3"])
     h = 1e-4

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 import fiveaxis
-from fiveaxis import diagnose as D
-from fiveaxis import effect_search as es
-from fiveaxis import fit as F
+from fiveaxis.diagnosis import diagnose as D
+from fiveaxis.diagnosis import searches as es
+from fiveaxis.estimation import fit as F
 from fiveaxis.cli import main
-from fiveaxis.simulate import simulate
+from fiveaxis.measurement.simulate import simulate
 
 NOISE = 1e-3
 DIRS = {"directions": True}          # tip plans with the approach directions of the linear axes (dir_ columns)

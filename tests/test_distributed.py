@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 
 import fiveaxis
-from fiveaxis import distributed
-from fiveaxis.errors import InputError
-from fiveaxis.grid import Grid, GridAxis, PoseList
-from fiveaxis.sensitivity import gsil
+from fiveaxis import parallel as distributed
+from fiveaxis.exceptions import InputError
+from fiveaxis.sensitivity.grid import Grid, GridAxis, PoseList
+from fiveaxis.sensitivity.indices import gsil
 
 
 @pytest.fixture(scope="module")

@@ -5,8 +5,8 @@ import pytest
 
 import fiveaxis
 from fiveaxis.cli import main
-from fiveaxis.error_values import read
-from fiveaxis.errors import InputError
+from fiveaxis.model.error_values import read
+from fiveaxis.exceptions import InputError
 
 
 @pytest.fixture(scope="module")

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from fiveaxis.cli import main
-from fiveaxis.errors import InputError
-from fiveaxis.expressions import MAX_LENGTH, check
-from fiveaxis.machine import MACHINES_DIR, load_machine
+from fiveaxis.exceptions import InputError
+from fiveaxis.model.expressions import MAX_LENGTH, check
+from fiveaxis.model.machine import MACHINES_DIR, load_machine
 
 LI = (MACHINES_DIR / "li2018.toml").read_text()
 VARS = ("x", "y", "z", "A", "B", "t")
@@ -112,14 +112,14 @@ def test_vetted_tree_is_the_expression_sympy_reads(expr):
 
 def test_custom_effect_kernel_matches_the_expression(tmp_path, monkeypatch):
     """A whitelisted effect is derived into a kernel whose basis is the expression's derivative by parameter."""
-    from fiveaxis.custom_effects import load_custom
+    from fiveaxis.effects.custom import load_custom
     monkeypatch.setenv("FIVEAXIS_CACHE", str(tmp_path / "cache"))
     machine = load_machine(machine_with(tmp_path, "p1*sin(2*pi*x/10) + p2*(y/100)**2*exp(-t/600)"))
     eff = load_custom(machine, "ls")
     rng = np.random.default_rng(0)
     poses = machine.random_poses(20, rng)
     t = rng.uniform(0, 3600, 20)
-    from fiveaxis.effects import context
+    from fiveaxis.effects.families import context
     b = eff.basis(context(machine, poses, t))
     x, y = poses[:, 0], poses[:, 1]
     # sin of arguments up to 2*pi*2500/10 = 1571 rad: rounding of the argument alone is 1571 * 2.2e-16 = 3.5e-13

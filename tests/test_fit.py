@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 import fiveaxis
-from fiveaxis import fit as F
-from fiveaxis.simulate import simulate
+from fiveaxis.estimation import fit as F
+from fiveaxis.measurement.simulate import simulate
 
 
 @pytest.fixture(scope="module")
@@ -100,8 +100,8 @@ def test_identifiable_count_and_bad_effects(model):
     ('[model]\neffects = "ex_x:x1"\n', "model.effects: expected a list"),
 ])
 def test_custom_effect_definitions_are_checked(tmp_path, table, expect):
-    from fiveaxis.custom_effects import load_custom
-    from fiveaxis.machine import MACHINES_DIR, load_machine
+    from fiveaxis.effects.custom import load_custom
+    from fiveaxis.model.machine import MACHINES_DIR, load_machine
     path = tmp_path / "m.toml"
     path.write_text((MACHINES_DIR / "li2018.toml").read_text() + "\n" + table)
     with pytest.raises(fiveaxis.InputError) as exc:

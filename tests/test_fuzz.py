@@ -25,7 +25,7 @@ from pathlib import Path
 import pytest
 
 from fiveaxis.cli import main
-from fiveaxis.machine import MACHINES_DIR
+from fiveaxis.model.machine import MACHINES_DIR
 
 from conftest import DATA
 
@@ -486,8 +486,8 @@ def test_fuzz(name, workspace, capsys, monkeypatch):
 def test_fuzz_random_expressions_derive_or_refuse_cleanly():
     """Random expressions of the whitelisted grammar: the derivation (SymPy, linearity check) either builds the
     effect or refuses it with a one-line InputError; nothing else escapes."""
-    from fiveaxis.errors import InputError
-    from fiveaxis.machine import parse_machine
+    from fiveaxis.exceptions import InputError
+    from fiveaxis.model.machine import parse_machine
     from fiveaxis_derive.effects import parse_effect
     rng = random.Random(f"{SEED}:derive-expressions")
     outcomes = {"derived": 0, "refused": 0}

@@ -4,9 +4,9 @@ import math
 import numpy as np
 import pytest
 
-from fiveaxis.errors import InputError
-from fiveaxis.grid import Grid, GridAxis, PoseList, grid_from_specs, parse_axis_spec
-from fiveaxis.machine import load_machine
+from fiveaxis.exceptions import InputError
+from fiveaxis.sensitivity.grid import Grid, GridAxis, PoseList, grid_from_specs, parse_axis_spec
+from fiveaxis.model.machine import load_machine
 
 
 def small_grid():

@@ -125,9 +125,9 @@ def test_installed_package_diagnoses_the_example_read_only(installed):
                 p.chmod(0o755)
     got = json.loads(res.stdout)
     # The same answer as this (editable) environment gives in-process.
-    from fiveaxis import diagnose as D
-    from fiveaxis.kernels import load
-    from fiveaxis.measurements import read
+    from fiveaxis.diagnosis import diagnose as D
+    from fiveaxis.model.error_model import load
+    from fiveaxis.measurement.files import read
     model = load("li2018")
     ref = D.diagnose(model, read(EXAMPLE, model.machine), top=3).to_json()
     assert got["missing_effect"] and got["candidates"][0]["id"] == ref["candidates"][0]["id"] == "ex_x:x1"

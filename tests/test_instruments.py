@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 import fiveaxis
-from fiveaxis import diagnose as D
-from fiveaxis import fit as F
-from fiveaxis import frames, htm
-from fiveaxis import observations as ob
-from fiveaxis.measurements import in_frame, read
-from fiveaxis.simulate import simulate, to_frame
+from fiveaxis.diagnosis import diagnose as D
+from fiveaxis.estimation import fit as F
+from fiveaxis.model import frames, htm
+from fiveaxis.measurement import observations as ob
+from fiveaxis.measurement.files import in_frame, read
+from fiveaxis.measurement.simulate import simulate, to_frame
 
 from conftest import worst_z, run_cli
 
@@ -55,13 +55,13 @@ def test_machine_frame_file_gives_the_same_fit(models, tmp_path):
     sim = simulate(model, ["ez_C:C1=3e-5"], n=300, noise=NOISE, seed=13, instrument="probe-sphere")
     assert sim.meas.frame == "machine"
     machine_file = tmp_path / "machine.csv"
-    from fiveaxis.measurements import write
+    from fiveaxis.measurement.files import write
     write(to_frame(sim, model), machine_file)
     a = read(machine_file, model.machine, frame="machine")
     b = in_frame(a, model.machine, "workpiece")
     assert not np.allclose(a.d, b.d, atol=1e-4)            # the frames differ by the table rotation
     wp_file = tmp_path / "workpiece.csv"
-    from fiveaxis.measurements import frame as as_frame
+    from fiveaxis.measurement.files import frame as as_frame
     write(as_frame(b, model.machine), wp_file)
     fa = F.fit(model, a, ["ez_C:C1"])
     fb = F.fit(model, read(wp_file, model.machine), ["ez_C:C1"])

@@ -1,15 +1,15 @@
 """ISO 230 names: hand-written tables for li2018 and ac_trunnion (all 41 each), the geometry behind every letter
-checked on the independent NumPy chain (fiveaxis.htm), signs, frames, machines without ISO names, and ISO names
+checked on the independent NumPy chain (fiveaxis.model.htm), signs, frames, machines without ISO names, and ISO names
 accepted wherever an error name is accepted."""
 import json
 
 import numpy as np
 import pytest
 
-from fiveaxis import htm, iso
+from fiveaxis.model import htm, iso_names as iso
 from fiveaxis.cli import main
-from fiveaxis.errors import InputError
-from fiveaxis.machine import load_machine
+from fiveaxis.exceptions import InputError
+from fiveaxis.model.machine import load_machine
 
 from conftest import DATA, SHIPPED
 
@@ -215,7 +215,7 @@ def test_effects_by_iso_name_equal_the_project_name(capsys, measured):
 def test_iso_effect_and_project_effect_are_the_same_added_twice():
     """--add E_AX:x1 --add ex_x:x1 names one effect twice: refused like the same id twice."""
     import fiveaxis
-    from fiveaxis import fit as F
+    from fiveaxis.estimation import fit as F
     model = fiveaxis.load("li2018")
     assert [e.id for e in F.resolve_effects(model, ["E_AX:x1"])] == ["ex_x:x1"]
     with pytest.raises(fiveaxis.InputError, match="given twice"):

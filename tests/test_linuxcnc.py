@@ -13,12 +13,12 @@ import pytest
 
 import linuxcnc_harness as H
 from truth import truth_model
-from fiveaxis import compensation as C
-from fiveaxis import fit as F
-from fiveaxis import linuxcnc as LX
-from fiveaxis import model_file as MF
-from fiveaxis.kernels import load
-from fiveaxis.simulate import simulate
+from fiveaxis.compensation import table as C
+from fiveaxis.estimation import fit as F
+from fiveaxis.linuxcnc import configuration as LX
+from fiveaxis.estimation import fitted_model as MF
+from fiveaxis.model.error_model import load
+from fiveaxis.measurement.simulate import simulate
 
 pytestmark = pytest.mark.linuxcnc
 

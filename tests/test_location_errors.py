@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import fiveaxis
-from fiveaxis.machine import MACHINES_DIR, load_machine
+from fiveaxis.model.machine import MACHINES_DIR, load_machine
 
 
 def columns(model, n=300, seed=0):
@@ -111,7 +111,7 @@ def report(name: str) -> str:
 
 def test_every_location_error_is_described_in_words():
     """diagnose describes candidate effects of every parameter: chain-end and axis-line errors too."""
-    from fiveaxis.effects import describe_param
+    from fiveaxis.effects.families import describe_param
     m = load_machine("tilting_head")
     words = {n: describe_param(m, n) for n in m.pige_names}
     assert words["dXOS"] == "the offset dXOS of the spindle (along x)"

@@ -4,12 +4,12 @@ import re
 import pytest
 
 from fiveaxis.cli import main
-from fiveaxis.errors import InputError
-from fiveaxis.machine import load_machine
+from fiveaxis.exceptions import InputError
+from fiveaxis.model.machine import load_machine
 
 from conftest import DATA, SHIPPED
 
-LI = open(__import__("fiveaxis.machine", fromlist=["x"]).MACHINES_DIR / "li2018.toml").read()
+LI = open(__import__("fiveaxis.model.machine", fromlist=["x"]).MACHINES_DIR / "li2018.toml").read()
 
 
 def test_li2018_is_the_papers_machine():

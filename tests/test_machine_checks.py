@@ -3,8 +3,8 @@ names that would reach generated code. Every refusal is one line naming the file
 import pytest
 
 from fiveaxis.cli import main
-from fiveaxis.errors import InputError
-from fiveaxis.machine import MACHINES_DIR, load_machine
+from fiveaxis.exceptions import InputError
+from fiveaxis.model.machine import MACHINES_DIR, load_machine
 
 from conftest import DATA
 

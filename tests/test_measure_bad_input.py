@@ -96,7 +96,7 @@ def test_huge_cells_name_their_row_and_are_not_echoed_whole(capsys, tmp_path):
 ])
 def test_custom_effects_undefined_on_the_data(capsys, tmp_path, monkeypatch, expr, expect):
     monkeypatch.setenv("FIVEAXIS_CACHE", str(tmp_path / "cache"))
-    from fiveaxis.machine import MACHINES_DIR
+    from fiveaxis.model.machine import MACHINES_DIR
     text = (MACHINES_DIR / "li2018.toml").read_text() + f'\n[effects.odd]\nerror = "dx_x"\nexpr = "{expr}"\n'
     mach = tmp_path / "odd.toml"
     mach.write_text(text)

@@ -3,9 +3,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from fiveaxis.errors import InputError
-from fiveaxis.machine import load_machine
-from fiveaxis.measurements import read, write
+from fiveaxis.exceptions import InputError
+from fiveaxis.model.machine import load_machine
+from fiveaxis.measurement.files import read, write
 
 HEADER = "X,Y,Z,A,B,dx,dy,dz"
 ROW = "100,-50,10,5,-10,0.001,0.002,-0.003"
@@ -139,6 +139,6 @@ def test_lines_follow_quoted_line_breaks(tmp_path, machine):
 def test_every_measurement_column_is_a_reserved_axis_name():
     """The reader's columns and the machine file's reserved axis names are one list (an axis named like a column
     would be read twice)."""
-    from fiveaxis import measurements as M
-    from fiveaxis.machine import RESERVED_COLUMNS
+    from fiveaxis.measurement import files as M
+    from fiveaxis.model.machine import RESERVED_COLUMNS
     assert set(M.READINGS + M.NUMERIC_OPTIONAL + M.TEXT_OPTIONAL) <= set(RESERVED_COLUMNS)

@@ -8,10 +8,11 @@ import tomllib
 
 import pytest
 
-from fiveaxis import outputs, provenance
+from fiveaxis import outputs
+from fiveaxis.model import provenance
 from fiveaxis.cli import main
-from fiveaxis.errors import InputError
-from fiveaxis.machine import MACHINES_DIR, load_machine
+from fiveaxis.exceptions import InputError
+from fiveaxis.model.machine import MACHINES_DIR, load_machine
 
 from conftest import DATA, ROOT, run_cli
 
@@ -90,7 +91,7 @@ def test_cached_kernels_are_not_used_after_a_template_change(tmp_path, planar, m
 def test_damaged_or_foreign_cached_module_is_derived_anew(planar, capsys):
     """A cached file whose hashes do not match (truncated by a crash, copied from elsewhere) is never imported."""
     import fiveaxis
-    from fiveaxis import kernels
+    from fiveaxis.model import error_model as kernels
     path = fiveaxis.load(planar).kernels.__file__
     with open(path, "w") as fh:
         fh.write("raise SystemExit('this file must not run')\n")
@@ -100,7 +101,7 @@ def test_damaged_or_foreign_cached_module_is_derived_anew(planar, capsys):
 
 
 def test_committed_module_is_not_used_when_its_template_changed(tmp_path, monkeypatch):
-    from fiveaxis import kernels
+    from fiveaxis.model import error_model as kernels
     machine = load_machine("li2018")
     assert kernels._generated_module(machine, "equations") is not None
     templates = tmp_path / "templates"

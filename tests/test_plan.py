@@ -8,22 +8,22 @@ import numpy as np
 import pytest
 
 import fiveaxis
-from fiveaxis import fit as F
-from fiveaxis import plan as P
-from fiveaxis import plan_gcode as G
+from fiveaxis.estimation import fit as F
+from fiveaxis.planning import plan as P
+from fiveaxis.linuxcnc import program as G
 from fiveaxis.cli import main
-from fiveaxis.diagnose import diagnose
-from fiveaxis.errors import InputError
-from fiveaxis.gcode import moves
-from fiveaxis.gcode import run as run_rs274
+from fiveaxis.diagnosis.diagnose import diagnose
+from fiveaxis.exceptions import InputError
+from fiveaxis.linuxcnc.rs274 import moves
+from fiveaxis.linuxcnc.rs274 import run as run_rs274
 
 
 def rs274(path):
-    """rs274's canonical commands for a program (the project's one runner, fiveaxis.gcode.run)."""
+    """rs274's canonical commands for a program (the project's one runner, fiveaxis.linuxcnc.rs274.run)."""
     return run_rs274(path)[0]
-from fiveaxis.instruments import Plan
-from fiveaxis.measurements import read, write
-from fiveaxis.simulate import simulate
+from fiveaxis.measurement.instruments import Plan
+from fiveaxis.measurement.files import read, write
+from fiveaxis.measurement.simulate import simulate
 
 from conftest import DATA
 
@@ -63,7 +63,7 @@ def plan_of_file(path, model) -> Plan:
 @pytest.mark.parametrize("name", ["tip", "rtest", "probe-sphere", "ballbar", "tracker"])
 def test_plan_file_round_trip_gives_the_same_poses_and_criterion(models, plans, name, tmp_path):
     """The CSV read back by the measurement reader holds the plan (poses, L, setups, frame, directions), and the
-    criterion computed afresh from its design (setups built by fiveaxis.setups on the plan alone) equals the one
+    criterion computed afresh from its design (setups built by fiveaxis.measurement.setups on the plan alone) equals the one
     the optimiser computed from the pool's rows."""
     res = plans[name]
     path = write(P.to_frame(res), tmp_path / "plan.csv")

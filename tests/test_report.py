@@ -7,7 +7,7 @@ from html.parser import HTMLParser
 import pytest
 
 from fiveaxis.cli import main
-from fiveaxis.errors import InputError
+from fiveaxis.exceptions import InputError
 from fiveaxis.report import compensation as C
 from fiveaxis.report import html, record
 
@@ -81,9 +81,9 @@ def test_example_record_finds_the_hidden_effects(example):
 
 
 def test_expanded_uncertainty_is_twice_the_fit_standard_uncertainty(example):
-    from fiveaxis import fit as F
-    from fiveaxis.kernels import load
-    from fiveaxis.measurements import read
+    from fiveaxis.estimation import fit as F
+    from fiveaxis.model.error_model import load
+    from fiveaxis.measurement.files import read
     model = load("li2018")
     res = F.fit(model, read(EXAMPLE, model.machine), ["ex_x:x1", "L:t1"])
     j = F.to_json(res)["parameters"]

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import fiveaxis
-from fiveaxis import presets
-from fiveaxis.sensitivity import gsil, lsil
-from fiveaxis.sobol import compare, mean_abs_error, sobol_total, workspace_jacobians
+from fiveaxis.sensitivity import paper as presets
+from fiveaxis.sensitivity.indices import gsil, lsil
+from fiveaxis.sensitivity.sobol import compare, mean_abs_error, sobol_total, workspace_jacobians
 
 
 @pytest.fixture(scope="module")

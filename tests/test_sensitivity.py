@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 import fiveaxis
-from fiveaxis.errors import InputError
-from fiveaxis.grid import Grid, GridAxis, PoseList
-from fiveaxis.sensitivity import gsil, lsil, proportions, quadrature, ranking
+from fiveaxis.exceptions import InputError
+from fiveaxis.sensitivity.grid import Grid, GridAxis, PoseList
+from fiveaxis.sensitivity.indices import gsil, lsil, proportions, quadrature, ranking
 
 
 @pytest.fixture(scope="module")

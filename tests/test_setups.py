@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 import fiveaxis
-from fiveaxis import diagnose as D
-from fiveaxis import fit as F
-from fiveaxis.simulate import simulate, truth_theta
+from fiveaxis.diagnosis import diagnose as D
+from fiveaxis.estimation import fit as F
+from fiveaxis.measurement.simulate import simulate, truth_theta
 
 from conftest import worst_z
 
@@ -87,7 +87,7 @@ def test_what_the_placement_hides_is_said_with_the_measurement_that_would_separa
 def test_rigid_part_rotation_recovered(model):
     """A part measured in 3-D (tip readings), placed with a rotation about all three axes: every placement unknown
     and combination the data determines matches the truth within 3 standard uncertainties."""
-    from fiveaxis.instruments import tip
+    from fiveaxis.measurement.instruments import tip
     plan = tip(model, 300, np.random.default_rng(5))
     plan.setup = np.array(["block"] * plan.n, dtype=object)
     plan.setup_kind, plan.setup_frame = {"block": "rigid"}, {"block": "workpiece"}

@@ -5,7 +5,7 @@ import sys
 
 import sympy as sp
 
-from fiveaxis.machine import load_machine
+from fiveaxis.model.machine import load_machine
 from fiveaxis_derive.model import derive_model
 from fiveaxis_derive.table2 import groups, printed_table, reconcile, to_json, to_latex
 
@@ -65,7 +65,7 @@ def test_latex_table():
 def test_cli_table2_json_end_to_end():
     out = subprocess.run([sys.executable, "-m", "fiveaxis.cli", "table2", "--machine", "li2018", "--json"],
                          capture_output=True, text=True, check=True).stdout
-    from fiveaxis.iso import table
+    from fiveaxis.model.iso_names import table
     iso = {n: e.iso for n, e in table(load_machine("li2018")).items()}
     assert json.loads(out) == to_json(model("equations"), iso)
     assert json.loads(out)["groups"][0]["iso"] == ["E_AX"]

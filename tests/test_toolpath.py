@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 
 import fiveaxis
-from fiveaxis import gcode, surfaces, toolpath
+from fiveaxis.linuxcnc import rs274 as gcode
+from fiveaxis.sensitivity import surfaces, toolpath
 from fiveaxis.cli import main
-from fiveaxis.errors import InputError
+from fiveaxis.exceptions import InputError
 
 CENTRE = np.array([50.0, 30.0, 20.0])     # sphere centre in the workpiece frame (mm), off the trunnion's axes
 RADIUS = 40.0
@@ -249,7 +250,7 @@ def test_explicit_poses_and_their_errors(capsys, trunnion):
 
 
 def test_surfaces_give_outward_unit_normals():
-    from fiveaxis import presets
+    from fiveaxis.sensitivity import paper as presets
     phi = np.radians([-45.0, 0.0, 80.0])
     # the paper's cone: apex on the axis above the part, radius growing downwards, half-angle 30 deg
     cone = surfaces.parse("cone:0,0,%r,0,0,-1,30" % (200 * math.tan(math.radians(60))))

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 import fiveaxis
-from fiveaxis import presets
+from fiveaxis.sensitivity import paper as presets
 from fiveaxis.cli import main
-from fiveaxis.errors import InputError
-from fiveaxis.experiments import diagonal_points, vital_set
-from fiveaxis.grid import describe_source, from_workspace, workspace_grid
-from fiveaxis.machine import MACHINES_DIR, WORKSPACE_COUNT, load_machine
+from fiveaxis.exceptions import InputError
+from fiveaxis.sensitivity.experiments import diagonal_points, vital_set
+from fiveaxis.sensitivity.grid import describe_source, from_workspace, workspace_grid
+from fiveaxis.model.machine import MACHINES_DIR, WORKSPACE_COUNT, load_machine
 
 from conftest import SHIPPED
 
@@ -145,7 +145,7 @@ def test_vital_rule():
     assert vital_set(names, tie) == ["a", "b", "c", "d"]             # ties are never split
     # on li2018 (printed convention) the rule gives the paper's vital sets of Sect. 4.2 and cone position 1
     m = fiveaxis.load("li2018", "printed")
-    from fiveaxis.sensitivity import gsil, lsil
+    from fiveaxis.sensitivity.indices import gsil, lsil
     g = gsil(m, presets.workspace_grid(m, {"X": 1}), presets.paper_errors(m), 200.0, 30.0, progress=False)
     assert set(vital_set(g.names, g.proportions)) == set(presets.PAPER_VITAL["workspace"])
     r = lsil(m, presets.cone_poses(m, 1), presets.paper_errors(m), presets.CONE_L0, presets.CONE_LE)

@@ -1,8 +1,8 @@
 """The hidden truth of a simulated machine as a FittedModel (what a perfect fit would find), for the tests."""
 from __future__ import annotations
 
-from fiveaxis import effects as fx
-from fiveaxis.model_file import EffectRecord, FittedModel, sha256
+from fiveaxis.effects import families as fx
+from fiveaxis.estimation.fitted_model import EffectRecord, FittedModel, sha256
 
 
 def truth_model(sim, model, extra=()) -> FittedModel:

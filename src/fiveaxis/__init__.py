@@ -5,7 +5,7 @@
     >>> J = m.J(X, Y, Z, A, B, L)            # (n, 41, 3): mm, rad
 
 Lengths in mm and angles in rad in the Python API; degrees in files and on the command line.
-The names below are imported on first use, so that `import fiveaxis.machine` (all the derivation needs)
+The names below are imported on first use, so that `import fiveaxis.model.machine` (all the derivation needs)
 loads the machine-file reader alone.
 """
 import importlib
@@ -13,8 +13,8 @@ import importlib
 __all__ = ["InputError", "Machine", "Model", "load", "load_machine"]
 __version__ = "0.1.0"
 
-_WHERE = {"InputError": ".errors", "Machine": ".machine", "load_machine": ".machine",
-          "Model": ".kernels", "load": ".kernels"}
+_WHERE = {"InputError": ".exceptions", "Machine": ".model.machine", "load_machine": ".model.machine",
+          "Model": ".model.error_model", "load": ".model.error_model"}
 
 
 def __getattr__(name):

@@ -9,7 +9,7 @@ import argparse
 import importlib
 import sys
 
-from .errors import InputError, one_line
+from .exceptions import InputError, one_line
 
 #: sub-command -> (module, one-line help). The module's `register(parser)` adds options and sets `func`.
 COMMANDS = {

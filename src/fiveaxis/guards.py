@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-from .errors import InputError
+from .exceptions import InputError
 
 #: Default largest size of one run: 10^9 evaluations (about 100 s of the exact GSIL kernel on two cores;
 #: a larger run is possible, but only when asked for).

@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from .errors import InputError
+from .exceptions import InputError
 
 #: A temporary file of ours older than this (s) is left over from a killed run.
 STALE_AFTER_S = 30 * 60

@@ -8,7 +8,7 @@ import json
 import math
 from pathlib import Path
 
-from ..errors import InputError
+from ..exceptions import InputError
 
 
 def register_compensate(p):
@@ -76,9 +76,9 @@ def _tool_lengths(spec):
 
 
 def run_compensate(args) -> int:
-    from .. import compensation as C
-    from .. import model_file as MF
-    from ..kernels import load
+    from ..compensation import table as C
+    from ..estimation import fitted_model as MF
+    from ..model.error_model import load
     fm = MF.load(args.model)
     model = load(args.machine, fm.convention) if args.machine else MF.load_model(fm, str(args.model))
     MF.check_model(fm, model, str(args.model))

@@ -4,7 +4,7 @@ from __future__ import annotations
 import json
 import os
 
-from ..errors import InputError
+from ..exceptions import InputError
 from .sensitivity import GSA_MAX_POSES as MAX_POSES, _count
 
 
@@ -42,11 +42,11 @@ def register_dask(p):
 
 
 def run_dask(args) -> int:
-    from .. import distributed
-    from ..error_values import read
+    from .. import parallel as distributed
+    from ..model.error_values import read
     from ..guards import check_size
-    from ..kernels import load
-    from ..sensitivity import reduce_grid
+    from ..model.error_model import load
+    from ..sensitivity.indices import reduce_grid
     from .sensitivity import _grid, _print_ranking, _print_settings
     if args.scheduler is not None:
         try:

@@ -6,8 +6,8 @@ import sys
 import time
 from pathlib import Path
 
-from ..errors import InputError
-from ..machine import MACHINES_DIR, load_machine
+from ..exceptions import InputError
+from ..model.machine import MACHINES_DIR, load_machine
 
 
 def register_derive(p):
@@ -64,7 +64,7 @@ def run_table2(args) -> int:
     from fiveaxis_derive.model import derive_model
     from fiveaxis_derive.table2 import reconcile, to_json, to_latex
 
-    from ..iso import table as iso_table
+    from ..model.iso_names import table as iso_table
     machine = load_machine(args.machine)
     machine.with_convention(args.convention)
     model = derive_model(machine, args.convention)

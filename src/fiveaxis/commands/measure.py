@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..instruments import NAMES as INSTRUMENTS
-from ..measurements import FRAMES, SETUP_KINDS
+from ..exceptions import InputError
+from ..measurement.instruments import NAMES as INSTRUMENTS
+from ..measurement.files import FRAMES, SETUP_KINDS
 
 
 def _common(p, file_arg=True):
@@ -122,12 +122,12 @@ def register_model(p):
 
 # -- helpers ---------------------------------------------------------------------------------------------------
 def _load(args):
-    from .. import fit as F
-    from ..kernels import load
-    from ..machine import load_machine
-    from ..measurements import read
+    from ..estimation import fit as F
+    from ..model.error_model import load
+    from ..model.machine import load_machine
+    from ..measurement.files import read
     if getattr(args, "scheduler", None) is not None:
-        from ..distributed import scheduler_address
+        from ..parallel import scheduler_address
         try:
             scheduler_address(args.scheduler)       # before the data are read: a typo fails at once
         except InputError as exc:
@@ -179,7 +179,8 @@ def _where_blocks(args):
     if args.scheduler is None:
         yield in_blocks
         return
-    from .. import blocked, distributed
+    from ..estimation import row_blocks as blocked
+    from .. import parallel as distributed
     if args.blocks == "off":
         raise InputError("--scheduler runs row blocks on a cluster: it cannot be combined with --blocks off")
     try:
@@ -194,14 +195,14 @@ def _where_blocks(args):
 
 
 def run_fit(args) -> int:
-    from .. import fit as F
+    from ..estimation import fit as F
     model, meas, effects, fixed = _load(args)
     if args.output is not None and args.output.exists() and not args.force:
         raise InputError(f"{args.output}: exists; not overwriting it (use --force to replace it)")
     with _where_blocks(args) as in_blocks:
         res = F.fit(model, meas, effects, refine=not args.first_order, fixed=fixed, in_blocks=in_blocks)
     if args.output is not None:
-        from ..model_file import from_fit, save
+        from ..estimation.fitted_model import from_fit, save
         save(from_fit(res), args.output, force=args.force)
         print(f"fiveaxis: wrote {args.output}", file=sys.stderr)
     if args.json:
@@ -212,7 +213,7 @@ def run_fit(args) -> int:
 
 
 def run_diagnose(args) -> int:
-    from .. import diagnose as D
+    from ..diagnosis import diagnose as D
     if args.top < 1:
         raise InputError(f"--top: expected a positive number, got {args.top}")
     model, meas, effects, fixed = _load(args)
@@ -230,10 +231,10 @@ def run_diagnose(args) -> int:
 
 
 def run_simulate(args) -> int:
-    from ..kernels import load
-    from ..measurements import in_frame, write
+    from ..model.error_model import load
+    from ..measurement.files import in_frame, write
     from ..outputs import write_text
-    from ..simulate import simulate, to_frame
+    from ..measurement.simulate import simulate, to_frame
     if args.output.exists() and not args.force:
         raise InputError(f"{args.output}: exists; not overwriting it (use --force to replace it)")
     truth_path = args.truth or args.output.with_name(args.output.name + ".truth.json")
@@ -264,7 +265,7 @@ def run_simulate(args) -> int:
         raise InputError("--with-sigma with --noise 0: a standard deviation of 0 is not a measurement (give a noise)")
     commands, comp = None, ""
     if args.compensation is not None:
-        from ..compensation import command_function, load_table
+        from ..compensation.table import command_function, load_table
         table = load_table(args.compensation, model)
         commands = command_function(args.compensation, model, table)
         comp = f", compensated by {args.compensation}"
@@ -289,7 +290,7 @@ def run_simulate(args) -> int:
                    setup_scale=args.setup_scale, errors=errors, setup_kind=args.setup_kind, commands=commands)
     meas = sim.meas
     if commands is not None:
-        from ..compensation import length_warning
+        from ..compensation.table import length_warning
         warn = length_warning(table, meas.L)
         if warn:
             print(f"fiveaxis: warning: --compensation {args.compensation}: {warn}", file=sys.stderr)
@@ -311,8 +312,8 @@ def run_simulate(args) -> int:
 def _plan_from_file(args, model, lengths):
     """A plan from a poses file: the file's poses, L, t, directions and setups; 1-D readings where it has a
     direction, else tool-tip readings."""
-    from ..instruments import Plan
-    from ..measurements import read
+    from ..measurement.instruments import Plan
+    from ..measurement.files import read
     meas = read(args.poses, model.machine, frame=args.frame, readings_required=False)
     for w in meas.warnings:
         print(f"fiveaxis: warning: {w}", file=sys.stderr)
@@ -323,8 +324,8 @@ def _plan_from_file(args, model, lengths):
 
 
 def run_model(args) -> int:
-    from .. import effects as fx
-    from ..machine import load_machine
+    from ..effects import families as fx
+    from ..model.machine import load_machine
     machine = load_machine(args.machine)
     ids = []
     for e in args.effects:
@@ -332,7 +333,7 @@ def run_model(args) -> int:
         if ident in machine.added_effects or ident in ids:
             raise InputError(f"model add: {machine.path}: effect '{ident}' is already in the model")
         ids.append(ident)
-    from ..machine_edit import write_model_effects
+    from ..model.edit import write_model_effects
     target = write_model_effects(machine, list(machine.added_effects) + ids, None if args.in_place else args.output,
                                  force=args.force)
     print(f"fiveaxis: wrote {target}: model effects {', '.join(list(machine.added_effects) + ids)}", file=sys.stderr)

@@ -14,9 +14,9 @@ def register_names(p):
 
 
 def run_names(args) -> int:
-    from .. import iso
-    from ..effects import describe_param
-    from ..machine import load_machine
+    from ..model import iso_names as iso
+    from ..effects.families import describe_param
+    from ..model.machine import load_machine
     machine = load_machine(args.machine)
     placed = machine.with_convention(args.convention)       # checks that the convention exists
     doc = iso.to_json(machine, args.convention, describe=lambda e: describe_param(placed, e))

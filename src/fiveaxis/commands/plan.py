@@ -2,7 +2,7 @@
 
 Prints what the plan will determine and what it cannot (formulas), the criterion against a random plan of the same
 size, and writes the poses as a CSV (`simulate --poses` and the measurement readers take it) and a G-code program
-for LinuxCNC. The logic is in `fiveaxis.plan` and `fiveaxis.plan_gcode`; docs/plan.md.
+for LinuxCNC. The logic is in `fiveaxis.planning.plan` and `fiveaxis.linuxcnc.program`; docs/plan.md.
 """
 from __future__ import annotations
 
@@ -10,12 +10,12 @@ import json
 import sys
 from pathlib import Path
 
-from ..errors import InputError
+from ..exceptions import InputError
 
 
 def register_plan(p):
-    from ..plan import MAX_POSES, NOISE_MM, PLANNERS
-    from ..plan_gcode import DWELL_S, FEED_MM_MIN
+    from ..planning.plan import MAX_POSES, NOISE_MM, PLANNERS
+    from ..linuxcnc.program import DWELL_S, FEED_MM_MIN
     p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
     p.add_argument("--convention", default="equations", help="convention of the machine file (default: equations)")
     p.add_argument("--instrument", default="tip", choices=PLANNERS,
@@ -55,11 +55,11 @@ def _lengths(text):
 
 
 def run_plan(args) -> int:
-    from .. import plan as P
-    from ..kernels import load
-    from ..machine import load_machine
-    from ..measurements import write
-    from ..plan_gcode import check_axes, program
+    from ..planning import plan as P
+    from ..model.error_model import load
+    from ..model.machine import load_machine
+    from ..measurement.files import write
+    from ..linuxcnc.program import check_axes, program
     from ..outputs import write_text
     if args.output.suffix.lower() != ".csv":
         raise InputError(f"{args.output}: expected a .csv file for the poses")

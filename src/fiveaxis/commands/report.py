@@ -5,7 +5,7 @@ import json
 import sys
 from pathlib import Path
 
-from ..errors import InputError
+from ..exceptions import InputError
 
 
 def register_report(p):

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..exceptions import InputError
 
 #: Default most poses of one run (fiveaxis.guards): gsa and sobol evaluate and forget (10^9), lsa keeps 41
 #: indices per pose in memory (10^6).
@@ -74,15 +74,15 @@ def _common(p, le_default: str, order_default: str, max_poses: int):
 
 
 def _model(args):
-    from ..kernels import load
+    from ..model.error_model import load
     return load(args.machine, args.convention)
 
 
 def _setup(args, L0_default=None, LE_default=None):
     """(model, ErrorValues, L0, LE) of a sensitivity command: L0 and LE (mm) from the options, else the given
     defaults, else the machine file's tool data; both checked before anything runs."""
-    from ..error_values import read
-    from ..sensitivity import quadrature
+    from ..model.error_values import read
+    from ..sensitivity.indices import quadrature
     if args.top < 1:
         raise InputError(f"--top: expected a positive number of rows, got {args.top}")
     model = _model(args)
@@ -126,8 +126,8 @@ def _wrote(paths):
 
 def _grid(args, model):
     """(grid, description of where it comes from, L0 default, LE default) for gsa, sobol and dask."""
-    from .. import presets
-    from ..grid import describe_source, workspace_grid
+    from ..sensitivity import paper as presets
+    from ..sensitivity.grid import describe_source, workspace_grid
     base, L0, LE = None, None, None
     if getattr(args, "preset", None):
         base = presets.workspace_preset(args.preset, model)
@@ -143,7 +143,7 @@ def _grid(args, model):
 
 def _print_ranking(model, result, top: int, title: str):
     """The largest proportions with each error's ISO 230 name."""
-    from .. import iso
+    from ..model import iso_names as iso
     p = result.proportions
     idx = {n: i for i, n in enumerate(result.names)}
     names = iso.names(model)
@@ -188,7 +188,7 @@ def _rows_json(rows):
 
 def _vital(result, paper_vital=None):
     """(vital errors, how they were chosen) for a compensation experiment."""
-    from ..experiments import VITAL_MAX_RANK, vital_set
+    from ..sensitivity.experiments import VITAL_MAX_RANK, vital_set
     if paper_vital is not None:
         return list(paper_vital), "the paper's vital set"
     v = vital_set(result.names, result.proportions)
@@ -234,7 +234,7 @@ def register_gsa(p):
 
 
 def _compensate_gsa(args, model, errors, grid, L0, res):
-    from .. import experiments, presets
+    from ..sensitivity import experiments, paper as presets
     from ..guards import check_size
     if args.rot_count < 1:
         raise InputError(f"--rot-count: expected at least 1 point per rotary axis, got {args.rot_count}")
@@ -254,9 +254,9 @@ def _compensate_gsa(args, model, errors, grid, L0, res):
 
 
 def run_gsa(args) -> int:
-    from .. import presets
-    from ..experiments import scenario_errors
-    from ..sensitivity import CHUNK, gsil
+    from ..sensitivity import paper as presets
+    from ..sensitivity.experiments import scenario_errors
+    from ..sensitivity.indices import CHUNK, gsil
     model = _model(args)
     grid, source, L0d, LEd = _grid(args, model)
     model, ev, L0, LE = _setup(args, L0d, LEd)
@@ -353,8 +353,9 @@ def register_lsa(p):
 
 
 def _path(args, model, L0):
-    """The toolpath of an lsa run from --toolpath or --pose (fiveaxis.toolpath)."""
-    from .. import gcode, surfaces, toolpath
+    """The toolpath of an lsa run from --toolpath or --pose (fiveaxis.sensitivity.toolpath)."""
+    from ..linuxcnc import rs274 as gcode
+    from ..sensitivity import surfaces, toolpath
     from ..guards import check_size
     how = "--max-poses {n}"
     if args.pose is not None:
@@ -376,8 +377,8 @@ def _path(args, model, L0):
 
 
 def run_lsa(args) -> int:
-    from .. import presets
-    from ..sensitivity import DEFAULT_ORDER, lsil
+    from ..sensitivity import paper as presets
+    from ..sensitivity.indices import DEFAULT_ORDER, lsil
     from ..guards import check_size
     model = _model(args)
     cone = args.cone
@@ -423,7 +424,7 @@ def run_lsa(args) -> int:
     out = res.to_json()
     segs = None
     if tp is not None:
-        from ..toolpath import segment_indices
+        from ..sensitivity.toolpath import segment_indices
         segs = segment_indices(res, tp)
         out["segments"] = [{"label": s["label"], "first_pose": s["first_pose"], "last_pose": s["last_pose"],
                             "indices": None if s["proportions"] is None else
@@ -432,7 +433,7 @@ def run_lsa(args) -> int:
                             _ranking(res.names, s["proportions"])[:5]} for s in segs]
     comp = vital = None
     if args.compensate:
-        from .. import experiments
+        from ..sensitivity import experiments
         if cone:
             vital, why = _vital(res, presets.PAPER_VITAL[f"cone{cone}"])
 
@@ -475,7 +476,7 @@ def run_lsa(args) -> int:
 
 
 def _ranking(names, proportions):
-    from ..sensitivity import ranking
+    from ..sensitivity.indices import ranking
     return ranking(list(names), proportions)
 
 
@@ -497,8 +498,8 @@ def _print_segments(res, segs, shown):
 
 
 def _lsa_plots(args, model, res, cone, tp, comp, errors, L0, LE, mode, vital):
-    from .. import presets
-    from ..experiments import scenario_errors
+    from ..sensitivity import paper as presets
+    from ..sensitivity.experiments import scenario_errors
     from ..plots import sensitivity as plots
     d = args.plot
     if cone:
@@ -542,8 +543,8 @@ def register_sobol(p):
 
 def run_sobol(args) -> int:
     from ..guards import check_size
-    from ..sensitivity import gsil, ranking
-    from ..sobol import MAX_POSES, compare, sobol_total
+    from ..sensitivity.indices import gsil, ranking
+    from ..sensitivity.sobol import MAX_POSES, compare, sobol_total
     model = _model(args)
     grid, source, L0d, LEd = _grid(args, model)
     model, ev, L0, LE = _setup(args, L0d, LEd)

@@ -14,8 +14,8 @@ from .sensitivity import _pyplot, _save
 
 def error_map(model, errors_fn, table, lc, path, cells: int = 41) -> Path:
     """PNG of the predicted tip error (um) over the rotary axes: before / after LinuxCNC / after the table."""
-    from ..compensation import actual_tool, compensated_commands
-    from ..linuxcnc import linuxcnc_commands
+    from ..compensation.table import actual_tool, compensated_commands
+    from ..linuxcnc.configuration import linuxcnc_commands
     machine = model.machine
     variables = list(model.variables)
     rot = [v for v in variables if machine.axis(v).type == "rotary"][:2]

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import observations as ob
+from ..measurement import observations as ob
 from .sensitivity import _pyplot, _save
 
 #: Colours of the residual series, in order: grey for the first (before), then distinct colours.
@@ -78,7 +78,7 @@ def residual_figure(model, meas, series, title: str):
 def plot_residuals(dg, out_dir, name: str = "residuals.png") -> Path:
     """Scatter of the fit residual against every variable (and t): grey before, colour after the top candidate
     (each fit without its own outliers, which are left out of the plot and counted in its title)."""
-    from .. import fit as F
+    from ..estimation import fit as F
     prob = dg.fit.problem
     model, meas = prob.model, prob.meas
     series = [series_of(dg.fit, f"model fitted (RMS {dg.rms_mm_without_outliers * 1000:.3g} um)")]

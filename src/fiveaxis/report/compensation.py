@@ -1,5 +1,5 @@
 """What a compensation run (`fiveaxis compensate MODEL -o DIR`) leaves for the report: DIR/summary.json, written by
-`fiveaxis.compensation.summary`, and the map PNG beside it.
+`fiveaxis.compensation.table.summary`, and the map PNG beside it.
 
 The report reads from summary.json: the machine (`machine.name`, must match the report's), the predicted tool-tip
 error over the workspace (`predicted_tip_error_mm`: `before`, `after_linuxcnc`, `after_table`, each
@@ -14,7 +14,7 @@ import json
 import math
 from pathlib import Path
 
-from ..errors import InputError
+from ..exceptions import InputError
 
 SUMMARY = "summary.json"
 STATS = ("max", "rms", "p95")

@@ -21,8 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import iso
-from ..errors import InputError
+from ..model import iso_names as iso
+from ..exceptions import InputError
 
 #: Rounds of diagnose -> add the top candidate, at most (as scripts/run-main.sh).
 MAX_ROUNDS = 4
@@ -55,7 +55,7 @@ def people(value, unit: str):
 
 
 def _iso_formula(obj, terms: dict) -> str:
-    from ..fit import formula
+    from ..estimation.fit import formula
     return formula({(iso.name(obj, n) or n): c for n, c in terms.items()})
 
 
@@ -89,7 +89,7 @@ def _data_record(model, meas) -> dict:
 
 def _readings_text(model, meas) -> str:
     """What the file measures, in words: the kinds of readings, their frame and the setups."""
-    from .. import observations as ob
+    from ..measurement import observations as ob
     obs = ob.build(meas, model.machine)
     kinds = {ob.TIP: "tool-tip deviations (dx, dy, dz; mm, actual minus nominal)",
              ob.AXIS: "tool-axis deviations (di, dj, dk)",
@@ -150,7 +150,7 @@ def separation(model, meas, effects, groups: list[list[str]], names: list[str]) 
     Errors with the same J_i and K_i at every pose (a row of Table 2) are never separated by the tool tip; an
     error whose J_i is zero at every pose has no effect at all; otherwise the design is rebuilt with the data plus
     the extra poses of each option and the members that become determined are listed."""
-    from .. import fit as F
+    from ..estimation import fit as F
     table2 = [set(g) for g in model.groups]
     probe = model.machine.random_poses(64, 7)
     J, _ = model.jk(probe, np.linspace(0.5, 1.5, 64) * (model.machine.tool_length or 100.0))
@@ -172,7 +172,7 @@ def separation(model, meas, effects, groups: list[list[str]], names: list[str]) 
     if pending:
         index = {n: i for i, n in enumerate(names)}
         if F.use_blocks(meas.n):          # what separates the errors is a property of the poses: a sample shows it
-            from ..blocked import sample_poses
+            from ..estimation.row_blocks import sample_poses
             meas = meas.subset(sample_poses(meas.n))
         for text, extra in _options(model, meas):
             try:
@@ -195,8 +195,8 @@ def separation(model, meas, effects, groups: list[list[str]], names: list[str]) 
 
 
 def _fit_record(model, res, groups_advice) -> dict:
-    from .. import fit as F
-    from ..effects import describe_param
+    from ..estimation import fit as F
+    from ..effects.families import describe_param
     placed = model.machine.with_convention(model.convention)
     j = F.to_json(res)
     params = []
@@ -236,13 +236,13 @@ def _fit_record(model, res, groups_advice) -> dict:
 
 
 def _sensitivity(model) -> tuple[dict, list]:
-    from ..grid import Grid
-    from ..sensitivity import gsil
+    from ..sensitivity.grid import Grid
+    from ..sensitivity.indices import gsil
     grid = Grid.from_strokes(model.machine, {v: GSIL_POINTS for v in model.variables})
     res = gsil(model, grid, check=False, progress=False)
     p = res.proportions
     index = {n: i for i, n in enumerate(res.names)}
-    from ..effects import describe_param
+    from ..effects.families import describe_param
     placed = model.machine.with_convention(model.convention)
     top = [{"name": n, "iso": iso.name(model, n), "proportion": float(p[index[n]]),
             "description": describe_param(placed, n)} for n in res.ranking[:GSIL_TOP]]
@@ -297,10 +297,10 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
     with summary.json (see report.compensation) or None. Rounds: diagnose, add the top candidate, repeat while
     the decision says an effect is missing, at most max_rounds diagnoses; frame: of the readings (None: the
     file's, else workpiece)."""
-    from .. import diagnose as D
-    from .. import fit as F
-    from ..kernels import load
-    from ..measurements import read
+    from ..diagnosis import diagnose as D
+    from ..estimation import fit as F
+    from ..model.error_model import load
+    from ..measurement.files import read
     from ..plots.residuals import residual_figure, series_of
     from . import compensation as C
     from . import figures

@@ -1,0 +1,1 @@
+"""Compensation: from the identified model to what a controller loads."""

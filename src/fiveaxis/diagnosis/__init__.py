@@ -1,0 +1,1 @@
+"""Diagnosis: candidate effects, their searches, the decision, residual tests, separation advice."""

@@ -1,0 +1,83 @@
+"""Custom effects from the machine file (`[effects.<name>]`, error = "dx_x", expr = "p1*sin(2*pi*x/10) + ...").
+
+The expression is derived once (SymPy, in `fiveaxis_derive.effects`) into a numba module in the model cache
+folder, named by a hash of the effect and the template; later runs import it without SymPy. Variables in
+expressions: x y z (mm), A B (rad), t (s); parameters p1, p2, ... enter linearly.
+"""
+from __future__ import annotations
+
+import hashlib
+import sys
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..model import provenance
+from ..exceptions import InputError
+
+
+def effect_hash(machine, name: str) -> str:
+    """Cache key of a custom effect: its definition, the variable order and the template."""
+    spec = machine.effects[name]
+    text = "\0".join([name, spec["error"], spec["expr"], " ".join(machine.expression_variables)])
+    template = provenance.TEMPLATES / "effects" / "effect.py.j2"
+    return hashlib.sha256(text.encode() + b"\0" + template.read_bytes()).hexdigest()
+
+
+@dataclass
+class CustomEffect:
+    """A custom effect: param (an error, or L) += sum_k basis_k(pose, t) * p_k. Same interface as the vocabulary's
+    effects (`fiveaxis.effects.families`): id, param, names, basis(ctx), describe(machine), physical(...)."""
+    name: str
+    param: str
+    expr: str
+    params: tuple
+    kernels: object
+
+    @property
+    def id(self) -> str:
+        return self.name
+
+    @property
+    def error(self) -> str:
+        return self.param
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(f"{self.name}.{p}" for p in self.params)
+
+    @property
+    def description(self) -> str:
+        return f"custom effect {self.name}: {self.param} += {self.expr}"
+
+    def describe(self, machine, coefs=None) -> str:
+        return self.description
+
+    def basis(self, ctx) -> np.ndarray:
+        """df/dp_k (n, k) at the poses of an EffectContext (mm, rad) and its times t (s; zeros without t)."""
+        n = ctx.n
+        v = np.column_stack([ctx.poses, np.zeros(n) if ctx.t is None else np.asarray(ctx.t, float)])
+        out = np.empty((n, len(self.params)))
+        self.kernels.basis(np.ascontiguousarray(v), out)
+        return out
+
+    def physical(self, machine, coefs, sc) -> list:
+        """The parameters p_k as fitted: the expression gives their unit (param's unit per its basis function)."""
+        unit = "mm" if self.param == "L" or not machine.is_angular(self.param) else "rad"
+        return [(float(c), f"{unit} per unit of d(expr)/d{p}") for c, p in zip(coefs, self.params)]
+
+
+def load_custom(machine, name: str) -> CustomEffect:
+    """The custom effect `name` of a machine file, deriving its kernels on first use (needs SymPy then)."""
+    from ..model.error_model import _import_file, cache_dir
+    if name not in machine.effects:
+        raise InputError(f"{machine.path}: no custom effect '{name}' (expected a table [effects.{name}])")
+    h = effect_hash(machine, name)
+    path = cache_dir() / f"effect_{name}_{h[:16]}.py"
+    if not path.exists():
+        print(f"fiveaxis: deriving custom effect '{name}' of {machine.path} into {path.parent}", file=sys.stderr)
+        from fiveaxis_derive.effects import generate_effect   # the user asked for a new effect: derive it
+        generate_effect(machine, name, path, h)
+    mod = _import_file(path, f"fiveaxis_models.effect_{name}_{h[:16]}")
+    spec = machine.effects[name]
+    return CustomEffect(name, spec["error"], spec["expr"], tuple(mod.PARAMETERS), mod)

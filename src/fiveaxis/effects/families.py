@@ -1,0 +1,390 @@
+"""Effects a model may be missing, and the one interface every effect has (vocabulary and custom alike).
+
+An effect adds to one parameter `param` (an error of the model, mm or rad, or `L`, the tool length in mm) a sum of
+coefficients times basis functions of the pose, the time and the approach directions:
+
+    param(pose) = param_0 + sum_k c_k b_k(pose, t, dir)
+
+Every effect is a record with `id`, `param`, `names` (one name per coefficient) and `basis(ctx)` -> (n, k), the
+values b_k at n poses of an `EffectContext`; `describe(machine)` and `physical(machine, coefs, ctx_scales)` say
+what it is and give the coefficients in physical units. The design column of coefficient k on any measured row
+is the row's column of `param` times b_k at the row's pose (first order, Eq. 10-11), so that the fit, the
+diagnosis, the simulation and the compensation need nothing else of an effect.
+
+The vocabulary (ids: `fiveaxis.model.effect_ids`):
+- `<param>:<var><deg>` (deg 1-3): c * u^deg with u = (var - centre) / half, the variable scaled by its stroke
+  (centre and half-range of the machine file; for t: centre 0, half the last time of the data) so that the design
+  stays well conditioned; reported in physical units: change of param per unit of (var - centre)^deg.
+- `<param>:<var>r`: c * dir_var (+1 or -1, the direction in which the axis last moved): a reversal (backlash)
+  of 2c. Needs a `dir_<VAR>` column.
+- `<param>:<var>p<P>`: c1 sin(2 pi v / P) + c2 cos(2 pi v / P), v in mm, degrees or s: a periodic error.
+- `<param>:te<tau>`: c (1 - exp(-t / tau)), tau in s: a thermal drift with a time constant.
+Custom effects from the machine file (`[effects.<name>]`) live in `fiveaxis.effects.custom` and have the same
+interface.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..model import effect_ids as ids
+from ..model import iso_names as iso
+from ..exceptions import InputError
+from ..units import human
+
+DEGREES = (1, 2, 3)
+TOOL = ids.TOOL
+TIME = ids.TIME
+
+
+@dataclass(frozen=True)
+class Scale:
+    """How one effect variable is scaled: u = (value - centre) / half, values in model units (mm, rad, s)."""
+    token: str          # x y z A B t
+    column: str | None  # pose variable name (X, A) or None for time
+    centre: float
+    half: float
+    unit: str           # unit at the interface: mm, deg or s
+    to_unit: float      # interface unit per model unit (180/pi for rotary axes, 1 otherwise)
+
+    def to_json(self) -> dict:
+        return {"token": self.token, "column": self.column, "centre": self.centre, "half": self.half,
+                "unit": self.unit, "to_unit": self.to_unit}
+
+
+@dataclass
+class EffectContext:
+    """Where effects are evaluated: n poses (mm, rad; model variable order), times t (s) or None, approach
+    directions dirs {pose variable: (n,) of +1/-1}, and the scales of the effect variables."""
+    variables: tuple
+    poses: np.ndarray
+    t: np.ndarray | None
+    dirs: dict
+    scales: dict
+    _u: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def n(self) -> int:
+        return len(self.poses)
+
+    def raw(self, token: str) -> np.ndarray:
+        """The variable itself at every pose: mm, rad or s."""
+        s = self.scales.get(token)
+        if s is None:
+            raise InputError(f"effects on '{token}' need a '{token}' column in the measurements")
+        if s.column is None:
+            if self.t is None:
+                raise InputError("time effects need a t column (s) in the measurements")
+            return np.asarray(self.t, dtype=float)
+        return self.poses[:, list(self.variables).index(s.column)]
+
+    def u(self, token: str) -> np.ndarray:
+        """The scaled variable u = (value - centre) / half at every pose (cached)."""
+        if token not in self._u:
+            s = self.scales.get(token)
+            if s is None:
+                raise InputError(f"effects on '{token}' need a '{token}' column in the measurements")
+            self._u[token] = (self.raw(token) - s.centre) / s.half
+        return self._u[token]
+
+    def direction(self, token: str) -> np.ndarray:
+        """dir_<VAR> at every pose (+1/-1) for a pose variable token."""
+        col = self.scales[token].column if token in self.scales else None
+        if col is None or col not in self.dirs:
+            raise InputError(f"reversal effects on '{token}' need a dir_{col or token.upper()} column (+1 or -1: "
+                             f"the direction in which the axis last moved)")
+        return np.asarray(self.dirs[col], dtype=float)
+
+    def subset(self, rows) -> "EffectContext":
+        """The context of some poses (index array or mask), same scales."""
+        pick = (lambda a: None if a is None else np.asarray(a)[rows])
+        return EffectContext(self.variables, self.poses[rows], pick(self.t), {k: v[rows] for k, v in self.dirs.items()},
+                             self.scales)
+
+
+def var_token(machine, axis_name: str) -> str:
+    """Token of a pose variable in effect ids: lower case for linear axes (x), as named for rotary axes (A)."""
+    return axis_name.lower() if machine.axis(axis_name).type == "linear" else axis_name
+
+
+def tokens(machine, with_time: bool = True) -> list[str]:
+    """Variable tokens of a machine's effect ids, in variable order, then t."""
+    return [var_token(machine, v) for v in machine.variables] + ([TIME] if with_time else [])
+
+
+def scales(machine, t=None, tmax: float | None = None) -> dict[str, Scale]:
+    """Scaling of every effect variable: pose variables from the strokes, time from the data (t in s) or from
+    tmax (s, e.g. read back from a fitted-model file)."""
+    out = {}
+    for name in machine.variables:
+        ax = machine.axis(name)
+        lo, hi = ax.model_stroke
+        if ax.type == "rotary":
+            unit, to_unit = "deg", 180.0 / math.pi
+        else:
+            unit, to_unit = "mm", 1.0
+        out[var_token(machine, name)] = Scale(var_token(machine, name), name, 0.5 * (lo + hi), 0.5 * (hi - lo),
+                                              unit, to_unit)
+    if tmax is None and t is not None and len(t):
+        tmax = float(np.max(np.abs(t)))
+    if tmax is not None or t is not None:
+        out[TIME] = Scale(TIME, None, 0.0, tmax if tmax and tmax > 0 else 1.0, "s", 1.0)
+    return out
+
+
+def context(machine, poses, t=None, dirs=None, sc=None) -> EffectContext:
+    """An EffectContext at poses (n, nvar; mm, rad) with times t (s) and approach directions dirs."""
+    return EffectContext(tuple(machine.variables), np.asarray(poses, dtype=float), t, dict(dirs or {}),
+                         sc if sc is not None else scales(machine, t))
+
+
+# -- the kinds of the vocabulary ------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Effect:
+    """An effect of the vocabulary: param changes with var as its kind says (see the module docstring)."""
+    id: str
+    param: str
+    var: str
+    kind: str = "poly"
+    arg: float = 1.0           # degree, period (var's interface unit) or tau (s)
+
+    @property
+    def deg(self) -> int:
+        return int(self.arg) if self.kind == "poly" else 0
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Names of its coefficients: the id, or id.sin / id.cos for a periodic effect."""
+        if self.kind == "periodic":
+            return (f"{self.id}.sin", f"{self.id}.cos")
+        return (self.id,)
+
+    def basis(self, ctx: EffectContext) -> np.ndarray:
+        """Change of param per unit coefficient at every pose of ctx: (n, len(names))."""
+        if self.kind == "poly":
+            return (ctx.u(self.var) ** self.deg)[:, None]
+        if self.kind == "reversal":
+            return ctx.direction(self.var)[:, None]
+        if self.kind == "periodic":
+            s = ctx.scales[self.var]
+            phase = 2.0 * math.pi * ctx.raw(self.var) * s.to_unit / self.arg
+            return np.column_stack([np.sin(phase), np.cos(phase)])
+        return (1.0 - np.exp(-ctx.raw(TIME) / self.arg))[:, None]
+
+    def unit_of(self, machine) -> str:
+        return "mm" if self.param == TOOL or not machine.is_angular(self.param) else "rad"
+
+    def physical(self, machine, coefs, sc: dict) -> list[tuple[float, str]]:
+        """Coefficients in physical units, with the unit: poly: change of param per (unit of var)^deg; the others:
+        amplitude (mm or rad)."""
+        unit = self.unit_of(machine)
+        if self.kind == "poly":
+            s = sc[self.var]
+            half = s.half * s.to_unit
+            per = s.unit if self.deg == 1 else f"{s.unit}^{self.deg}"
+            return [(float(c) / half ** self.deg, f"{unit}/{per}") for c in coefs]
+        return [(float(c), unit) for c in coefs]
+
+    def describe(self, machine, coefs=None) -> str:
+        return describe(machine, self, coefs)
+
+
+def parse(effect_id: str, machine, errors, where: str = "effect") -> Effect:
+    """Check an effect id against a model's error names and variables; InputError naming `where` if bad.
+
+    The parameter may be given by its ISO 230 name (`E_AX:x1` is `ex_x:x1`)."""
+    effect_id = iso.canonical_effect(machine, effect_id, where=where)
+    toks = tokens(machine)
+    e = ids.split(effect_id, toks)
+    if e is None:
+        raise InputError(f"{where}: {ids.explain(effect_id, toks)}")
+    if e.param != TOOL and e.param not in errors:
+        raise InputError(f"{where}: '{effect_id}': unknown parameter '{e.param}' (expected an error name such as "
+                         f"{', '.join(errors[:3])} ... or L for the tool length)")
+    return Effect(e.text, e.param, e.var, e.kind, e.arg)
+
+
+def vocabulary(machine, errors, with_time: bool) -> list[Effect]:
+    """The polynomial effects: all errors and L, times every pose variable (and t if the data has times),
+    degrees 1-3. (Reversal, periodic and thermal candidates depend on the data: `reversals` below and the searches
+    of `fiveaxis.diagnosis.searches`.)"""
+    toks = tokens(machine, with_time)
+    return [Effect(f"{p}:{v}{d}", p, v, "poly", float(d)) for p in (*errors, TOOL) for v in toks for d in DEGREES]
+
+
+def reversals(machine, errors, dirs: dict) -> list[Effect]:
+    """The reversal effects `<param>:<var>r` of all errors and L for every pose variable whose approach direction
+    column dir_<VAR> takes both signs in the data (dirs: {pose variable: (n,) +1/-1})."""
+    vars_ = [v for v in machine.variables if v in dirs and (np.asarray(dirs[v]) > 0).any()
+             and (np.asarray(dirs[v]) < 0).any()]
+    return [Effect(f"{p}:{var_token(machine, v)}r", p, var_token(machine, v), "reversal", 0.0)
+            for p in (*errors, TOOL) for v in vars_]
+
+
+# -- what every effect provides, used by fit, diagnose, simulate and compensation ----------------------------------
+def per_pose(effects, coefs, ctx: EffectContext, errors):
+    """Error values added per pose (n, n_errors) and tool-length change per pose (n,), for effects and their
+    coefficient arrays coefs (one array per effect, len(effect.names) each)."""
+    E = np.zeros((ctx.n, len(errors)))
+    dL = np.zeros(ctx.n)
+    index = {e: i for i, e in enumerate(errors)}
+    for eff, c in zip(effects, coefs):
+        term = eff.basis(ctx) @ np.asarray(c, dtype=float).reshape(-1)
+        if eff.param == TOOL:
+            dL += term
+        else:
+            E[:, index[eff.param]] += term
+    return E, dL
+
+
+def split_coefficients(effects, theta) -> list[np.ndarray]:
+    """The flat coefficient vector of some effects, split per effect."""
+    out, k = [], 0
+    for eff in effects:
+        out.append(np.asarray(theta[k:k + len(eff.names)], dtype=float))
+        k += len(eff.names)
+    return out
+
+
+def effect_id(eff) -> str:
+    """The id of any effect (vocabulary id or custom effect name)."""
+    return eff.id
+
+
+# -- plain language -------------------------------------------------------------------------------------------
+_DIR = {0: "x", 1: "y", 2: "z"}
+_HOW = {1: "linearly", 2: "quadratically", 3: "as a cubic"}
+
+
+def _axis_of(machine, param):
+    for a in machine.axes:
+        if param in a.pdge:
+            return a
+    return None
+
+
+def describe_param(machine, param: str) -> str:
+    """What a parameter is, in words."""
+    if param == TOOL:
+        return "the tool length"
+    ax = _axis_of(machine, param)
+    if ax is None:
+        kind, where = machine.pige_kinds[param], machine.pige_place(param)
+        end = {"tool": "the spindle", "workpiece": "the workpiece holder"}.get(where)
+        if kind.startswith("r"):
+            return f"the orientation (squareness) error {param} {f'of {end}' if end else f'before axis {where}'} " \
+                   f"(rotation about {kind[1]})"
+        if kind.startswith("l"):
+            return f"the position {param} of the axis line of {where} (along {kind[1]})"
+        return f"the offset {param} of {end or f'axis {where}'} (along {kind[1]})"
+    prefix, d = param.split("_")[0], param.split("_")[0][1]
+    own = _DIR[int(np.argmax(np.abs(ax.direction)))]
+    if ax.type == "linear":
+        if prefix.startswith("e"):
+            name = "roll" if d == own else ("yaw" if d == "z" else ("pitch" if own != "z" else "tilt"))
+            return f"the {name} of the {ax.name} carriage (rotation about {d})"
+        if d == own:
+            return f"the positioning error of {ax.name}"
+        return f"the straightness of {ax.name} in {d}"
+    if prefix.startswith("e"):
+        if d == own:
+            return f"the angular positioning error of {ax.name}"
+        return f"the tilt (wobble) of {ax.name} about {d}"
+    if d == own:
+        return f"the axial motion of {ax.name} (along {d})"
+    return f"the radial motion of {ax.name} along {d}"
+
+
+def _var_words(machine, var):
+    if var == TIME:
+        return "time", "s"
+    name = var.upper() if var.upper() in machine.variables else var
+    kind = machine.axis(name).type if name in machine.variables else "linear"
+    return name, ("deg" if kind == "rotary" else "mm")
+
+
+def _own(machine, effect: Effect):
+    """The axis of the effect's variable if param is that axis' own positioning error (dx_x for x, ez_C for C)."""
+    ax = _axis_of(machine, effect.param) if effect.param != TOOL else None
+    if ax is None or effect.var == TIME or var_token(machine, ax.name) != effect.var:
+        return None
+    own = _DIR[int(np.argmax(np.abs(ax.direction)))]
+    prefix = effect.param.split("_")[0]
+    if ax.type == "linear" and prefix == f"d{own}" or ax.type == "rotary" and prefix == f"e{own}":
+        return ax
+    return None
+
+
+def describe(machine, effect: Effect, coefs=None) -> str:
+    """A plain-language description of an effect, e.g. 'the roll of the X carriage changing linearly along X';
+    with its fitted coefficients (as fitted: scaled polynomial coefficients, amplitudes in mm or rad) also its
+    size, e.g. 'the X axis reverses with a backlash of 6.1 um'."""
+    what = describe_param(machine, effect.param)
+    name, unit = _var_words(machine, effect.var)
+    size_unit = effect.unit_of(machine)
+    c = None if coefs is None else [float(x) for x in np.ravel(coefs)]
+    own = _own(machine, effect)
+    if effect.kind == "reversal":
+        if c is None:
+            return f"{what} changing with the direction of approach of {name} (reversal: backlash or lost motion)"
+        size = human(2 * abs(c[0]), size_unit, 2)
+        if own is not None:
+            return f"the {name} axis reverses with a backlash of {size} (lost motion in its positioning)"
+        return f"{what} changing by {size} with the direction of approach of {name} (reversal)"
+    if effect.kind == "periodic":
+        if unit == "s":
+            note = " — a cyclic thermal or environmental effect"
+        elif own is not None:
+            note = " — a lead-screw or rack pitch error" if unit == "mm" else " — a gear or encoder error"
+        else:
+            note = f" — a periodic error of the guideway or drive of {name}"
+        amp = "" if c is None else f" and an amplitude of {human(math.hypot(*c), size_unit, 2)}"
+        period = f"a period of {ids.fmt(effect.arg)} {unit}{amp}"
+        if own is not None:
+            kind = "positioning" if unit == "mm" else "angular positioning"
+            return f"a periodic {kind} error of {name} with {period}{note}"
+        return f"{what} varying periodically with {name}, with {period}{note}"
+    if effect.kind == "thermal":
+        by = "" if c is None else f" by {human(c[0], size_unit, 2)}"
+        if effect.param == TOOL:
+            return (f"the tool length growing{by} towards a new value with a time constant of "
+                    f"{ids.fmt(effect.arg)} s (spindle warm-up)")
+        return f"{what} drifting{by} towards a new value with a time constant of {ids.fmt(effect.arg)} s (thermal)"
+    if effect.var == TIME:
+        how = f"drifting {_HOW[effect.deg]} with time"
+        end = "at the end of the run"
+    else:
+        kind = machine.axis(name).type if name in machine.variables else "linear"
+        how = f"changing {_HOW[effect.deg]} {'along' if kind == 'linear' else 'with the angle of'} {name}"
+        end = "at the end of the stroke"
+    text = f"{what} {how}"
+    if c is not None:
+        text += f" by {human(c[0], size_unit, 2)} {end}"
+    note = _note(machine, effect)
+    return f"{text} ({note})" if note else text
+
+
+def _note(machine, effect: Effect) -> str:
+    if effect.param == TOOL:
+        return "tool growing with time: spindle warm-up" if effect.var == TIME else \
+            "tool length seen differently across the workspace"
+    if effect.var == TIME:
+        return "thermal drift"
+    ax = _axis_of(machine, effect.param)
+    if ax is None or effect.var.upper() != ax.name:
+        return "" if ax is None else "coupling between axes"
+    prefix = effect.param.split("_")[0]
+    own = _DIR[int(np.argmax(np.abs(ax.direction)))]
+    if ax.type == "linear":
+        if prefix == f"e{own}":
+            return "twisted guideway"
+        if prefix == f"d{own}":
+            return "scale (pitch) error, e.g. thermal expansion" if effect.deg == 1 else "lead error"
+        if prefix.startswith("d") and effect.deg == 2:
+            return "bowed guideway"
+        if prefix.startswith("e"):
+            return "guideway not straight: angular error along the travel"
+        return ""
+    return "error motion of the rotary axis"

@@ -1,0 +1,392 @@
+"""A fitted model as a record and a file: what a fit identified, for every consumer after the fit.
+
+`FittedModel` holds the machine it belongs to (name, machine file and its SHA-256, convention), the FULL vector of
+geometric error values by name (mm, rad), the added effects with their coefficients and what is needed to evaluate
+them at any pose (the scaling of each effect variable), standard uncertainties, and what the data did not determine.
+
+Policy for parameters the data does not determine alone (they sit in the null space of the fit's design): they carry
+the minimum-norm solution of the fit (least squares with unit-norm design columns: of all parameter vectors that
+explain the data equally well, the shortest), and they are listed by name under `undetermined`. Their individual
+values mean nothing; the tool-tip errors they predict at the measured tool lengths do (those depend only on the
+combinations the data determines, listed under `combinations`).
+
+The file is JSON, mm and rad, with the unit in every key that holds a number:
+    {"format": "fiveaxis fitted model", "version": 1,
+     "machine": {"name", "file", "sha256"}, "convention",
+     "errors_mm_rad": {name: value, ... all errors},  "error_units": {name: "mm" | "rad"},
+     "std_mm_rad": {name: standard uncertainty, ... determined parameters only},
+     "undetermined": [names], "policy": "...", "combinations": [{"formula", "terms", "value_mm_rad", "std_mm_rad"}],
+     "effects": [{"id", "kind", "param", "variable", "degree", "coefficients_mm_rad": {name: value},
+                  "std_mm_rad": {name: value}}],
+     "scales": {token: {"variable", "centre_<unit>", "half_range_<unit>"}},
+     "fit": {"n_poses", "rms_mm", "noise_mm", "rank", "n_parameters", "measured_tool_lengths_mm": [min, max]}}
+`errors_mm_rad` is also what `gsa --errors model.json` reads.
+
+Effects (`fiveaxis.effects.families`: one interface for all kinds; each record is rebuilt from its id and evaluated through
+it). A polynomial effect `<param>:<var><deg>` adds c * u^deg to param, u = (var - centre) / half_range (model units:
+mm, rad, s); its coefficient c is the change of param at u = 1 (mm or rad). A reversal effect `<param>:<var>r` adds
+c * dir, dir = +1 when the axis approached its position moving in +, -1 moving in - (with no directions given it
+contributes its mean over both directions, 0). A periodic effect `<param>:<var>p<P>` adds c_sin sin(2 pi v / P) +
+c_cos cos(2 pi v / P); a thermal one `<param>:te<tau>` adds c (1 - exp(-t / tau)). A custom effect of the machine
+file adds its expression with parameters p_k. Time effects are evaluated at the times given; without times, at
+t = 0 (the start of the measurement run), where every time effect of the vocabulary is zero.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..effects import families as fx
+from ..exceptions import InputError
+from ..outputs import write_text
+
+FORMAT = "fiveaxis fitted model"
+VERSION = 1
+POLICY = ("parameters not determined alone by the data carry the minimum-norm solution of the fit (least squares "
+          "with unit-norm design columns) and are listed under 'undetermined'; only the combinations the data "
+          "determines (and the tool-tip errors at the measured tool lengths) are meaningful for them")
+KINDS = ("polynomial", "reversal", "periodic", "thermal", "custom")
+_KIND_OF = {"poly": "polynomial", "reversal": "reversal", "periodic": "periodic", "thermal": "thermal"}
+_SCALE_UNIT = {"mm": "mm", "deg": "rad", "s": "s"}     # Scale.unit (interface) -> model unit of centre/half
+
+
+@dataclass(frozen=True)
+class EffectRecord:
+    """One added effect and its fitted coefficients (see the module docstring for the three kinds)."""
+    id: str
+    kind: str                       # polynomial | reversal | custom
+    param: str                      # error name, or L (tool length)
+    var: str | None                 # effect variable token (x, A, t), None for custom effects
+    deg: int | None                 # polynomial degree, None otherwise
+    names: tuple[str, ...]          # coefficient names (the fit's parameter names)
+    values: tuple[float, ...]       # coefficients, mm or rad (polynomial/reversal: at u = 1 or s = 1)
+    std: tuple[float | None, ...] = ()   # standard uncertainties (None where not determined alone)
+    arg: float | None = None        # period (var's unit) of a periodic effect, tau (s) of a thermal one
+
+
+@dataclass
+class FittedModel:
+    """What a fit identified, in mm and rad; see the module docstring."""
+    machine: str                    # machine name
+    machine_file: str               # path of the machine file the fit used
+    machine_sha256: str             # its SHA-256: a model file belongs to one machine file
+    convention: str
+    errors: dict                    # every error name -> value (mm, rad), in the model's order
+    error_units: dict               # name -> "mm" | "rad"
+    undetermined: tuple = ()        # parameter names (errors and effect coefficients) not determined alone
+    std: dict = field(default_factory=dict)            # determined parameter -> standard uncertainty (mm, rad)
+    effects: tuple = ()             # EffectRecord
+    scales: dict = field(default_factory=dict)         # token -> effects.Scale (model units)
+    combinations: tuple = ()        # {"formula", "terms", "value_mm_rad", "std_mm_rad"}
+    fit: dict = field(default_factory=dict)            # n_poses, rms_mm, noise_mm, rank, ...
+    policy: str = POLICY
+
+    @property
+    def effect_ids(self) -> tuple[str, ...]:
+        return tuple(e.id for e in self.effects)
+
+    @property
+    def has_reversal(self) -> bool:
+        return any(e.kind == "reversal" for e in self.effects)
+
+    def reversal_variables(self) -> set:
+        """Effect variable tokens (x, A) that have a reversal effect."""
+        return {e.var for e in self.effects if e.kind == "reversal"}
+
+    def save(self, path, force: bool = False) -> Path:
+        """Write the model file (see the module function `save`)."""
+        return save(self, path, force)
+
+    @classmethod
+    def load(cls, path) -> "FittedModel":
+        """Read a model file (see the module function `load`)."""
+        return load(path)
+
+
+# -- from a fit --------------------------------------------------------------------------------------------------
+def sha256(path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _finite(x) -> float | None:
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def from_fit(res) -> FittedModel:
+    """The FittedModel of a fit.FitResult: every error (minimum norm along undetermined directions), the added
+    effects' coefficients, their uncertainties, the scales; setup placements are left out (they belong to the
+    measurement, not to the machine)."""
+    prob = res.problem
+    model = prob.model
+    machine = model.machine
+    ne = prob.n_errors
+    theta = np.asarray(res.theta, dtype=float)
+    std = res.std()
+    names = list(prob.names)
+    free = {n: i for i, n in enumerate(res.free_names)}
+    determined = np.array([n in prob.fixed or (res.idf.determined[free[n]] and res.idf.norms[free[n]] > 0)
+                           for n in names])
+    errors = {n: float(theta[i]) for i, n in enumerate(names[:ne])}
+    units = {n: ("rad" if machine.is_angular(n) else "mm") for n in names[:ne]}
+    effects = []
+    k = ne
+    for eff in prob.effects:
+        cnames = tuple(eff.names)
+        idx = range(k, k + len(cnames))
+        vals = tuple(float(theta[i]) for i in idx)
+        sd = tuple(_finite(std[i]) if determined[i] else None for i in idx)
+        kind = _KIND_OF.get(getattr(eff, "kind", None), "custom")
+        var = getattr(eff, "var", None)
+        deg = eff.deg if kind == "polynomial" else None
+        arg = float(eff.arg) if kind in ("periodic", "thermal") else None
+        effects.append(EffectRecord(eff.id, kind, eff.param, var, deg, cnames, vals, sd, arg))
+        k += len(cnames)
+    n_machine = ne + sum(len(e.names) for e in prob.effects)
+    combos = tuple({"formula": c.formula, "terms": dict(c.terms), "value_mm_rad": float(c.value),
+                    "std_mm_rad": float(c.std)} for c in res.combinations
+                   if not any(t in prob.setups.names for t in c.terms))
+    meas = prob.meas
+    fit = {"n_poses": int(meas.n), "n_readings": int(prob.obs.m), "rms_mm": float(res.rms_mm),
+           "rank": int(res.idf.rank), "n_parameters": int(res.idf.n_params),
+           "measured_tool_lengths_mm": [float(np.min(meas.L)), float(np.max(meas.L))], "file": str(meas.path)}
+    noise = res.noise(0)
+    if noise is not None:
+        fit["noise_mm"] = float(noise)
+    return FittedModel(machine.name, str(Path(machine.path).resolve()), sha256(machine.path), model.convention,
+                       errors, units,
+                       tuple(n for i, n in enumerate(names[:n_machine]) if not determined[i]),
+                       {n: float(std[i]) for i, n in enumerate(names[:n_machine])
+                        if determined[i] and math.isfinite(std[i])},
+                       tuple(effects), dict(prob.scales), combos, fit)
+
+
+# -- checks against a loaded model -------------------------------------------------------------------------------
+def check_model(fm: FittedModel, model, where: str = "model file") -> None:
+    """InputError unless fm was fitted for this machine file (same name and SHA-256) and convention."""
+    machine = model.machine
+    sha = sha256(machine.path)
+    if fm.machine != machine.name or fm.machine_sha256 != sha:
+        raise InputError(f"{where}: fitted for machine '{fm.machine}' ({fm.machine_file}, sha256 "
+                         f"{fm.machine_sha256[:12]}...), not for '{machine.name}' ({machine.path}, sha256 "
+                         f"{sha[:12]}...)")
+    if fm.convention != model.convention:
+        raise InputError(f"{where}: fitted under convention '{fm.convention}', the model loaded uses "
+                         f"'{model.convention}'")
+    if set(fm.errors) != set(model.errors):
+        raise InputError(f"{where}: errors_mm_rad: the error names differ from the model's")
+
+
+def load_model(fm: FittedModel, where: str = "model file"):
+    """The kernels of the machine file the model was fitted for (checked against its SHA-256): machine.file, or a
+    shipped machine of the same name (a model file moved to another checkout)."""
+    from ..model.error_model import load
+    from ..model.machine import MACHINES_DIR
+    path = Path(fm.machine_file)
+    if not path.exists():
+        shipped = MACHINES_DIR / f"{fm.machine}.toml"
+        if not shipped.exists():
+            raise InputError(f"{where}: machine.file: {path} not found (the model was fitted for that machine "
+                             f"file; give it as machine=...)")
+        path = shipped
+    model = load(str(path), fm.convention)
+    check_model(fm, model, where)
+    return model
+
+
+def base_vector(fm: FittedModel, model) -> np.ndarray:
+    """The error values (n_errors,) in the model's order, mm and rad."""
+    return np.array([fm.errors[n] for n in model.errors], dtype=float)
+
+
+def sensitivity_errors(fm: FittedModel) -> dict:
+    """Error values by name (mm, rad) for the sensitivity commands (`gsa --errors model.json`)."""
+    return dict(fm.errors)
+
+
+# -- evaluation at poses -----------------------------------------------------------------------------------------
+def _directions(dirs, model, n) -> dict:
+    """Approach direction (+1/-1) per pose by pose variable (X, A): from a dict keyed by variable or effect token
+    (x, A) with (n,) arrays or scalars, an (n, nvar) array in the model's variable order, or None ({})."""
+    if dirs is None:
+        return {}
+    by_token = {fx.var_token(model.machine, v): v for v in model.variables}
+    if isinstance(dirs, dict):
+        return {by_token.get(k, k): np.broadcast_to(np.asarray(v, dtype=float), (n,)) for k, v in dirs.items()}
+    arr = np.asarray(dirs, dtype=float)
+    arr = np.broadcast_to(arr, (n, len(model.variables))) if arr.ndim <= 1 else arr
+    return {v: arr[:, i] for i, v in enumerate(model.variables)}
+
+
+def effect_of(rec: EffectRecord, model):
+    """The effect (fiveaxis.effects.families interface) of a record: the vocabulary's from its id, or the machine file's
+    custom effect."""
+    if rec.kind == "custom":
+        from ..effects.custom import load_custom
+        return load_custom(model.machine, rec.id)
+    return fx.parse(rec.id, model.machine, model.errors, "model file effect")
+
+
+def errors_at(fm: FittedModel, model, poses, t=None, dirs=None, L=None):
+    """Error values per pose E (n, n_errors; mm, rad) and tool-length change dL (n,; mm) of the fitted model.
+
+    poses (n, nvar) in mm and rad (the positions the axes are at), t (n,) s or None (time effects at t = 0, where
+    they are zero), dirs: approach directions for reversal effects, +1/-1 (see _directions; None: reversal effects
+    contribute their mean, 0). L is accepted for symmetry with the measurement (tool lengths, unused: effects depend
+    on the pose, the time and the directions)."""
+    poses = model.poses(poses)
+    n = len(poses)
+    E = np.tile(base_vector(fm, model), (n, 1))
+    dL = np.zeros(n)
+    ctx = fx.context(model.machine, poses, t, _directions(dirs, model, n), sc=fm.scales)
+    for rec in fm.effects:
+        if t is None and rec.var == fx.TIME:
+            continue                          # no times: the state at t = 0
+        eff = effect_of(rec, model)
+        if rec.kind == "reversal":
+            col = ctx.scales[rec.var].column if rec.var in ctx.scales else None
+            if col not in ctx.dirs:
+                continue                      # no directions: the mean of both, 0
+        if t is None and rec.kind == "custom":
+            ctx_t = fx.context(model.machine, poses, np.zeros(n), ctx.dirs, sc=fm.scales)
+            dE, dl = fx.per_pose([eff], [rec.values], ctx_t, model.errors)
+        else:
+            dE, dl = fx.per_pose([eff], [rec.values], ctx, model.errors)
+        E += dE
+        dL += dl
+    return E, dL
+
+
+# -- file ----------------------------------------------------------------------------------------------------------
+def _clean(x):
+    """JSON-safe: a non-finite float would be NaN/inf in the file; refuse instead of writing it."""
+    if isinstance(x, float) and not math.isfinite(x):
+        raise ValueError("non-finite number in a fitted model")
+    if isinstance(x, dict):
+        return {k: _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    return x
+
+
+def to_json(fm: FittedModel) -> dict:
+    scales = {}
+    for tok, sc in fm.scales.items():
+        unit = _SCALE_UNIT[sc.unit]
+        scales[tok] = {"variable": sc.column if sc.column is not None else "t",
+                       f"centre_{unit}": float(sc.centre), f"half_range_{unit}": float(sc.half)}
+    effects = []
+    for e in fm.effects:
+        rec = {"id": e.id, "kind": e.kind, "param": e.param}
+        if e.var is not None:
+            rec["variable"] = e.var
+        if e.deg is not None:
+            rec["degree"] = e.deg
+        if e.arg is not None:
+            rec["period" if e.kind == "periodic" else "tau_s"] = e.arg
+        rec["coefficients_mm_rad"] = dict(zip(e.names, e.values))
+        sd = {n: v for n, v in zip(e.names, e.std) if v is not None}
+        if sd:
+            rec["std_mm_rad"] = sd
+        effects.append(rec)
+    out = {"format": FORMAT, "version": VERSION,
+           "machine": {"name": fm.machine, "file": fm.machine_file, "sha256": fm.machine_sha256},
+           "convention": fm.convention,
+           "errors_mm_rad": dict(fm.errors), "error_units": dict(fm.error_units),
+           "std_mm_rad": dict(fm.std), "undetermined": list(fm.undetermined), "policy": fm.policy,
+           "combinations": [dict(c) for c in fm.combinations],
+           "effects": effects, "scales": scales, "fit": {k: v for k, v in fm.fit.items() if v is not None}}
+    return _clean(out)
+
+
+def save(fm: FittedModel, path, force: bool = False) -> Path:
+    """Write the model file (JSON, mm and rad) atomically; an existing file only with force."""
+    write_text(path, json.dumps(to_json(fm), indent=1) + "\n", force=force)
+    return Path(path)
+
+
+def _get(d, key, kind, where):
+    if not isinstance(d, dict) or key not in d:
+        raise InputError(f"{where}: missing key '{key}'")
+    v = d[key]
+    ok = {"str": isinstance(v, str), "dict": isinstance(v, dict), "list": isinstance(v, list),
+          "num": isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)}[kind]
+    if not ok:
+        expected = {"str": "a string", "dict": "an object", "list": "a list", "num": "a finite number"}[kind]
+        raise InputError(f"{where}: key '{key}': expected {expected}, got {json.dumps(v)[:40]}")
+    return v
+
+
+def load(path) -> FittedModel:
+    """Read a model file written by `save`; InputError naming the key for anything malformed."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: model file not found")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(f"{path}: not a fitted-model JSON file ({str(exc).splitlines()[0]})") from None
+    w = str(path)
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise InputError(f"{w}: key 'format': expected \"{FORMAT}\" (write one with `fiveaxis fit ... -o`)")
+    if data.get("version") != VERSION:
+        raise InputError(f"{w}: key 'version': expected {VERSION}, got {json.dumps(data.get('version'))}")
+    mach = _get(data, "machine", "dict", w)
+    name, mfile, sha = (_get(mach, k, "str", f"{w}: machine") for k in ("name", "file", "sha256"))
+    conv = _get(data, "convention", "str", w)
+    errs = _get(data, "errors_mm_rad", "dict", w)
+    errors = {k: float(_get(errs, k, "num", f"{w}: errors_mm_rad")) for k in errs}
+    units = {k: str(v) for k, v in _get(data, "error_units", "dict", w).items()}
+    std = {k: float(_get(data["std_mm_rad"], k, "num", f"{w}: std_mm_rad"))
+           for k in _get(data, "std_mm_rad", "dict", w)}
+    undetermined = tuple(str(x) for x in _get(data, "undetermined", "list", w))
+    scales = {}
+    for tok, sc in _get(data, "scales", "dict", w).items():
+        where = f"{w}: scales.{tok}"
+        var = _get(sc, "variable", "str", where)
+        unit = next((u for u in ("mm", "rad", "s") if f"centre_{u}" in sc), None)
+        if unit is None:
+            raise InputError(f"{where}: missing key 'centre_mm', 'centre_rad' or 'centre_s'")
+        centre = float(_get(sc, f"centre_{unit}", "num", where))
+        half = float(_get(sc, f"half_range_{unit}", "num", where))
+        if half <= 0:
+            raise InputError(f"{where}: key 'half_range_{unit}': expected a positive number, got {half}")
+        iface, to_unit = {"mm": ("mm", 1.0), "rad": ("deg", 180.0 / math.pi), "s": ("s", 1.0)}[unit]
+        scales[tok] = fx.Scale(tok, None if var == "t" else var, centre, half, iface, to_unit)
+    effects = []
+    for i, e in enumerate(_get(data, "effects", "list", w)):
+        where = f"{w}: effects[{i}]"
+        ident = _get(e, "id", "str", where)
+        kind = _get(e, "kind", "str", where)
+        if kind not in KINDS:
+            raise InputError(f"{where}: key 'kind': expected one of {', '.join(KINDS)}, got {kind!r}")
+        coefs = _get(e, "coefficients_mm_rad", "dict", where)
+        names = tuple(coefs)
+        values = tuple(float(_get(coefs, n, "num", f"{where}: coefficients_mm_rad")) for n in names)
+        sd = e.get("std_mm_rad", {}) if isinstance(e.get("std_mm_rad", {}), dict) else {}
+        stds = tuple(float(sd[n]) if n in sd else None for n in names)
+        param = _get(e, "param", "str", where)
+        var = e.get("variable")
+        deg = e.get("degree")
+        if kind == "polynomial" and (not isinstance(var, str) or deg not in fx.DEGREES or var not in scales):
+            raise InputError(f"{where}: a polynomial effect needs 'variable' (one of {', '.join(scales)}) and "
+                             f"'degree' 1 to 3")
+        if kind in ("reversal", "periodic", "thermal") and not isinstance(var, str):
+            raise InputError(f"{where}: a {kind} effect needs 'variable'")
+        arg = e.get("period" if kind == "periodic" else "tau_s") if kind in ("periodic", "thermal") else None
+        if arg is not None and (isinstance(arg, bool) or not isinstance(arg, (int, float)) or not arg > 0):
+            raise InputError(f"{where}: expected a positive period or time constant, got {json.dumps(arg)[:40]}")
+        expected = 2 if kind == "periodic" else 1
+        if kind != "custom" and len(values) != expected:
+            raise InputError(f"{where}: key 'coefficients_mm_rad': expected {expected} coefficient(s), got "
+                             f"{len(values)}")
+        effects.append(EffectRecord(ident, kind, param, var, deg, names, values, stds, arg))
+    combos = tuple(c for c in data.get("combinations", []) if isinstance(c, dict))
+    fit = data.get("fit", {}) if isinstance(data.get("fit", {}), dict) else {}
+    return FittedModel(name, mfile, sha, conv, errors, units, undetermined, std, tuple(effects), scales, combos,
+                       fit, str(data.get("policy", POLICY)))

@@ -1,0 +1,347 @@
+"""Instruments and their standard measurement plans: where the machine goes, what is read there, which setups.
+
+A plan says, for n poses: the pose (mm, rad), tool length, time and approach directions; what is read (a 3-D tool
+tip deviation, the tool axis too, or a 1-D deviation along a direction); the setup of each row and the frame the
+readings are reported in. `fiveaxis.measurement.simulate` turns a plan into readings of a simulated machine; `fiveaxis plan`
+(measurement planning) optimises plans of the same kinds. Every plan builder has the signature
+`plan(model, n, rng, **options) -> Plan`.
+
+- `tip`: random poses in the strokes, full 3-D tool-tip deviations (optionally the tool axis), workpiece frame.
+- `rtest`: ISO 10791-6-like: a sphere on the table at several placements (setups); each rotary axis swept over its
+  stroke with the linear axes keeping the tool tip (the R-test's sphere) on the sphere; 3-D deviations of the
+  tip relative to the table, workpiece frame.
+- `probe-sphere`: a sphere on the table probed at a grid of rotary positions (KinematicsOpt-like); the sphere
+  centre's deviation from the nominal kinematics, machine frame; each placement a setup.
+- `ballbar`: ISO 230-4 circles of radius 150 mm in the XY, YZ and ZX planes at the workspace centre, both
+  directions, each circle a setup (pivot offset and bar length); 1-D readings along the bar.
+- `interferometer`: ISO 230-2 bidirectional runs of each linear axis, 5 cycles, 1-D along the axis, each axis a
+  setup (dead path).
+- `test-part`: a plate of holes drilled at a grid of X, Y positions (Z and the rotary axes fixed), measured on a
+  CMM in the plate's plane only (dx, dy; dz blank): one setup of kind `planar` (the plate's unknown position and
+  rotation on the CMM), workpiece frame.
+- `tracker`: 1-D distances from 4 stations on the bed (setups in the machine frame: station offset and dead path)
+  to the tool tip at random poses; machine frame.
+Units: mm, rad inside; the plan's setup truth (when simulated) in mm and rad.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..model import frames
+from ..exceptions import InputError
+from ..model.inverse import linear_for_tip, within_strokes
+
+NAMES = ("tip", "rtest", "probe-sphere", "ballbar", "interferometer", "tracker", "test-part")
+
+
+@dataclass
+class Plan:
+    """What an instrument measures where (n rows)."""
+    instrument: str
+    poses: np.ndarray                    # (n, nvar) mm, rad
+    L: np.ndarray                        # (n,) mm
+    has_L: bool
+    reads: str                           # "tip" (3-D), "tip+axis", "tip-plane" (dx, dy), or "line" (1-D along u)
+    u: np.ndarray | None = None          # (n, 3) unit direction of 1-D readings, in `frame`
+    setup: np.ndarray | None = None      # (n,) object: setup id or None
+    setup_kind: dict = field(default_factory=dict)
+    setup_frame: dict = field(default_factory=dict)
+    dirs: dict = field(default_factory=dict)
+    frame: str = "workpiece"
+    t: np.ndarray | None = None
+    notes: list = field(default_factory=list)
+
+    @property
+    def n(self) -> int:
+        return len(self.poses)
+
+
+def linear_rotary(model):
+    mach = model.machine
+    rot = [v for v in model.variables if mach.axis(v).type == "rotary"]
+    lin = [v for v in model.variables if mach.axis(v).type == "linear"]
+    return lin, rot
+
+
+def centre_pose(model) -> np.ndarray:
+    """Rotary axes at 0 when 0 is in their stroke (else mid-stroke), linear axes mid-stroke: (nvar,) mm, rad."""
+    out = []
+    for v in model.variables:
+        lo, hi = model.machine.axis(v).model_stroke
+        rotary = model.machine.axis(v).type == "rotary"
+        out.append(0.0 if rotary and lo <= 0 <= hi else 0.5 * (lo + hi))
+    return np.array(out)
+
+
+def tip(model, n, rng, with_axis: bool = False, tool_lengths=None, directions: bool = False) -> Plan:
+    """Random poses within the strokes, 3-D tool-tip deviations (and the tool axis with with_axis); directions:
+    the approach direction of every linear axis (dir_ columns) when the poses are visited in order."""
+    poses = model.machine.random_poses(n, rng)
+    L, has_L = _lengths(model, n, rng, tool_lengths)
+    dirs = {}
+    if directions:
+        lin, _ = linear_rotary(model)
+        D = approach_directions(poses[:, [model.variables.index(v) for v in lin]])
+        dirs = {v: D[:, j] for j, v in enumerate(lin)}
+    return Plan("tip", poses, L, has_L, "tip+axis" if with_axis else "tip", dirs=dirs)
+
+
+def _lengths(model, n, rng, tool_lengths):
+    if tool_lengths is None:
+        return np.full(n, model.machine.tool_length), False
+    lo, hi = tool_lengths
+    return (rng.uniform(lo, hi, n) if hi > lo else np.full(n, float(lo))), True
+
+
+def sphere_positions(model, L, count: int) -> list[np.ndarray]:
+    """Sphere placements on the table (workpiece frame, mm) that the tool tip can reach at every rotary position
+    of the sweeps: candidates around the nominal tip at the centre pose, shrunk until they fit."""
+    centre = centre_pose(model)
+    base, _ = model.ideal_tool(centre[None, :], L)
+    lin, _ = linear_rotary(model)
+    spans = [np.diff(model.machine.axis(v).model_stroke)[0] for v in lin]
+    r = 0.15 * min(spans)
+    dirs = [np.array([1.0, 0.0, 0.3]), np.array([-0.6, 0.8, 0.0]), np.array([0.0, -1.0, 0.5]),
+            np.array([0.7, 0.7, -0.2])]
+    return [base[0] + r * d / np.linalg.norm(d) for d in dirs[:count]]
+
+
+def _rotary_grid_sweeps(model, per_sweep: int) -> np.ndarray:
+    """Rotary positions (k, nrot) rad: each rotary axis swept over its stroke with the others at 0 (or mid),
+    then again with the others at a second value (a quarter of their stroke): ISO 10791-6 K-tests."""
+    _, rot = linear_rotary(model)
+    mach = model.machine
+    strokes = [mach.axis(v).model_stroke for v in rot]
+    centre = [0.0 if lo <= 0 <= hi else 0.5 * (lo + hi) for lo, hi in strokes]
+    second = [lo + 0.25 * (hi - lo) if abs(lo + 0.25 * (hi - lo) - c) > 1e-9 else lo + 0.75 * (hi - lo)
+              for (lo, hi), c in zip(strokes, centre)]
+    out = []
+    for j, (lo, hi) in enumerate(strokes):
+        sweep = np.linspace(lo, hi, per_sweep)
+        for others in (centre, second):
+            block = np.tile(np.array(others, float), (per_sweep, 1))
+            block[:, j] = sweep
+            out.append(block)
+    return np.vstack(out) if out else np.zeros((1, 0))
+
+
+def _on_spheres(model, rot_positions, L, spheres, setup_prefix):
+    """Poses holding the tool tip on each sphere at each rotary position; keeps poses within the strokes."""
+    lin, rot = linear_rotary(model)
+    idx_rot = [model.variables.index(v) for v in rot]
+    poses_all, setups = [], []
+    centre = centre_pose(model)
+    for s, p in enumerate(spheres):
+        q = np.tile(centre, (len(rot_positions), 1))
+        q[:, idx_rot] = rot_positions
+        q = linear_for_tip(model, q, p, L)
+        ok = within_strokes(model.machine, q)
+        q = q[ok]
+        poses_all.append(q)
+        setups += [f"{setup_prefix}{s + 1}"] * len(q)
+    poses = np.vstack(poses_all)
+    return poses, np.array(setups, dtype=object)
+
+
+def rtest(model, n, rng, spheres: int = 3, L: float | None = None) -> Plan:
+    """R-test sweeps of every rotary axis around `spheres` sphere placements (setups), workpiece frame."""
+    _, rot = linear_rotary(model)
+    if not rot:
+        raise InputError(f"instrument rtest: machine {model.machine.name} has no rotary axis to sweep")
+    L = model.machine.tool_length if L is None else L
+    per = max(4, int(round(n / (spheres * 2 * len(rot)))))
+    grid = _rotary_grid_sweeps(model, per)
+    poses, setup = _on_spheres(model, grid, L, sphere_positions(model, L, spheres), "sphere")
+    if len(poses) < 0.5 * len(grid) * spheres:
+        raise InputError(f"instrument rtest: machine {model.machine.name}: the sweeps leave the strokes for most "
+                         f"sphere placements ({len(poses)} of {len(grid) * spheres} poses fit)")
+    return Plan("rtest", poses, np.full(len(poses), L), False, "tip", setup=setup,
+                setup_kind={s: "point" for s in dict.fromkeys(setup)},
+                setup_frame={s: "workpiece" for s in dict.fromkeys(setup)})
+
+
+def probe_sphere(model, n, rng, spheres: int = 2, L: float | None = None) -> Plan:
+    """A sphere probed at a grid of rotary positions, per placement; sphere centre deviations, machine frame."""
+    _, rot = linear_rotary(model)
+    if not rot:
+        raise InputError(f"instrument probe-sphere: machine {model.machine.name} has no rotary axis")
+    L = model.machine.tool_length if L is None else L
+    per_axis = max(3, int(round((n / spheres) ** (1.0 / len(rot)))))
+    axes = [np.linspace(*model.machine.axis(v).model_stroke, per_axis) for v in rot]
+    grid = np.stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")], axis=1)
+    poses, setup = _on_spheres(model, grid, L, sphere_positions(model, L, spheres), "sphere")
+    if len(poses) < 0.5 * len(grid) * spheres:
+        raise InputError(f"instrument probe-sphere: machine {model.machine.name}: the rotary grid leaves the strokes "
+                         f"for most sphere placements ({len(poses)} of {len(grid) * spheres} poses fit)")
+    return Plan("probe-sphere", poses, np.full(len(poses), L), False, "tip", setup=setup, frame="machine",
+                setup_kind={s: "point" for s in dict.fromkeys(setup)},
+                setup_frame={s: "workpiece" for s in dict.fromkeys(setup)})
+
+
+def approach_directions(path: np.ndarray) -> np.ndarray:
+    """+1/-1 per pose of a path (k, nlin): the sign of the last non-zero move of each axis (the first pose
+    takes the sign of the first move)."""
+    dq = np.diff(path, axis=0)
+    out = np.empty(path.shape)
+    for j in range(path.shape[1]):
+        s = np.sign(dq[:, j])
+        last = 1.0
+        first = next((x for x in s if x != 0), 1.0)
+        out[0, j] = first
+        for i, x in enumerate(s, 1):
+            if abs(dq[i - 1, j]) > 1e-12:
+                last = x
+            out[i, j] = last
+    return out
+
+
+def ballbar(model, n, rng, radius: float = 150.0, L: float | None = None) -> Plan:
+    """ISO 230-4 circles in the XY, YZ and ZX planes, both directions; 1-D along the bar; a setup per circle."""
+    lin, _ = linear_rotary(model)
+    if len(lin) < 3:
+        raise InputError(f"instrument ballbar: machine {model.machine.name} needs three linear axes")
+    L = model.machine.tool_length if L is None else L
+    centre = centre_pose(model)
+    pivot, _ = model.ideal_tool(centre[None, :], L)
+    pivot = pivot[0]
+    per = max(16, int(round(n / 6)))
+    theta = np.linspace(0.0, 2 * math.pi, per, endpoint=False)
+    planes = {"XY": (0, 1), "YZ": (1, 2), "ZX": (2, 0)}
+    poses, us, setups, dirs = [], [], [], []
+    idx_lin = [model.variables.index(v) for v in lin]
+    for name, (a, b) in planes.items():
+        for sense, sign in (("ccw", 1.0), ("cw", -1.0)):
+            th = sign * theta
+            u = np.zeros((per, 3))
+            u[:, a] = np.cos(th)
+            u[:, b] = np.sin(th)
+            q = linear_for_tip(model, np.tile(centre, (per, 1)), pivot + radius * u, L)
+            if not within_strokes(model.machine, q).all():
+                raise InputError(f"instrument ballbar: a circle of radius {radius:g} mm in {name} leaves the strokes "
+                                 f"of {model.machine.name}")
+            poses.append(q)
+            us.append(u)
+            setups += [f"{name}-{sense}"] * per
+            dirs.append(approach_directions(q[:, idx_lin]))
+    D = np.vstack(dirs)
+    poses = np.vstack(poses)
+    setup = np.array(setups, dtype=object)
+    return Plan("ballbar", poses, np.full(len(poses), L), False, "line", u=np.vstack(us), setup=setup,
+                setup_kind={s: "point" for s in dict.fromkeys(setup)},
+                setup_frame={s: "workpiece" for s in dict.fromkeys(setup)},
+                dirs={v: D[:, j] for j, v in enumerate(lin)},
+                notes=[f"pivot at {pivot.round(3).tolist()} mm (workpiece frame), radius {radius:g} mm"])
+
+
+def interferometer(model, n, rng, cycles: int = 5, targets: int = 11) -> Plan:
+    """ISO 230-2 bidirectional runs of every linear axis: `targets` positions over 90% of the stroke (slightly
+    irregular spacing), `cycles` forward and reverse passes; 1-D along the axis; a setup per axis."""
+    lin, _ = linear_rotary(model)
+    centre = centre_pose(model)
+    poses, us, setups, dirs_all = [], [], [], {v: [] for v in lin}
+    for v in lin:
+        i = model.variables.index(v)
+        lo, hi = model.machine.axis(v).model_stroke
+        pad = 0.05 * (hi - lo)
+        pos = np.linspace(lo + pad, hi - pad, targets)
+        step = pos[1] - pos[0] if targets > 1 else 0.0
+        pos[1:-1] += rng.uniform(-0.2, 0.2, targets - 2) * step
+        direction = np.asarray(model.machine.axis(v).direction, float)
+        direction = direction / np.linalg.norm(direction)
+        for _ in range(cycles):
+            for sign, seq in ((1.0, pos), (-1.0, pos[::-1])):
+                q = np.tile(centre, (len(seq), 1))
+                q[:, i] = seq
+                poses.append(q)
+                us.append(np.tile(direction, (len(seq), 1)))
+                setups += [f"laser-{v}"] * len(seq)
+                for w in lin:
+                    dirs_all[w].append(np.full(len(seq), sign if w == v else 1.0))
+    poses = np.vstack(poses)
+    setup = np.array(setups, dtype=object)
+    L = np.full(len(poses), model.machine.tool_length)
+    # The readings are along the axis' direction in the machine frame; at the centre pose of the rotary axes the
+    # workpiece frame may be turned: express u in the workpiece frame the plan reports in.
+    u = np.vstack(us)
+    if frames.has_workpiece_rotation(model.machine):
+        u = frames.to_workpiece(model.machine, poses, u)
+    return Plan("interferometer", poses, L, False, "line", u=u, setup=setup,
+                setup_kind={s: "point" for s in dict.fromkeys(setup)},
+                setup_frame={s: "workpiece" for s in dict.fromkeys(setup)},
+                dirs={w: np.concatenate(dirs_all[w]) for w in lin})
+
+
+def station_positions(tip_m: np.ndarray, stations: int) -> np.ndarray:
+    """Tracker stations (stations, 3; mm, machine frame) around the box of tool-tip positions tip_m (n, 3): at
+    corners 1.5 half-widths (plus 100 mm) from its centre, so that the lines of sight cross at many angles."""
+    lo, hi = tip_m.min(axis=0), tip_m.max(axis=0)
+    c, half = 0.5 * (lo + hi), 0.5 * (hi - lo) + 100.0
+    corners = np.array([[1, 1, 1], [-1, 1, -1], [1, -1, -1], [-1, -1, 1], [0, 0, 1.5], [1.5, 0, 0]])[:stations]
+    return c + 1.5 * corners * half
+
+
+def tracker(model, n, rng, stations: int = 4) -> Plan:
+    """1-D distance changes from `stations` fixed stations on the bed to the tool tip at random poses (each
+    pose seen from every station); machine frame; a setup per station (offset and dead path, machine frame)."""
+    per = max(8, int(round(n / stations)))
+    poses = model.machine.random_poses(per, rng)
+    L = np.full(per, model.machine.tool_length)
+    tip_wp, _ = model.ideal_tool(poses, L)
+    tip_m = frames.to_machine(model.machine, poses, tip_wp) if frames.has_workpiece_rotation(model.machine) else tip_wp
+    st = station_positions(tip_m, stations)
+    P, U, S = [], [], []
+    for k, s in enumerate(st):
+        vec = tip_m - s
+        U.append(vec / np.linalg.norm(vec, axis=1)[:, None])
+        P.append(poses)
+        S += [f"station{k + 1}"] * per
+    setup = np.array(S, dtype=object)
+    poses_all = np.vstack(P)
+    return Plan("tracker", poses_all, np.tile(L, stations), False, "line", u=np.vstack(U), setup=setup,
+                setup_kind={s: "point" for s in dict.fromkeys(setup)},
+                setup_frame={s: "machine" for s in dict.fromkeys(setup)}, frame="machine",
+                notes=[f"stations at {np.round(st, 1).tolist()} mm (machine frame)"])
+
+
+def test_part(model, n, rng, size: float | None = None, kind: str = "planar") -> Plan:
+    """A plate of about n holes on a square grid (side `size` mm, default 300 mm or 60% of the smaller of the X and
+    Y strokes)
+    drilled with the rotary axes at their centre pose; dx, dy measured; one setup `part` of the given kind."""
+    lin, _ = linear_rotary(model)
+    if len(lin) < 2:
+        raise InputError(f"instrument test-part: machine {model.machine.name} needs two linear axes")
+    centre = centre_pose(model)
+    ix, iy = model.variables.index(lin[0]), model.variables.index(lin[1])
+    spans = [np.diff(model.machine.axis(v).model_stroke)[0] for v in lin[:2]]
+    side = min(300.0, 0.6 * min(spans)) if size is None else float(size)
+    k = max(3, int(round(math.sqrt(n))))
+    g = np.linspace(-side / 2, side / 2, k)
+    gx, gy = np.meshgrid(g, g, indexing="ij")
+    poses = np.tile(centre, (k * k, 1))
+    poses[:, ix] += gx.ravel()
+    poses[:, iy] += gy.ravel()
+    if not within_strokes(model.machine, poses).all():
+        raise InputError(f"instrument test-part: a plate of {side:g} mm leaves the strokes of {model.machine.name}")
+    setup = np.array(["part"] * len(poses), dtype=object)
+    return Plan("test-part", poses, np.full(len(poses), model.machine.tool_length), False, "tip-plane", setup=setup,
+                setup_kind={"part": kind}, setup_frame={"part": "workpiece"},
+                notes=[f"{k} x {k} holes over {side:g} mm x {side:g} mm, measured in the XY plane"])
+
+
+BUILDERS = {"tip": tip, "rtest": rtest, "probe-sphere": probe_sphere, "ballbar": ballbar,
+            "interferometer": interferometer, "tracker": tracker, "test-part": test_part}
+
+
+def plan(name: str, model, n: int, rng, **options) -> Plan:
+    """The standard plan of an instrument (see the module docstring) with about n readings' poses."""
+    if name not in BUILDERS:
+        raise InputError(f"unknown instrument '{name}' (expected one of: {', '.join(BUILDERS)})")
+    try:
+        return BUILDERS[name](model, n, rng, **options)
+    except InputError as exc:
+        if str(exc).startswith("instrument"):
+            raise
+        raise InputError(f"instrument {name}: {exc}") from None

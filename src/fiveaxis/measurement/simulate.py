@@ -1,0 +1,213 @@
+"""Simulated measurement sets from the exact nonlinear model: random base errors, hidden effects, setup placements,
+instruments, noise.
+
+For tests, demos and for planning a measurement. An instrument's plan (`fiveaxis.measurement.instruments`) says where the
+machine goes and what is read; the readings are the exact model's tool-tip and tool-axis errors with per-pose error
+values (base errors plus hidden effects), read through the observation model (`fiveaxis.measurement.observations`: frames,
+1-D directions), minus the setups' placements (`fiveaxis.measurement.setups`), plus Gaussian noise. The truth (error values,
+effect sizes, setup placements) is kept so that a user can check what the fit recovers.
+Units: mm and rad inside; degrees for rotary axes in files.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..effects import families as fx
+from . import instruments as ins
+from . import observations as ob
+from . import setups as su
+from ..exceptions import InputError
+from .files import Measurements, frame
+
+#: Standard deviations of the random base errors: a few um and tens of urad.
+BASE_LINEAR_MM = 3e-3
+BASE_ANGULAR_RAD = 20e-6
+#: Default size of a hidden effect: its change at the end of the scaled range (u = 1), or its amplitude.
+EFFECT_LINEAR_MM = 10e-3
+EFFECT_ANGULAR_RAD = 20e-6
+#: Standard deviations of random setup placements: offsets and length offsets (mm), rotations (rad, ~0.03 deg).
+SETUP_OFFSET_MM = 0.02
+SETUP_ROTATION_RAD = 5e-4
+#: Default noise of tool-axis readings (rad).
+NOISE_AXIS_RAD = 2e-6
+
+
+@dataclass
+class Simulation:
+    """A simulated measurement set and the truth behind it."""
+    meas: Measurements
+    base_errors: dict          # name -> value (mm, rad)
+    effects: dict              # effect id -> value (u = 1 change, amplitude; list for several coefficients)
+    noise: float               # mm
+    setups: dict = field(default_factory=dict)      # setup id -> {"kind", "frame", "c_mm", "l_mm", "w_rad"}
+    instrument: str = "tip"
+    noise_axis: float = 0.0    # rad
+    coefficients: dict = field(default_factory=dict)   # effect coefficient name -> value as the fit reports it
+    notes: list = field(default_factory=list)
+
+    def truth_json(self, model, seed=None) -> dict:
+        """The truth as a JSON record (mm, rad): what a fit of this set should recover."""
+        return {"machine": model.machine.name, "convention": model.convention, "instrument": self.instrument,
+                "frame": self.meas.frame, "seed": seed, "noise_mm": self.noise, "noise_axis_rad": self.noise_axis,
+                "base_errors_mm_rad": self.base_errors, "effects": self.effects,
+                "effect_coefficients": self.coefficients, "setups": self.setups, "notes": self.notes}
+
+
+def parse_effect(spec: str, model):
+    """`ex_x:x1` (default size) or `ex_x:x1=2e-5` (the change at the end of the stroke, mm or rad; for a periodic
+    effect `=a` or `=a,b`: sine and cosine amplitudes); custom effects: `name=p1,p2,...`."""
+    ident, _, value = spec.partition("=")
+    if ident in model.machine.effects:
+        from ..effects.custom import load_custom
+        eff = load_custom(model.machine, ident)
+        vals = _floats(spec, value) if value else None
+        if vals is not None and len(vals) != len(eff.names):
+            raise InputError(f"effect value {spec}: expected {len(eff.names)} values ({', '.join(eff.params)})")
+        return eff, (np.array(vals) if vals else np.full(len(eff.names), EFFECT_LINEAR_MM))
+    eff = fx.parse(ident, model.machine, model.errors, "--effect")
+    k = len(eff.names)
+    if value:
+        vals = _floats(spec, value)
+        if len(vals) == 1 and k > 1:
+            vals = vals + [0.0] * (k - 1)
+        if len(vals) != k:
+            raise InputError(f"effect value {spec}: expected {k} value(s) after '='")
+    else:
+        angular = eff.param != fx.TOOL and model.machine.is_angular(eff.param)
+        vals = [EFFECT_ANGULAR_RAD if angular else EFFECT_LINEAR_MM] + [0.0] * (k - 1)
+    return eff, np.array(vals, dtype=float)
+
+
+def _floats(spec, text):
+    try:
+        vals = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise InputError(f"effect value {spec}: expected numbers after '=', got {text!r}") from None
+    if not all(np.isfinite(vals)):
+        raise InputError(f"effect value {spec}: expected finite numbers after '=', got {text!r}")
+    return vals
+
+
+def _check(n, noise, noise_axis, duration, tool_lengths):
+    if n < 1:
+        raise InputError(f"number of poses: expected a positive number, got {n}")
+    for what, v in (("noise", noise), ("tool-axis noise", noise_axis)):
+        if not np.isfinite(v) or v < 0:
+            raise InputError(f"{what}: expected a finite standard deviation >= 0, got {v}")
+    if duration is not None and (not np.isfinite(duration) or duration <= 0):
+        raise InputError(f"duration: expected a positive, finite time in s, got {duration}")
+    if tool_lengths is not None:
+        lo, hi = tool_lengths
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0 <= lo <= hi):
+            raise InputError(f"tool lengths: expected finite 0 <= MIN <= MAX mm, got {lo}, {hi}")
+
+
+def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 0, tool_lengths=None,
+             duration: float | None = 3600.0, with_sigma: bool = False, base_scale: float = 1.0,
+             path="simulated", instrument: str = "tip", with_axis: bool = False,
+             noise_axis: float = NOISE_AXIS_RAD, plan: ins.Plan | None = None, setup_scale: float = 1.0,
+             options: dict | None = None, errors: dict | None = None,
+             setup_kind: str | None = None, placements: dict | None = None, commands=None) -> Simulation:
+    """A simulated measurement set. effects: specs (`ex_x:x1=2e-5`) or (effect, values) pairs.
+
+    instrument: a plan of `fiveaxis.measurement.instruments` (n: about how many poses), or `plan` given; tool_lengths: None
+    (the machine's L0, no L column) or (min, max) mm for a random L per pose (tip plans); duration: s over which the
+    poses are measured in order (t column), None for no t column; setup_scale: size of the random setup placements
+    relative to SETUP_OFFSET_MM and SETUP_ROTATION_RAD; errors: {name: value} (mm, rad) set instead of drawn;
+    setup_kind: the kind of every setup of the plan (point, rigid, planar) instead of the instrument's;
+    placements: {setup id: {"c_mm": [3], "l_mm": x, "w_rad": [3]}} set instead of drawn (any key may be left out);
+    commands: None, or a function of the poses (n, nvar; mm, rad) and their tool lengths (n,; mm) giving the
+    positions the axes are actually sent to (a compensation); the readings are then those of the machine there
+    against the nominal tool of the poses."""
+    _check(n, noise, noise_axis, duration, tool_lengths)
+    rng = np.random.default_rng(seed)
+    machine = model.machine
+    parsed = [parse_effect(e, model) if isinstance(e, str) else e for e in effects]
+    if plan is None:
+        opts = dict(options or {})
+        if instrument == "tip":
+            opts.update(with_axis=with_axis, tool_lengths=tool_lengths)
+        plan = ins.plan(instrument, model, n, rng, **opts)
+    if setup_kind is not None:
+        plan.setup_kind = {s: setup_kind for s in plan.setup_kind}
+    m = plan.n
+    t = None if duration is None else np.sort(rng.uniform(0, duration, m))
+    if t is not None:
+        t[-1] = duration          # the last pose ends the run: u = t / duration
+    sd = np.array([BASE_ANGULAR_RAD if machine.is_angular(e) else BASE_LINEAR_MM for e in model.errors])
+    base = rng.normal(0.0, 1.0, len(sd)) * sd * base_scale
+    for name, value in (errors or {}).items():
+        if name not in model.errors:
+            raise InputError(f"error '{name}': unknown error name (expected one of {', '.join(model.errors[:3])} ...)")
+        base[list(model.errors).index(name)] = float(value)
+    at = plan.poses if commands is None else commands(plan.poses, plan.L)    # where the axes go
+    ctx = fx.context(machine, at, t, plan.dirs)
+    E = np.tile(base, (m, 1))
+    dL = np.zeros(m)
+    truth, coefficients = {}, {}
+    for eff, vals in parsed:
+        dE, dl = fx.per_pose([eff], [vals], ctx, model.errors)
+        truth[eff.id] = float(vals[0]) if len(vals) == 1 else [float(x) for x in vals]
+        coefficients.update({nm: float(v) for nm, v in zip(eff.names, vals)})
+        E += dE
+        dL += dl
+    P, V = model.tool_errors(at, np.ascontiguousarray(E), plan.L + dL, exact=True)
+    tip0, V0 = model.ideal_tool(plan.poses, plan.L)
+    if commands is not None:                      # the machine sent elsewhere: against the nominal tool of the poses
+        tip_at, V_at = model.ideal_tool(at, plan.L)
+        P, V = P + tip_at - tip0, V + V_at - V0
+        V0 = V_at
+    P = P + V0 * dL[:, None]
+    nan3 = np.full((m, 3), np.nan)
+    zero3 = np.zeros((m, 3))
+    meas = Measurements(path=path, variables=tuple(model.variables), poses=plan.poses, L=plan.L,
+                        d=zero3.copy() if plan.reads.startswith("tip") else nan3.copy(), t=t,
+                        dv=zero3.copy() if plan.reads == "tip+axis" else None, has_L=plan.has_L,
+                        du=np.zeros(m) if plan.reads == "line" else None,
+                        u=plan.u if plan.reads == "line" else None, setup=plan.setup,
+                        setup_kind=dict(plan.setup_kind), setup_frame=dict(plan.setup_frame), dirs=dict(plan.dirs),
+                        frame=plan.frame)
+    if plan.reads == "tip-plane":
+        meas.d[:, 2] = np.nan                 # measured in the plane only: dz not read
+    obs = ob.build(meas, machine)
+    values = ob.apply(obs, P, V)
+    setup_truth = {}
+    if plan.setup is not None:
+        for sid in meas.setups:
+            kind = meas.setup_kind.get(sid, "point")
+            c = rng.normal(0.0, SETUP_OFFSET_MM * setup_scale, 3)
+            w = rng.normal(0.0, SETUP_ROTATION_RAD * setup_scale, 3) if kind != "point" else np.zeros(3)
+            if kind == "planar":
+                c[2], w[:2] = 0.0, 0.0
+            setup_truth[sid] = {"kind": kind, "frame": meas.setup_frame.get(sid, "workpiece"), "c_mm": c.tolist(),
+                                "l_mm": float(rng.normal(0.0, SETUP_OFFSET_MM * setup_scale)), "w_rad": w.tolist()}
+            for key, value in ((placements or {}).get(sid) or {}).items():
+                setup_truth[sid][key] = value
+        values = values + su.reading_change(obs, meas, machine, tip0, setup_truth)
+    sig = np.where(obs.group == ob.ANGLE, noise_axis, noise)
+    values = values + rng.normal(0.0, 1.0, obs.m) * sig
+    d, dv, du = ob.readings(meas, obs, values)
+    meas.d, meas.dv, meas.du = d, dv, du
+    if with_sigma:
+        if noise <= 0 or (dv is not None and noise_axis <= 0):
+            raise InputError("a sigma column needs a noise above 0 (a standard deviation of 0 is not a measurement)")
+        meas.sigma = np.full(m, noise)
+        if dv is not None:
+            meas.sigma_axis = np.full(m, noise_axis)
+    return Simulation(meas, dict(zip(model.errors, base.tolist())), truth, noise, setup_truth, plan.instrument,
+                      noise_axis if dv is not None else 0.0, coefficients, list(plan.notes))
+
+
+def truth_theta(prob, sim: Simulation) -> np.ndarray:
+    """The simulation's truth in a fit's parameters (errors, effect coefficients, setup unknowns as the fit
+    parametrises them: offsets a setup cannot see are folded into those it can)."""
+    from ..estimation.fit import truth_vector
+    setups = su.truth_values(prob.setups, prob.obs, prob.meas, prob.model.machine, prob.tip, sim.setups)
+    return truth_vector(prob, sim.base_errors, sim.coefficients, setups)
+
+
+def to_frame(sim: Simulation, model):
+    """The simulated set as a DataFrame with the columns of a measurement file."""
+    return frame(sim.meas, model.machine)

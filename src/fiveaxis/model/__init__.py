@@ -1,0 +1,1 @@
+"""The machine file and what is derived from it: the machine record, the loaded error model (generated kernels), NumPy reference chain, nominal inverse kinematics, frames, ISO 230 names, error values."""

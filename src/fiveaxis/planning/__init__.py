@@ -1,0 +1,1 @@
+"""Measurement planning: which poses determine the most, before measuring."""
