@@ -26,7 +26,7 @@ def li2018():
 def worst_z(res, sim):
     """Largest |estimate - truth| / standard uncertainty over every parameter and combination a fit determines,
     with the truth of the simulation it fitted; and how many there were."""
-    from fiveaxis.measurement.simulate import truth_theta
+    from fiveaxis.estimation.problem import truth_theta
     truth = truth_theta(res.problem, sim)
     idx = {n: i for i, n in enumerate(res.names)}
     std = res.std()

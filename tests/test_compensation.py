@@ -17,6 +17,7 @@ from fiveaxis.exceptions import InputError
 from fiveaxis.model.error_model import load
 from fiveaxis.model.machine import load_machine
 from fiveaxis.measurement.simulate import simulate
+from fiveaxis.estimation.problem import resolve_effects
 
 EFFECTS = {"ac_trunnion": ["dx_x:x2", "ex_x:x1"], "li2018": ["ex_x:x1", "dz_x:x2"]}
 
@@ -27,7 +28,7 @@ def fitted(request):
     model = load(request.param)
     effects = EFFECTS[request.param]
     sim = simulate(model, effects, n=600, noise=5e-4, seed=2)
-    res = F.fit(model, sim.meas, F.resolve_effects(model, effects))
+    res = F.fit(model, sim.meas, resolve_effects(model, effects))
     return model, sim, res, MF.from_fit(res)
 
 
@@ -410,7 +411,7 @@ def test_custom_effect_in_the_model_file(tmp_path):
     path.write_text((MACHINES_DIR / "li2018.toml").read_text() + LEADSCREW)
     model = load(str(path))
     sim = simulate(model, ["leadscrew=0.004,0.002"], n=300, noise=2e-4, seed=1)
-    res = F.fit(model, sim.meas, F.resolve_effects(model, ["leadscrew"]))
+    res = F.fit(model, sim.meas, resolve_effects(model, ["leadscrew"]))
     MF.save(MF.from_fit(res), tmp_path / "m.json")
     fm = MF.load(tmp_path / "m.json")
     (rec,) = fm.effects

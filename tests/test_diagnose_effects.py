@@ -13,6 +13,10 @@ from fiveaxis.diagnosis import searches as es
 from fiveaxis.estimation import fit as F
 from fiveaxis.cli import main
 from fiveaxis.measurement.simulate import simulate
+from fiveaxis.estimation import result as R
+from fiveaxis.report import text
+from fiveaxis.diagnosis.candidates import param_columns
+from fiveaxis.diagnosis.decision import basis_map
 
 NOISE = 1e-3
 DIRS = {"directions": True}          # tip plans with the approach directions of the linear axes (dir_ columns)
@@ -54,7 +58,7 @@ def test_hidden_backlash_ranked_first_and_residual_falls_to_noise(model, instrum
     after = D.diagnose(model, sim.meas, ["dx_x:xr"], top=3)
     assert after.rms_mm_without_outliers <= 1.25 * NOISE
     assert after.verdict == "no missing effect"
-    p = F.parameters(after.fit)["dx_x:xr"]
+    p = R.parameters(after.fit)["dx_x:xr"]
     assert abs(p["value"] - 0.003) < 4 * p["std"]                  # c of the backlash 2c = 6 um
     assert p["description"].startswith(f"the X axis reverses with a backlash of {2e3 * p['value']:.2g} um")
 
@@ -114,8 +118,9 @@ def test_search_gains_are_the_drop_of_an_actual_refit(model, periodic_set):
     res = F.fit(model, periodic_set.meas, refine=False, robust=False)
     prob = res.problem
     rw = res.residual * prob.w
-    Q = res.idf.U
-    params, P = D.param_columns(prob)
+    block = res.design.block
+    Q, _ = basis_map(res.idf, block.A[:, prob.free] * prob.w[:, None])
+    params, P = param_columns(block, prob.w)
     sums = es.row_sums(params, P, rw, Q, prob.obs.row, prob.meas.n)
     band = es.band("x", prob.ctx.raw("x"), sums.live)
     found = es.periodic(sums, [band], {"x": [params.index("dx_x")]})
@@ -147,7 +152,7 @@ def test_gross_outliers_in_a_null_set_are_listed_and_raise_no_alarm(model, sigma
     assert dg.noise_mm == pytest.approx(NOISE, rel=0.1)
     assert dg.rms_mm_without_outliers == pytest.approx(NOISE, rel=0.1)
     assert dg.rms_mm > 3 * NOISE                                     # the outliers are in rms_mm
-    assert "left out of the decision" in D.report(dg)
+    assert "left out of the decision" in text.diagnosis(dg.to_json())
 
 
 def test_outliers_on_top_of_a_hidden_effect(model):
@@ -208,8 +213,8 @@ def test_effect_outside_every_vocabulary_is_unexplained_structure_along_x(model,
     assert u["template"].startswith("[effects.dz_along_x]") and 'error = "dz_' in u["template"]
     steps = [b["mean"] for b in u["profile"]]
     assert min(steps) < -0.0005 and max(steps) > 0.0005          # the profile shows the two levels
-    text = D.report(dg)
-    assert "[[Unexplained structure]]" in text and "dz along X" in text and "no missing effect" not in text
+    out = text.diagnosis(dg.to_json())
+    assert "[[Unexplained structure]]" in out and "dz along X" in out and "no missing effect" not in out
     # The noise of the readings the structure does not explain (difference-based along X) is the noise.
     assert dg.structure_test["noise_local_mm"] == pytest.approx(NOISE, rel=0.15)
 
@@ -226,7 +231,7 @@ def test_sigma_column_understating_the_noise(model):
 def test_text_report_is_built_from_the_json(model, periodic_set):
     dg = D.diagnose(model, periodic_set.meas, top=3)
     j = json.loads(json.dumps(dg.to_json()))
-    assert D.report_from_json(j) == D.report(dg)
+    assert text.diagnosis(j) == text.diagnosis(dg.to_json())
     assert j["verdict"] in D.VERDICTS and j["structure_test"]["significant"] in (True, False)
 
 

@@ -19,6 +19,7 @@ from fiveaxis.linuxcnc import configuration as LX
 from fiveaxis.estimation import fitted_model as MF
 from fiveaxis.model.error_model import load
 from fiveaxis.measurement.simulate import simulate
+from fiveaxis.estimation.problem import resolve_effects
 
 pytestmark = pytest.mark.linuxcnc
 
@@ -37,7 +38,7 @@ def run(tmp_path_factory):
     machine = model.machine
     sim = simulate(model, EFFECTS, n=800, noise=5e-4, seed=3, duration=None)
     ids = [e.split("=")[0] for e in EFFECTS]
-    fm = MF.from_fit(F.fit(model, sim.meas, F.resolve_effects(model, ids)))
+    fm = MF.from_fit(F.fit(model, sim.meas, resolve_effects(model, ids)))
     fm.effects = fm.effects + (REVERSAL,)
     truth = truth_model(sim, model, (REVERSAL,))
     out = tmp_path_factory.mktemp("compensate")

@@ -24,6 +24,7 @@ def rs274(path):
 from fiveaxis.measurement.instruments import Plan
 from fiveaxis.measurement.files import read, write
 from fiveaxis.measurement.simulate import simulate
+from fiveaxis.estimation.problem import build
 
 from conftest import DATA
 
@@ -77,7 +78,7 @@ def test_plan_file_round_trip_gives_the_same_poses_and_criterion(models, plans, 
     if res.plan.u is not None:
         np.testing.assert_allclose(back.u, res.plan.u, atol=1e-9)
     assert set(back.dirs) == set(res.plan.dirs)
-    prob = F.build(res.model, P.measurements(back, res.model), res.effects, res.model.machine.fixed)
+    prob = build(res.model, P.measurements(back, res.model), res.effects, res.model.machine.fixed)
     D, rank = P.criterion(res.design.ref, prob)
     assert rank == res.r
     assert D == pytest.approx(res.D, rel=1e-6, abs=1e-6)

@@ -10,6 +10,7 @@ from fiveaxis.cli import main
 from fiveaxis.exceptions import InputError
 from fiveaxis.report import compensation as C
 from fiveaxis.report import html, record
+from fiveaxis.estimation import result as R
 
 from conftest import ROOT
 
@@ -86,7 +87,7 @@ def test_expanded_uncertainty_is_twice_the_fit_standard_uncertainty(example):
     from fiveaxis.measurement.files import read
     model = load("li2018")
     res = F.fit(model, read(EXAMPLE, model.machine), ["ex_x:x1", "L:t1"])
-    j = F.to_json(res)["parameters"]
+    j = R.to_json(res)["parameters"]
     p = {q["name"]: q for q in example.record["fit"]["parameters"]}
     assert p["ex_x"]["value"] == pytest.approx(j["ex_x"]["value"] * 1e6, rel=1e-6)
     assert p["ex_x"]["u_k2"] == pytest.approx(2 * j["ex_x"]["std"] * 1e6, rel=1e-6)

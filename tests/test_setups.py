@@ -9,7 +9,10 @@ import pytest
 import fiveaxis
 from fiveaxis.diagnosis import diagnose as D
 from fiveaxis.estimation import fit as F
-from fiveaxis.measurement.simulate import simulate, truth_theta
+from fiveaxis.measurement.simulate import simulate
+from fiveaxis.estimation.problem import truth_theta
+from fiveaxis.estimation import result as R
+from fiveaxis.report import text
 
 from conftest import worst_z
 
@@ -31,12 +34,12 @@ def test_plate_rotation_recovered_and_reported_as_placement_and_scale_error_rank
     sim = plate(model, ["dx_x:x1=0.05"])
     assert np.isnan(sim.meas.d[:, 2]).all()                   # measured in the plate's plane only
     res = F.fit(model, sim.meas)
-    j = F.to_json(res)
+    j = R.to_json(res)
     w = j["setups"][0]["parameters"]["w_z[part]"]
     assert abs(w["value"] - ROTATION) < 3 * w["std"] and w["std"] < 0.05 * ROTATION
     said = re.match(r"lies rotated by ([-0-9.e]+) deg about z", j["setups"][0]["placement"])
     assert said and abs(float(said.group(1)) - 0.03) < 3 * math.degrees(w["std"])
-    assert said.group(0) in F.report(res)
+    assert said.group(0) in text.fit(R.to_json(res))
     dg = D.diagnose(model, sim.meas, top=3)
     top = dg.candidates[0]
     assert dg.missing_effect and "dx_x:x1" in {top["id"], *top["aliases"]}
@@ -81,7 +84,7 @@ def test_what_the_placement_hides_is_said_with_the_measurement_that_would_separa
     hidden = {h["id"]: h for h in dg.hidden_by_placement}
     assert "dy_x:x1" in hidden and hidden["dy_x:x1"]["setups"] == ["part"]
     assert "orientation is known" in hidden["dy_x:x1"]["separate_by"]
-    assert "Not visible with this placement" in D.report(dg)
+    assert "Not visible with this placement" in text.diagnosis(dg.to_json())
 
 
 def test_rigid_part_rotation_recovered(model):

@@ -1,35 +1,132 @@
-"""GSIL beyond one machine: chunks of a grid dispatched to Dask workers, each running the numba kernel, summed.
+"""Where passes run: this process, or the workers of a Dask cluster. One runner for every kind of pass.
 
-Each task asks the grid for its slice of poses (`grid.poses(start, stop)`, never the whole grid), runs the exact
-GSIL kernel on it and returns 41 sums and a left-out count, so memory is bounded by the chunk size on every
-worker and by the number of tasks in flight on the client. Workers load the model by machine file and
-convention (`fiveaxis.load(..., derive=False)`), so each needs the package, the machine file at the same path, and
-its generated module (shipped machines: in the package; others: `fiveaxis derive FILE` on the node first).
-Threads: numba's workqueue threading layer (its fallback without OpenMP or TBB) aborts when a parallel kernel is
-entered from several threads at once, which a threaded Dask worker does. So workers run the serial `nogil`
-kernel (`gsil_range`) by default; the parallel kernel (`gsil_sum`) is for workers with one thread each
-(`worker_kernel="parallel"`).
-Grid axes that appear in no J_i (X for li2018) are reduced first: W_i does not depend on them, so the sum over
-the grid is the sum over the reduced grid times the number of points on those axes (exact).
+A pass is a list of tasks, each a call fn(*args) whose result comes back to the caller in task order: the chunks
+of a GSIL grid (`fiveaxis.sensitivity.distributed`), the row blocks of a fit or a diagnosis
+(`fiveaxis.estimation.design`). Two runners:
+
+- `Local`: the tasks one after the other in this process (the default);
+- `OnDask`: the tasks on the workers of a `dask.distributed.Client`, at most `in_flight` submitted at a time (the
+  client's memory stays bounded whatever the number of tasks), results gathered in task order. Objects that many
+  passes need (the blocks of a measurement set) are sent to the workers once (`keep`), and each task can ask to
+  run where one of them lies (its per-pass arrays then go straight to that worker, not through the scheduler).
+
+`runner()` is the runner in effect: `Local`, or `OnDask` inside `on_cluster(client)`. Workers need the package and
+the machine files at the same paths as the client (they load models by path).
+Threads: numba's workqueue threading layer aborts when a parallel kernel is entered from several threads at once,
+which a threaded Dask worker does; the tasks here call serial (`nogil`) kernels unless told otherwise.
 """
 from __future__ import annotations
 
-import math
-import time
-from pathlib import Path
-
-import numpy as np
+from collections import deque
+from contextlib import contextmanager
 
 from .exceptions import InputError
-from .sensitivity.indices import error_values, reduce_grid  # noqa: F401  (reduce_grid is part of this API)
-
-#: Poses per task: 2**20 poses are 40 MB of poses (li2018; ~130 MB while the grid builds them) and about
-#: 0.1 s of kernel time on one core.
-CHUNK = 1 << 20
-
 
 #: Schemes of scheduler addresses: plain TCP, or TLS (its certificates come from the dask configuration).
 SCHEMES = ("tcp", "tls")
+
+
+class Kept:
+    """Objects held where the tasks run (see `Local.keep`, `OnDask.keep`): `items` to pass to tasks, in order."""
+
+    def __init__(self, items, where=None):
+        self.items = items
+        self.where = where           # per item: the workers holding it (OnDask), or None
+
+
+class Local:
+    """Tasks one after the other in this process."""
+
+    def map(self, fn, tasks, near=None):
+        """Yield fn(*task) for every task (an iterable of argument tuples), in order; near is ignored here."""
+        for task in tasks:
+            yield fn(*task)
+
+    def keep(self, key, make) -> Kept:
+        """The objects make() returns, for the tasks of passes; in this process they are made again for each
+        pass (a generator: nothing held between passes)."""
+        return Kept(make())
+
+    def close(self):
+        pass
+
+
+class OnDask:
+    """Tasks on the workers of a dask client, at most in_flight at a time (default 4 per worker thread)."""
+
+    def __init__(self, client, in_flight: int | None = None):
+        self.client = client
+        self.in_flight = in_flight
+        self._kept = {}
+
+    def _slots(self) -> int:
+        return self.in_flight or 4 * max(1, sum(self.client.nthreads().values()))
+
+    def map(self, fn, tasks, near=None):
+        """Yield fn(*task) for every task, in task order. near: a Kept whose i-th item task i should run beside
+        (its other arguments are sent to that worker directly)."""
+        from dask.distributed import wait   # optional heavy dependency: only on a cluster
+        client = self.client
+        pending = deque()
+        held = deque()                      # per task, its scattered arguments: referenced until it is done
+        for i, task in enumerate(tasks):
+            at = None
+            if near is not None and near.where is not None:
+                at = list(near.where[i]) or None
+            if at is not None:
+                head, rest = task[0], task[1:]
+                data = client.scatter(list(rest), direct=True, workers=at, hash=False) if rest else []
+                held.append(data)
+                fut = client.submit(fn, head, *data, pure=False, workers=at)
+            else:
+                held.append(None)
+                fut = client.submit(fn, *task, pure=False)
+            pending.append(fut)
+            if len(pending) >= self._slots():
+                wait([pending[0]])
+                yield _result(pending.popleft())
+                held.popleft()
+        while pending:
+            yield _result(pending.popleft())
+            held.popleft()
+
+    def keep(self, key, make) -> Kept:
+        """Scatter the objects make() returns to the workers once per key (a new key drops the old ones)."""
+        if key not in self._kept:
+            self._kept.clear()
+            items = list(make())
+            futures = self.client.scatter(items, direct=True, hash=False)
+            who = self.client.who_has(futures)
+            self._kept[key] = Kept(futures, [who.get(f.key, ()) for f in futures])
+        return self._kept[key]
+
+    def close(self):
+        self._kept.clear()
+
+
+def _result(fut):
+    out = fut.result()
+    fut.release()
+    return out
+
+
+_RUNNERS: list = [Local()]
+
+
+def runner():
+    """Where passes run now: this process, or a dask cluster inside `on_cluster`."""
+    return _RUNNERS[-1]
+
+
+@contextmanager
+def on_cluster(client, in_flight: int | None = None):
+    """Run the passes in this context (row blocks of fits and diagnoses) on the workers of a dask client: the same
+    results as in one process, up to rounding."""
+    _RUNNERS.append(OnDask(client, in_flight))
+    try:
+        yield _RUNNERS[-1]
+    finally:
+        _RUNNERS.pop().close()
 
 
 def scheduler_address(text: str) -> str:
@@ -63,7 +160,7 @@ def scheduler_address(text: str) -> str:
 
 def connect(address: str, timeout: str = "20s"):
     """A dask Client of the scheduler at address (checked by scheduler_address); InputError if it cannot connect."""
-    from dask.distributed import Client
+    from dask.distributed import Client   # optional heavy dependency: only on a cluster
     address = scheduler_address(address)
     try:
         return Client(address, timeout=timeout)
@@ -73,110 +170,15 @@ def connect(address: str, timeout: str = "20s"):
                          ) from None
 
 
-def _chunk_sum(machine_path, convention, grid, start, stop, lo, hi, E, rel_tiny, worker_kernel):
-    """One task: (sum over poses start..stop-1 of W_i (41,), left-out poses), on a worker."""
-    from .model.error_model import load
-    model = load(machine_path, convention, derive=False)
-    q = np.ascontiguousarray(grid.poses(start, stop))
-    W = np.zeros(len(E))
-    kernel = model.kernels.gsil_sum if worker_kernel == "parallel" else model.kernels.gsil_range
-    skipped = kernel(q, lo, hi, E, rel_tiny, W) if len(q) else 0
-    return W, int(skipped)
-
-
-def _peak_rss_mb() -> float:
-    """Peak resident memory of this process (MB), on a worker."""
-    import resource
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-
-
-def warm(model) -> float:
-    """Compile (or load from NUMBA_CACHE_DIR) the kernels the workers use, in this process; seconds taken.
-
-    Call before starting local worker processes: many processes compiling one cache at once can crash.
-    """
-    t = time.perf_counter()
-    k = model.kernels
-    q = np.zeros((1, len(model.variables)))
-    E = np.full(len(model.errors), 1e-4)
-    for kernel in (k.gsil_range, k.gsil_sum):
-        kernel(q, 170.0, 200.0, E, 1e-12, np.zeros(len(E)))
-    return time.perf_counter() - t
-
-
 def local_cluster(workers: int = 2, threads_per_worker: int = 1, **kw):
     """A dask.distributed LocalCluster of worker processes (no dashboard) and its Client."""
-    from dask.distributed import Client, LocalCluster
+    from dask.distributed import Client, LocalCluster   # optional heavy dependency: only on a cluster
     cluster = LocalCluster(n_workers=workers, threads_per_worker=threads_per_worker, processes=True,
                            dashboard_address=None, **kw)
     return cluster, Client(cluster)
 
 
-def gsil(model, grid, client, errors=None, L0=None, LE=None, rel_tiny=1e-12, chunk=CHUNK, reduce=True,
-         worker_kernel="serial", progress=None, max_in_flight=None):
-    """GSIL_i (Eq. 14, exact in L) of a grid on a Dask client: a `fiveaxis.sensitivity.indices.SensitivityResult`.
-
-    Same values as `fiveaxis.sensitivity.indices.gsil(..., order="exact")`, summed in a different order. `reduce` drops
-    the axes that appear in no J_i first (exact). `max_in_flight` bounds the tasks submitted at a time
-    (default 4 per worker thread), so the client's memory stays bounded whatever the grid size.
-    """
-    from dask.distributed import as_completed
-
-    from .sensitivity.indices import SensitivityResult
-    if worker_kernel not in ("serial", "parallel"):
-        raise InputError(f"worker_kernel: expected 'serial' or 'parallel', got {worker_kernel!r}")
-    if int(chunk) != chunk or chunk < 1:
-        raise InputError(f"chunk: expected a positive number of poses, got {chunk}")
-    L0 = model.machine.tool_length if L0 is None else float(L0)
-    LE = model.machine.cutting_length if LE is None else float(LE)
-    if not (math.isfinite(L0) and math.isfinite(LE) and LE > 0 and L0 > 0):
-        raise InputError(f"L0/LE: expected positive tool and cutting lengths in mm, got {L0} and {LE}")
-    E, label = error_values(model, errors)
-    if grid.size == 0:
-        raise InputError("the grid has no poses")
-    t0 = time.perf_counter()
-    work, factor = reduce_grid(model, grid) if reduce else (grid, 1)
-    path = str(Path(model.machine.path).resolve())
-    starts = range(0, work.size, int(chunk))
-    slots = max_in_flight or 4 * max(1, sum(client.nthreads().values()))
-    total = np.zeros(len(E))
-    skipped = 0
-
-    sizes = {}
-
-    def submit(s):
-        stop = min(s + int(chunk), work.size)
-        fut = client.submit(_chunk_sum, path, model.convention, work, s, stop, L0 - LE, L0, E, rel_tiny,
-                            worker_kernel, pure=False)
-        sizes[fut.key] = stop - s
-        return fut
-
-    it = iter(starts)
-    pending = as_completed([submit(s) for _, s in zip(range(slots), it)])   # range first: no start lost
-    from .progress import bar as progress_bar
-    with progress_bar(grid.size, progress, "GSIL (dask)", "pose", long=work.size >= 4 * int(chunk)) as bar:
-        for fut in pending:
-            W, s = fut.result()
-            total += W
-            skipped += s
-            bar.update(factor * sizes.pop(fut.key))
-            fut.release()
-            nxt = next(it, None)
-            if nxt is not None:
-                pending.add(submit(nxt))
-    values = total * factor / grid.size
-    try:
-        peaks = client.run(_peak_rss_mb)
-    except Exception:   # noqa: BLE001 - a worker without the package (or gone): the result stands without it
-        peaks = {}
-    settings = {"machine": model.machine.name, "convention": model.convention, "L0_mm": L0, "LE_mm": LE,
-                "quadrature": {"rule": "exact integral over L", "order": "exact"}, "rel_tiny": rel_tiny,
-                "errors": label, "kind": "GSIL",
-                "poses": grid.size, "evaluated_poses": work.size, "reduced_factor": factor,
-                "skipped_poses": skipped * factor, "seconds": round(time.perf_counter() - t0, 3),
-                "dask": {"workers": len(client.nthreads()), "threads": sum(client.nthreads().values()),
-                         "chunk": int(chunk), "tasks": len(starts), "worker_kernel": worker_kernel,
-                         "worker_peak_rss_mb": sorted(round(v, 1) for v in peaks.values())}}
-    if hasattr(grid, "describe"):
-        settings["grid"] = grid.describe(model.machine.rotary)
-    return SensitivityResult("GSIL", model.errors, values, settings)
+def peak_rss_mb() -> float:
+    """Peak resident memory of this process (MB); run on workers with `client.run`."""
+    import resource   # POSIX only; only called where it exists
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0

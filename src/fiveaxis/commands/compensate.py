@@ -79,6 +79,7 @@ def run_compensate(args) -> int:
     from ..compensation import table as C
     from ..estimation import fitted_model as MF
     from ..model.error_model import load
+    from ..plots.compensation import figure
     fm = MF.load(args.model)
     model = load(args.machine, fm.convention) if args.machine else MF.load_model(fm, str(args.model))
     MF.check_model(fm, model, str(args.model))
@@ -116,7 +117,7 @@ def run_compensate(args) -> int:
     comp = C.compensate(fm, model, counts, limit, C.DAMPING if args.damping is None else args.damping,
                         args.comp_points, args.poses if args.poses is not None else C.ACCOUNT_POSES, args.seed,
                         tool_lengths=lengths)
-    C.write(comp, out, force=args.force, plot=args.plot, model_path=str(args.model))
+    C.write(comp, out, force=args.force, figure=figure if args.plot else None, model_path=str(args.model))
     if args.json:
         print(json.dumps(C.summary(comp, str(args.model)), indent=1))
     else:

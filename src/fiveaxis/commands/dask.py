@@ -42,7 +42,8 @@ def register_dask(p):
 
 
 def run_dask(args) -> int:
-    from .. import parallel as distributed
+    from .. import parallel
+    from ..sensitivity import distributed
     from ..model.error_values import read
     from ..guards import check_size
     from ..model.error_model import load
@@ -50,7 +51,7 @@ def run_dask(args) -> int:
     from .sensitivity import _grid, _print_ranking, _print_settings
     if args.scheduler is not None:
         try:
-            distributed.scheduler_address(args.scheduler)     # before the model loads: a typo fails at once
+            parallel.scheduler_address(args.scheduler)     # before the model loads: a typo fails at once
         except InputError as exc:
             raise InputError(f"--scheduler: {exc}") from None
     model = load(args.machine, args.convention)
@@ -70,11 +71,11 @@ def run_dask(args) -> int:
     cluster = None
     if args.scheduler is not None:
         try:
-            client = distributed.connect(args.scheduler)
+            client = parallel.connect(args.scheduler)
         except InputError as exc:
             raise InputError(f"--scheduler: {exc}") from None
     else:
-        cluster, client = distributed.local_cluster(args.workers, 1)
+        cluster, client = parallel.local_cluster(args.workers, 1)
     try:
         res = distributed.gsil(model, grid, client, errors, args.l0, args.le,
                                chunk=distributed.CHUNK if args.chunk is None else args.chunk, reduce=args.reduce,

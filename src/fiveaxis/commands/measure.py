@@ -122,7 +122,7 @@ def register_model(p):
 
 # -- helpers ---------------------------------------------------------------------------------------------------
 def _load(args):
-    from ..estimation import fit as F
+    from ..estimation.problem import machine_effects, resolve_effects
     from ..model.error_model import load
     from ..model.machine import load_machine
     from ..measurement.files import read
@@ -138,8 +138,8 @@ def _load(args):
                 setup_frame=args.setup_frame)
     for w in meas.warnings:
         print(f"fiveaxis: warning: {w}", file=sys.stderr)
-    added = F.machine_effects(model) + list(args.add)
-    effects = F.resolve_effects(model, added)
+    added = machine_effects(model) + list(args.add)
+    effects = resolve_effects(model, added)
     return model, meas, effects, _fixed(model, args.fix)
 
 
@@ -179,16 +179,15 @@ def _where_blocks(args):
     if args.scheduler is None:
         yield in_blocks
         return
-    from ..estimation import row_blocks as blocked
-    from .. import parallel as distributed
+    from .. import parallel
     if args.blocks == "off":
         raise InputError("--scheduler runs row blocks on a cluster: it cannot be combined with --blocks off")
     try:
-        client = distributed.connect(args.scheduler)
+        client = parallel.connect(args.scheduler)
     except InputError as exc:
         raise InputError(f"--scheduler: {exc}") from None
     try:
-        with blocked.on_cluster(client):
+        with parallel.on_cluster(client):
             yield True
     finally:
         client.close()
@@ -196,6 +195,8 @@ def _where_blocks(args):
 
 def run_fit(args) -> int:
     from ..estimation import fit as F
+    from ..estimation.result import to_json
+    from ..report import text
     model, meas, effects, fixed = _load(args)
     if args.output is not None and args.output.exists() and not args.force:
         raise InputError(f"{args.output}: exists; not overwriting it (use --force to replace it)")
@@ -205,15 +206,17 @@ def run_fit(args) -> int:
         from ..estimation.fitted_model import from_fit, save
         save(from_fit(res), args.output, force=args.force)
         print(f"fiveaxis: wrote {args.output}", file=sys.stderr)
+    j = to_json(res)
     if args.json:
-        _dump(F.to_json(res))
+        _dump(j)
     else:
-        print(F.report(res))
+        print(text.fit(j))
     return 0
 
 
 def run_diagnose(args) -> int:
     from ..diagnosis import diagnose as D
+    from ..report import text
     if args.top < 1:
         raise InputError(f"--top: expected a positive number, got {args.top}")
     model, meas, effects, fixed = _load(args)
@@ -223,10 +226,11 @@ def run_diagnose(args) -> int:
         from ..plots.residuals import plot_residuals
         path = plot_residuals(dg, args.plot)
         print(f"fiveaxis: wrote {path}", file=sys.stderr)
+    j = dg.to_json()
     if args.json:
-        _dump(dg.to_json())
+        _dump(j)
     else:
-        print(D.report(dg))
+        print(text.diagnosis(j))
     return 0
 
 

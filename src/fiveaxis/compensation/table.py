@@ -630,9 +630,10 @@ def outputs(folder, plot: bool = False) -> list:
     return out
 
 
-def write(comp: Compensation, folder, force: bool = False, plot: bool = False, model_path: str = "") -> list:
-    """Write the table, summary.json, README.txt, linuxcnc/ (and error_map.png) into an existing folder; nothing
-    is replaced unless force (checked for every file before the first is written)."""
+def write(comp: Compensation, folder, force: bool = False, figure=None, model_path: str = "") -> list:
+    """Write the table, summary.json, README.txt, linuxcnc/ (and error_map.png, drawn by figure(comp, path) ->
+    path when given: `fiveaxis.plots.compensation.figure`) into an existing folder; nothing is replaced unless force
+    (checked for every file before the first is written)."""
     import json
     from pathlib import Path
 
@@ -644,7 +645,7 @@ def write(comp: Compensation, folder, force: bool = False, plot: bool = False, m
         raise InputError(f"{folder}: output folder not found")
     lcdir = folder / "linuxcnc"
     lfiles = lx.files(comp.lc, f"fitted model {model_path}" if model_path else "")
-    paths = outputs(folder, plot) + [lcdir / n for n in lfiles]
+    paths = outputs(folder, figure is not None) + [lcdir / n for n in lfiles]
     for p in paths:
         target(p, force)
     lcdir.mkdir(exist_ok=True)
@@ -658,10 +659,8 @@ def write(comp: Compensation, folder, force: bool = False, plot: bool = False, m
             else "")
     written.append(_written(folder / "README.txt", README.format(
         interpolation=INTERPOLATION_L if has_L else INTERPOLATION, lcol=lcol), force=force))
-    if plot:
-        from ..plots.compensation import error_map
-        written.append(error_map(comp.model, fitted_errors(comp.fm, comp.model), comp.table, comp.lc,
-                                 folder / "error_map.png"))
+    if figure is not None:
+        written.append(figure(comp, folder / "error_map.png"))
     written.append(_written(folder / "summary.json", json.dumps(summary(comp, model_path), indent=1) + "\n",
                               force=force))
     return written

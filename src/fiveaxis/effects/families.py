@@ -317,6 +317,34 @@ def _own(machine, effect: Effect):
     return None
 
 
+def is_own(machine, effect: Effect) -> bool:
+    """The effect's parameter is an error motion of the axis its variable belongs to: dy_x, ex_x, dx_x along x;
+    ez_C, dx_C along C (an axis's own error along its own travel)."""
+    if effect.param == TOOL or effect.var == TIME:
+        return False
+    ax = _axis_of(machine, effect.param)
+    return ax is not None and var_token(machine, ax.name) == effect.var
+
+
+def own_positioning(machine, effect: Effect) -> bool:
+    """The effect's parameter is the positioning error of its variable's axis (dx_x along x, ez_C along C)."""
+    return _own(machine, effect) is not None
+
+
+def chain_distance(machine, effect: Effect) -> int:
+    """How far apart the parameter's place and the variable's axis are along the kinematic loop tool -> base ->
+    workpiece (0: the same axis; time, the tool length and the chain ends: the loop's length)."""
+    loop = [a.name for a in reversed(machine.tool_chain)] + [a.name for a in machine.workpiece_chain]
+    if effect.var == TIME or effect.param == TOOL:
+        return len(loop)
+    ax = _axis_of(machine, effect.param)
+    where = ax.name if ax is not None else machine.pige_place(effect.param)
+    var_axis = next((v for v in machine.variables if var_token(machine, v) == effect.var), None)
+    if where not in loop or var_axis not in loop:
+        return len(loop)
+    return abs(loop.index(where) - loop.index(var_axis))
+
+
 def describe(machine, effect: Effect, coefs=None) -> str:
     """A plain-language description of an effect, e.g. 'the roll of the X carriage changing linearly along X';
     with its fitted coefficients (as fitted: scaled polynomial coefficients, amplitudes in mm or rad) also its

@@ -74,6 +74,8 @@ class Measurements:
     dirs: dict = field(default_factory=dict)          # pose variable -> (n,) +1/-1 (dir_<VAR> columns)
     rows: np.ndarray | None = None      # (n,) data row numbers in the file (1-based)
     frame: str = "workpiece"            # frame of d, dv, u
+    quantum: dict | None = None         # resolution of the file's numbers: "poses" (n, nvar), "L" (n,), "u" (n, 3)
+    #                                     model units, half a unit of the last digit (None: full precision)
 
     def __post_init__(self):
         n = len(self.poses)
@@ -101,12 +103,13 @@ class Measurements:
         return replace(self, poses=self.poses[rows], L=self.L[rows], d=self.d[rows], t=pick(self.t),
                        sigma=pick(self.sigma), dv=pick(self.dv), du=pick(self.du), u=pick(self.u),
                        sigma_axis=pick(self.sigma_axis), setup=pick(self.setup),
-                       dirs={k: v[rows] for k, v in self.dirs.items()}, rows=self.rows[rows], warnings=[])
+                       dirs={k: v[rows] for k, v in self.dirs.items()}, rows=self.rows[rows], warnings=[],
+                       quantum=None if self.quantum is None else {k: pick(v) for k, v in self.quantum.items()})
 
     def with_poses(self, poses, L=None) -> "Measurements":
         """The same readings at other poses (mm, rad) and tool lengths (mm): what another plan would measure."""
         return replace(self, poses=np.asarray(poses, float), L=self.L if L is None else np.asarray(L, float),
-                       warnings=[])
+                       warnings=[], quantum=None)
 
 
 def concat(a: Measurements, b: Measurements) -> Measurements:
@@ -123,7 +126,47 @@ def concat(a: Measurements, b: Measurements) -> Measurements:
                    sigma_axis=cat(a.sigma_axis, b.sigma_axis), setup=cat(a.setup, b.setup),
                    setup_kind={**a.setup_kind, **b.setup_kind}, setup_frame={**a.setup_frame, **b.setup_frame},
                    dirs=dirs, rows=np.concatenate([a.rows, b.rows + (a.rows.max() if len(a.rows) else 0)]),
-                   warnings=[])
+                   warnings=[], quantum=_concat_quantum(a, b))
+
+
+def _concat_quantum(a: Measurements, b: Measurements) -> dict | None:
+    """The resolution of two sets as one: a set without one (simulated, full precision) counts as exact."""
+    if a.quantum is None and b.quantum is None:
+        return None
+    qa, qb = (m.quantum or {"poses": np.zeros_like(m.poses), "L": np.zeros(m.n),
+                            "u": None if m.u is None else np.zeros((m.n, 3))} for m in (a, b))
+    return {k: None if qa[k] is None or qb[k] is None else np.concatenate([qa[k], qb[k]]) for k in qa}
+
+
+#: Significant digits a number may carry in a file before it counts as full precision.
+MAX_DIGITS = 17
+
+
+def quantum(values: np.ndarray) -> np.ndarray:
+    """The resolution of a column of numbers as a file gives them: half a unit of the last digit of each (0.0005
+    for 12.345 in a column written to 0.001; 5e-5 for 214.2245 in a column of 7 significant digits). From the
+    column's decimals (the most any value needs: a fixed-point column) and significant digits (the most any value
+    needs: a column of significant digits), each value's resolution is the coarser of the two at its magnitude;
+    full double precision comes out near 1e-16 of the value. NaN where the value is NaN."""
+    v = np.asarray(values, dtype=float)
+    out = np.full(v.shape, np.nan)
+    ok = np.isfinite(v)
+    if not ok.any():
+        return out
+    x = np.abs(v[ok])
+    e = np.floor(np.log10(np.where(x > 0, x, 1.0)))
+    k = np.full(x.shape, MAX_DIGITS)
+    for digits in range(MAX_DIGITS - 1, 0, -1):       # fewest significant digits that read back as the value
+        scale = 10.0 ** (digits - 1 - e)
+        y = x * scale
+        exact = np.abs(np.round(y) - y) <= 4 * np.finfo(float).eps * np.maximum(y, 1.0)
+        k = np.where(exact, digits, k)
+    k = np.where(x > 0, k, 1)
+    decimals = np.where(x > 0, k - 1 - e, -np.inf)
+    K = int(k.max())
+    d_max = float(decimals.max()) if np.isfinite(decimals).any() else 0.0
+    out[ok] = 0.5 * np.maximum(10.0 ** (-d_max), np.where(x > 0, 10.0 ** (e - K + 1), 0.0))
+    return out
 
 
 # -- reading ------------------------------------------------------------------------------------------------------
@@ -439,6 +482,7 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
                          f"identify (expected at least {min_rows})")
     # Poses, in model units.
     poses = np.empty((n, len(variables)))
+    pose_quantum = np.empty((n, len(variables)))
     outside = {}
     any_out = np.zeros(n, bool)
     for i, v in enumerate(variables):
@@ -460,6 +504,7 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
                 warnings.append(f"{path}: column {v}: all {n} angles are within +-{RADIAN_MAX:.4g} while the stroke "
                                 f"is [{lo:g}, {hi:g}] deg: are they radians? (angles are read as degrees)")
             vals = np.radians(vals)
+        pose_quantum[:, i] = quantum(data[v]) * (math.pi / 180.0 if ax.type == "rotary" else 1.0)
         poses[:, i] = vals
     if outside:
         detail = ", ".join(f"{v}: {k}" for v, k in outside.items())
@@ -503,6 +548,8 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
                 target.setdefault(s, default or allowed[0])
     del kinds, frames
     L = data["L"] if "L" in data else np.full(n, machine.tool_length)
+    resolution = {"poses": pose_quantum, "L": quantum(L) if "L" in data else np.zeros(n),
+                  "u": None if u is None else np.column_stack([quantum(data[c]) for c in DIRECTION])}
 
     def cols3(names):
         return np.column_stack([data[c] if c in data else np.full(n, np.nan) for c in names])
@@ -511,7 +558,7 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
                         dv=cols3(AXIS_DEVIATIONS) if any(c in data for c in AXIS_DEVIATIONS) else None,
                         has_L="L" in data, warnings=warnings, du=data.get(LINE), u=u,
                         sigma_axis=data.get("sigma_axis"), setup=setup, setup_kind=skind, setup_frame=sframe,
-                        dirs=dirs, rows=np.asarray(keep) + 1, frame=frame)
+                        dirs=dirs, rows=np.asarray(keep) + 1, frame=frame, quantum=resolution)
 
 
 def in_frame(meas: Measurements, machine, target: str) -> Measurements:

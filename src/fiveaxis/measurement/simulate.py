@@ -200,14 +200,6 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
                       noise_axis if dv is not None else 0.0, coefficients, list(plan.notes))
 
 
-def truth_theta(prob, sim: Simulation) -> np.ndarray:
-    """The simulation's truth in a fit's parameters (errors, effect coefficients, setup unknowns as the fit
-    parametrises them: offsets a setup cannot see are folded into those it can)."""
-    from ..estimation.fit import truth_vector
-    setups = su.truth_values(prob.setups, prob.obs, prob.meas, prob.model.machine, prob.tip, sim.setups)
-    return truth_vector(prob, sim.base_errors, sim.coefficients, setups)
-
-
 def to_frame(sim: Simulation, model):
     """The simulated set as a DataFrame with the columns of a measurement file."""
     return frame(sim.meas, model.machine)

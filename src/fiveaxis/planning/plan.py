@@ -49,7 +49,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..estimation import fit as F
+from ..diagnosis import candidates as cd
+from ..diagnosis.decision import ALIAS_COS
+from ..effects import families as fx
+from ..estimation import design as dsg
+from ..estimation import solver as sv
+from ..estimation.fit import predicted
+from ..estimation.problem import Problem, build, machine_effects, resolve_effects
+from ..units import human
 from ..model import frames
 from ..measurement import instruments as ins
 from ..exceptions import InputError
@@ -440,13 +447,13 @@ class Reference:
         return self.basis.shape[1]
 
 
-def _theta_columns(prob: F.Problem) -> np.ndarray:
+def _theta_columns(prob: Problem) -> np.ndarray:
     """Indices of the free errors and effect coefficients in a problem's columns."""
     k = prob.n_errors + prob.n_effect_coefs
     return np.array([i for i in range(k) if prob.names[i] not in prob.fixed], dtype=int)
 
 
-def _setup_blocks(prob: F.Problem):
+def _setup_blocks(prob: Problem):
     """(rows, columns) of every setup of a problem: its readings and its free unknowns' columns."""
     out = []
     k = prob.n_errors + prob.n_effect_coefs
@@ -459,11 +466,11 @@ def _setup_blocks(prob: F.Problem):
 
 
 def _orth(X: np.ndarray) -> np.ndarray:
-    """Orthonormal basis of the columns of X (rank by fit.RANK_RTOL)."""
+    """Orthonormal basis of the columns of X (rank by solver.RANK_RTOL)."""
     if X.size == 0:
         return np.zeros((X.shape[0], 0))
     U, s, _ = np.linalg.svd(X, full_matrices=False)
-    r = int(np.sum(s > F.RANK_RTOL * s[0])) if s.size and s[0] > 0 else 0
+    r = int(np.sum(s > sv.RANK_RTOL * s[0])) if s.size and s[0] > 0 else 0
     return U[:, :r]
 
 
@@ -485,24 +492,31 @@ def logdet(Zp: np.ndarray, n_poses: int) -> tuple[float, int]:
     if Zp.shape[0] == 0:
         return -math.inf, 0
     s = np.linalg.svd(Zp, compute_uv=False)
-    rank = int(np.sum(s > F.RANK_RTOL * math.sqrt(max(n_poses, 1))))
+    rank = int(np.sum(s > sv.RANK_RTOL * math.sqrt(max(n_poses, 1))))
     if rank < r:
         return -math.inf, rank
     return float(2.0 * np.sum(np.log(s))), rank
 
 
-def reduced(ref: Reference, prob: F.Problem) -> np.ndarray:
-    """Z = W A_theta S^-1 B of a problem (m, r), before the setups are profiled out."""
+def _block(prob: Problem):
+    """The in-memory design block of a problem (`fiveaxis.estimation.design`)."""
+    return dsg.InMemory(prob).block
+
+
+def reduced(ref: Reference, prob: Problem, A: np.ndarray | None = None) -> np.ndarray:
+    """Z = W A_theta S^-1 B of a problem (m, r), before the setups are profiled out (A: its design, if built)."""
     cols = _theta_columns(prob)
     if [prob.names[i] for i in cols] != ref.names:
         raise ValueError("the problem's parameters differ from the reference's")
-    return (prob.A[:, cols] * prob.w[:, None] / ref.scale) @ ref.basis
+    A = _block(prob).A if A is None else A
+    return (A[:, cols] * prob.w[:, None] / ref.scale) @ ref.basis
 
 
-def criterion(ref: Reference, prob: F.Problem) -> tuple[float, int]:
+def criterion(ref: Reference, prob: Problem) -> tuple[float, int]:
     """(D, rank) of any problem (a plan's design) against a reference: see the module docstring."""
-    Z = reduced(ref, prob)
-    return logdet(_profiled(Z, prob.A * prob.w[:, None], _setup_blocks(prob)), prob.meas.n)
+    A = _block(prob).A
+    Z = reduced(ref, prob, A)
+    return logdet(_profiled(Z, A * prob.w[:, None], _setup_blocks(prob)), prob.meas.n)
 
 
 @dataclass
@@ -512,7 +526,7 @@ class Design:
     (identifiable directions of the machine's errors) and `effect` (named effects' coefficients). Setups of a single
     unit (ballbar circles) are profiled out of that unit's rows."""
     pool: Pool
-    problem: F.Problem
+    problem: Problem
     ref: Reference
     X: np.ndarray              # (C, k, d) rows of each unit
     groups: dict               # group name -> column indices into d
@@ -550,23 +564,22 @@ def _rivals(model, prob, effs, uniform_rows, base_setup_cols, existing=()):
     pool can tell from the base, the setups, the named effects and the rivals taken before (`existing` first); and,
     per named effect, those no data of the instrument separates from it (|cos| > diagnose.ALIAS_COS over the pool).
     Returns (existing + new rivals, aliases)."""
-    from ..diagnosis import diagnose as Dg
-    from ..effects import families as fx
     named = {e.id for e in effs}
     vocab = [v for v in fx.vocabulary(model.machine, model.errors, False) if v.id not in named]
     if not vocab or not effs:
         return [], {}
-    W = prob.A * prob.w[:, None]
-    G = np.hstack([Dg.candidate_matrix(prob, vocab), Dg.candidate_matrix(prob, effs)])
+    block = _block(prob)
+    W = block.A * prob.w[:, None]
+    G = np.hstack([cd.candidate_matrix(block, prob.w, vocab), cd.candidate_matrix(block, prob.w, effs)])
     everything = vocab + list(effs)
     pool_Q = _orth(W[:, base_setup_cols])
-    on_pool = Dg.project(pool_Q, G, np.zeros(len(G)), everything)
+    on_pool = cd.project(pool_Q, G, np.zeros(len(G)), everything)
     uQ = _orth(W[np.ix_(uniform_rows, base_setup_cols)])
-    on_uniform = Dg.project(uQ, G[uniform_rows], np.zeros(len(uniform_rows)), everything)
+    on_uniform = cd.project(uQ, G[uniform_rows], np.zeros(len(uniform_rows)), everything)
     aliases, candidates = {}, []
     for j, e in enumerate(effs):
         col = len(vocab) + j
-        alias = np.flatnonzero(on_pool.cos_with(col)[:len(vocab)] > Dg.ALIAS_COS)
+        alias = np.flatnonzero(on_pool.cos_with(col)[:len(vocab)] > ALIAS_COS)
         aliases[e.id] = [vocab[i].id for i in alias]
         cos = on_uniform.cos_with(col)[:len(vocab)]
         cos[alias] = 0.0
@@ -599,10 +612,11 @@ def design(model, pool_: Pool, effects=(), fixed=None, noise_mm: float = NOISE_M
         prob = before.problem
     else:
         meas = measurements(pool_.plan, model, noise_mm, noise_rad, path=f"{pool_.instrument} candidates")
-        prob = F.build(model, meas, effs, fixed)
+        prob = build(model, meas, effs, fixed)
     theta = _theta_columns(prob)
     n_err = int(np.sum(theta < prob.n_errors))
-    W = prob.A * prob.w[:, None]
+    block = _block(prob)
+    W = block.A * prob.w[:, None]
     C = pool_.n_units
     unit_of_row = pool_.unit[prob.obs.row]
     blocks = _setup_blocks(prob)
@@ -612,16 +626,16 @@ def design(model, pool_: Pool, effects=(), fixed=None, noise_mm: float = NOISE_M
         rows = np.flatnonzero(pool_.uniform[unit_of_row] if rivals_of is None else np.isin(unit_of_row, rivals_of))
         rivals, aliases = _rivals(model, prob, effs, rows, np.concatenate([theta[:n_err], setup_cols]),
                                   before.rivals if before is not None else ())
-    R = prob.effect_columns(rivals) * prob.w[:, None] if rivals else np.zeros((prob.obs.m, 0))
+    R = cd.candidate_matrix(block, prob.w, rivals) if rivals else np.zeros((prob.obs.m, 0))
     At = np.hstack([W[:, theta], R])
     scale = np.sqrt(np.sum(At ** 2, axis=0) / pool_.plan.n)
-    scale = np.where(scale > F.ZERO_COLUMN_RTOL * max(scale.max(initial=0.0), 1e-300), scale, 1.0)
+    scale = np.where(scale > sv.ZERO_COLUMN_RTOL * max(scale.max(initial=0.0), 1e-300), scale, 1.0)
     Z = At / scale
     Zp = _profiled(Z, W, blocks)
     # The identifiable base directions: SVD of the profiled error columns.
     Zb = Zp[:, :n_err]
     _, s, Vt = np.linalg.svd(np.linalg.qr(Zb)[1] if Zb.shape[0] > 2 * Zb.shape[1] else Zb, full_matrices=False)
-    r_b = int(np.sum(s > F.RANK_RTOL * math.sqrt(pool_.plan.n)))
+    r_b = int(np.sum(s > sv.RANK_RTOL * math.sqrt(pool_.plan.n)))
     Bb = Vt[:r_b].T
     k_e = len(theta) - n_err
     basis = np.zeros((len(theta), r_b + k_e))
@@ -667,7 +681,7 @@ def _check_effects(Zr, r_b, names, n_poses):
     """InputError if no data of the instrument determines the named effects apart from the machine's errors: Zr
     (m, r_b + k_e) the pool's profiled rows of the base directions and effect coefficients (n_poses poses)."""
     s = np.linalg.svd(Zr, compute_uv=False)
-    tol = F.RANK_RTOL * math.sqrt(n_poses)
+    tol = sv.RANK_RTOL * math.sqrt(n_poses)
     if int(np.sum(s > tol)) < Zr.shape[1]:
         Q = _orth(Zr[:, :r_b]) if r_b else np.zeros((len(Zr), 0))
         bad = [nm for j, nm in enumerate(names)
@@ -912,7 +926,7 @@ def parse_lengths(lengths) -> list | None:
 
 def resolve_effects(model, ids, where: str = "effects") -> list:
     """Effects to plan for: the machine file's own and those named; time and direction effects cannot be planned."""
-    effects = F.resolve_effects(model, list(F.machine_effects(model)) + list(ids), where=where)
+    effects = resolve_effects(model, list(machine_effects(model)) + list(ids), where=where)
     for e in effects:
         if getattr(e, "kind", "poly") in ("thermal", "reversal") or getattr(e, "var", None) == "t":
             what = "time" if getattr(e, "var", None) == "t" else "approach-direction (reversal)"
@@ -929,7 +943,7 @@ def min_poses(dsg: Design) -> int:
     k, r = dsg.k, dsg.ref.r
     q1 = len(dsg.groups["setup"]) // max(len(dsg.shared), 1)
     X = dsg.X[:UNIT_RANK_SAMPLE][:, :, dsg.cols("base", "effect")]
-    tol = F.RANK_RTOL * math.sqrt(dsg.poses_per_unit)
+    tol = sv.RANK_RTOL * math.sqrt(dsg.poses_per_unit)
     most = max((int(np.sum(np.linalg.svd(x, compute_uv=False) > tol)) for x in X), default=1)
     units = max(math.ceil((r + q1) / k), math.ceil(r / max(most, 1)), 1)
     return units * dsg.poses_per_unit
@@ -983,8 +997,8 @@ def make(model, instrument: str, n: int, effects=(), lengths=None, seed: int = 0
         rand_D.append(d_)
         rand_rank.append(k_)
     plan = subplan(pl, units)
-    prob = F.build(model, measurements(plan, model, noise_mm, noise_rad), effs, model.machine.fixed)
-    pred = F.predicted(prob)
+    prob = build(model, measurements(plan, model, noise_mm, noise_rad), effs, model.machine.fixed)
+    pred = predicted(prob)
     effect_std = _effect_std(model, dsg, prob, effs, n_units, rr)
     notes = []
     if per > 1 and n % per:
@@ -1064,10 +1078,10 @@ def _effect_std(model, dsg, prob, effs, n_units, rng) -> dict:
     if not effs:
         return {}
     out = {}
-    pred = F.predicted(prob)
+    pred = predicted(prob)
     try:
         rp = subplan(dsg.pool, random_units(dsg, n_units, rng))
-        rpred = F.predicted(F.build(model, measurements(rp, model, dsg.ref.noise_mm, dsg.ref.noise_rad), effs,
+        rpred = predicted(build(model, measurements(rp, model, dsg.ref.noise_mm, dsg.ref.noise_rad), effs,
                                     model.machine.fixed))
     except InputError:
         rpred = {"determined": {}}
@@ -1172,10 +1186,10 @@ def report(res: PlanResult) -> str:
         lines.append("[[Effects to detect]]  predicted standard uncertainty of the change at the end of the stroke: "
                      "this plan / a random plan of the same size")
         for nm, v in res.effect_std.items():
-            txt = [("not determined" if x is None else F.human(x, v["unit"])) for x in (v["plan"], v["random"])]
+            txt = [("not determined" if x is None else human(x, v["unit"])) for x in (v["plan"], v["random"])]
             lines.append(f"    {nm:14s} {txt[0]} / {txt[1]}")
     coefs = {nm for e in res.effects for nm in e.names}
-    items = [f"{nm} {F.human(v['std'], v['unit'])}" for nm, v in pred["determined"].items()
+    items = [f"{nm} {human(v['std'], v['unit'])}" for nm, v in pred["determined"].items()
              if not nm.endswith("]") and nm not in coefs]
     lines.append(f"[[Determined by this plan]]  {len(items)} machine errors alone; predicted standard uncertainty "
                  f"(k = 1)")
@@ -1185,7 +1199,7 @@ def report(res: PlanResult) -> str:
         lines.append("[[Combinations determined (members not determined alone)]]  predicted standard uncertainty")
         for c in pred["combinations"]:
             unit = c["unit"] if c["unit"] in ("mm", "rad") else ""
-            lines.append(f"    {c['formula']}  +- {F.human(c['std'], unit) if unit else format(c['std'], '.2g')}")
+            lines.append(f"    {c['formula']}  +- {human(c['std'], unit) if unit else format(c['std'], '.2g')}")
     if pred["unidentifiable"]:
         lines.append("[[Not determined by this plan]]")
         unseen = set(pred["unseen"])

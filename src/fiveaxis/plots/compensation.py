@@ -9,13 +9,18 @@ from pathlib import Path
 
 import numpy as np
 
+from ..compensation.table import actual_tool, compensated_commands, fitted_errors
+from ..linuxcnc.configuration import linuxcnc_commands
 from .sensitivity import _pyplot, _save
+
+
+def figure(comp, path) -> Path:
+    """The error map of a compensation (`fiveaxis.compensation.table.Compensation`) as a PNG at path."""
+    return error_map(comp.model, fitted_errors(comp.fm, comp.model), comp.table, comp.lc, path)
 
 
 def error_map(model, errors_fn, table, lc, path, cells: int = 41) -> Path:
     """PNG of the predicted tip error (um) over the rotary axes: before / after LinuxCNC / after the table."""
-    from ..compensation.table import actual_tool, compensated_commands
-    from ..linuxcnc.configuration import linuxcnc_commands
     machine = model.machine
     variables = list(model.variables)
     rot = [v for v in variables if machine.axis(v).type == "rotary"][:2]

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..estimation import fit as F
+from ..estimation.problem import resolve_effects
 from ..measurement import observations as ob
 from .sensitivity import _pyplot, _save
 
@@ -78,14 +80,13 @@ def residual_figure(model, meas, series, title: str):
 def plot_residuals(dg, out_dir, name: str = "residuals.png") -> Path:
     """Scatter of the fit residual against every variable (and t): grey before, colour after the top candidate
     (each fit without its own outliers, which are left out of the plot and counted in its title)."""
-    from ..estimation import fit as F
     prob = dg.fit.problem
     model, meas = prob.model, prob.meas
     series = [series_of(dg.fit, f"model fitted (RMS {dg.rms_mm_without_outliers * 1000:.3g} um)")]
     after_text = ""
     if dg.candidates:
         top = dg.candidates[0]["id"]
-        res = F.fit(model, meas, list(prob.effects) + F.resolve_effects(model, [top]), fixed=prob.fixed)
+        res = F.fit(model, meas, list(prob.effects) + resolve_effects(model, [top]), fixed=prob.fixed)
         rms_after = res.rms_mm_without_outliers * 1000
         series.append(series_of(res, f"after adding {top} (RMS {rms_after:.3g} um)"))
         after_text = f", {rms_after:.3g} um after adding the top candidate {top}"

@@ -14,15 +14,29 @@ never reaches into the analyses' objects:
 """
 from __future__ import annotations
 
-import dataclasses
 import datetime as _dt
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..model import iso_names as iso
+from .. import __version__
+from ..diagnosis import diagnose as D
+from ..diagnosis import separation as sep
+from ..effects.families import describe_param
+from ..estimation.problem import machine_effects, resolve_effects
+from ..estimation.result import to_json as fit_json
+from ..estimation.solver import formula
 from ..exceptions import InputError
+from ..measurement import observations as ob
+from ..measurement.files import read
+from ..model import iso_names as iso
+from ..model.error_model import load
+from ..plots.residuals import residual_figure, series_of
+from ..sensitivity.grid import Grid
+from ..sensitivity.indices import gsil
+from . import compensation as C
+from . import figures
 
 #: Rounds of diagnose -> add the top candidate, at most (as scripts/run-main.sh).
 MAX_ROUNDS = 4
@@ -32,12 +46,6 @@ TOP = 5
 GSIL_POINTS = 9
 #: Largest GSIL proportions listed.
 GSIL_TOP = 10
-#: A residual RMS up to this multiple of a known noise counts as explained.
-EXPLAINED_RATIO = 1.2
-#: An axis covered over less than this share of its stroke gets "measure the full stroke" advice.
-FULL_STROKE = 0.9
-#: Extra tool length tried by the separation advice (mm above the median measured tool length).
-EXTRA_TOOL_MM = 100.0
 
 
 @dataclass
@@ -55,7 +63,6 @@ def people(value, unit: str):
 
 
 def _iso_formula(obj, terms: dict) -> str:
-    from ..estimation.fit import formula
     return formula({(iso.name(obj, n) or n): c for n, c in terms.items()})
 
 
@@ -89,7 +96,6 @@ def _data_record(model, meas) -> dict:
 
 def _readings_text(model, meas) -> str:
     """What the file measures, in words: the kinds of readings, their frame and the setups."""
-    from ..measurement import observations as ob
     obs = ob.build(meas, model.machine)
     kinds = {ob.TIP: "tool-tip deviations (dx, dy, dz; mm, actual minus nominal)",
              ob.AXIS: "tool-axis deviations (di, dj, dk)",
@@ -112,93 +118,12 @@ def _round_record(obj, k: int, j: dict) -> dict:
     return {"round": k, "added": list(j["added"]), "added_iso": [iso.name(obj, a) for a in j["added"]],
             "rms_um": j["rms_mm"] * 1e3, "noise_um": j["noise_mm"] * 1e3, "noise_source": j["noise_source"],
             "ratio": j["rms_mm"] / j["noise_mm"] if j["noise_mm"] > 0 else None,
-            "missing_effect": j["missing_effect"], "decision": j["decision"], "candidates": cands}
+            "missing_effect": j["missing_effect"], "verdict": j["verdict"], "decision": j["decision"],
+            "candidates": cands, "unexplained": j.get("unexplained")}
 
 
-def _concat(a, b):
-    """Two measurement sets of the same structure as one (for 'what if we also measured ...' designs): every
-    array field is stacked along its first axis (rows, readings), lists are emptied, the rest is a's."""
-    changes = {}
-    for f in dataclasses.fields(a):
-        x, y = getattr(a, f.name), getattr(b, f.name)
-        if isinstance(x, np.ndarray) and isinstance(y, np.ndarray):
-            changes[f.name] = np.concatenate([x, y])
-        elif isinstance(x, list):
-            changes[f.name] = []
-    return dataclasses.replace(a, **changes)
-
-
-def _options(model, meas, seed: int = 1):
-    """Extra measurements to try: another tool length; the full stroke of each axis covered less than 90 %."""
-    rng = np.random.default_rng(seed)
-    L0 = float(np.median(meas.L))
-    out = [(f"another tool length (L = {L0 + EXTRA_TOOL_MM:g} mm besides {L0:g} mm)",
-            dataclasses.replace(meas, L=np.full(meas.n, L0 + EXTRA_TOOL_MM), warnings=[]))]
-    for i, v in enumerate(meas.variables):
-        lo, hi = model.machine.axis(v).model_stroke
-        vals = meas.poses[:, i]
-        if vals.max() - vals.min() < FULL_STROKE * (hi - lo):
-            poses = meas.poses.copy()
-            poses[:, i] = rng.uniform(lo, hi, meas.n)
-            out.append((f"the full stroke of {v}", dataclasses.replace(meas, poses=poses, warnings=[])))
-    return out
-
-
-def separation(model, meas, effects, groups: list[list[str]], names: list[str]) -> list[dict]:
-    """For each group of parameters the data does not separate: why, and which extra measurement would.
-
-    Errors with the same J_i and K_i at every pose (a row of Table 2) are never separated by the tool tip; an
-    error whose J_i is zero at every pose has no effect at all; otherwise the design is rebuilt with the data plus
-    the extra poses of each option and the members that become determined are listed."""
-    from ..estimation import fit as F
-    table2 = [set(g) for g in model.groups]
-    probe = model.machine.random_poses(64, 7)
-    J, _ = model.jk(probe, np.linspace(0.5, 1.5, 64) * (model.machine.tool_length or 100.0))
-    silent = {n for k, n in enumerate(model.errors) if not np.any(np.abs(J[:, k]) > 1e-12)}
-    out = [{"members": list(g), "iso": [iso.name(model, n) for n in g], "why": "", "separate_by": []} for g in groups]
-    pending = []
-    for row, g in zip(out, groups):
-        members = set(g)
-        same = next((k for k, t in enumerate(table2, 1) if members <= t), None)
-        if members <= silent:
-            row["why"] = "no effect on the tool tip at any pose (e.g. a rotation about the tool axis): no " \
-                         "measurement of the tool tip determines it"
-        elif same is not None and len(members) > 1:
-            row["why"] = (f"the same effect on the tool tip and tool axis at every pose and tool length (group "
-                          f"{same} of Table 2): no measurement separates them; only the combination matters, for "
-                          f"compensation too")
-        else:
-            pending.append(row)
-    if pending:
-        index = {n: i for i, n in enumerate(names)}
-        if F.use_blocks(meas.n):          # what separates the errors is a property of the poses: a sample shows it
-            from ..estimation.row_blocks import sample_poses
-            meas = meas.subset(sample_poses(meas.n))
-        for text, extra in _options(model, meas):
-            try:
-                prob = F.build(model, _concat(meas, extra), effects)
-            except (InputError, ValueError, TypeError, IndexError) as exc:   # an unusual data set: say so
-                for row in pending:
-                    row["separate_by"].append({"measure": text, "determines": [], "error": str(exc)})
-                continue
-            idf = F.identify(prob.A * prob.w[:, None])
-            for row in pending:
-                now = [n for n in row["members"] if n in index and idf.determined[index[n]] and idf.norms[index[n]] > 0]
-                if now:
-                    row["separate_by"].append({"measure": text, "determines": now})
-        for row in pending:
-            if not row["separate_by"]:
-                row["why"] = "neither another tool length nor a wider range of an axis separates them on these poses"
-            else:
-                row["why"] = "the measured poses do not separate them; an extra measurement would (below)"
-    return out
-
-
-def _fit_record(model, res, groups_advice) -> dict:
-    from ..estimation import fit as F
-    from ..effects.families import describe_param
+def _fit_record(model, j: dict, groups_advice) -> dict:
     placed = model.machine.with_convention(model.convention)
-    j = F.to_json(res)
     params = []
     for name, p in j["parameters"].items():
         value, unit = people(p.get("value"), p["unit"])
@@ -236,13 +161,10 @@ def _fit_record(model, res, groups_advice) -> dict:
 
 
 def _sensitivity(model) -> tuple[dict, list]:
-    from ..sensitivity.grid import Grid
-    from ..sensitivity.indices import gsil
     grid = Grid.from_strokes(model.machine, {v: GSIL_POINTS for v in model.variables})
     res = gsil(model, grid, check=False, progress=False)
     p = res.proportions
     index = {n: i for i, n in enumerate(res.names)}
-    from ..effects.families import describe_param
     placed = model.machine.with_convention(model.convention)
     top = [{"name": n, "iso": iso.name(model, n), "proportion": float(p[index[n]]),
             "description": describe_param(placed, n)} for n in res.ranking[:GSIL_TOP]]
@@ -252,24 +174,28 @@ def _sensitivity(model) -> tuple[dict, list]:
 
 
 def _verdict(obj, rounds: list[dict], fit: dict, max_rounds: int) -> dict:
+    """The report's verdict: the last round's diagnosis verdict (the one `fiveaxis diagnose` prints), in words."""
     last = rounds[-1]
     base = set(rounds[0]["added"])
     found = [a for a in last["added"] if a not in base]
     known = last["noise_source"] == "sigma column"
     ratio = last["ratio"]
-    explained = not last["missing_effect"] and (not known or (ratio is not None and ratio <= EXPLAINED_RATIO))
+    verdict = last["verdict"]
+    explained = verdict == "no missing effect"
     unexplained = []
-    if last["missing_effect"]:
+    if verdict == "missing effect":
         best = last["candidates"][0] if last["candidates"] else None
         unexplained.append(f"an effect is still missing after {len(rounds)} rounds (the limit is {max_rounds})"
                            + (f"; the best candidate is {best['id']}: {best['description']}" if best else ""))
-    elif known and ratio is not None and ratio > EXPLAINED_RATIO:
-        unexplained.append(f"the residual is {ratio:.2g} times the noise, but no effect of the vocabulary explains "
-                           f"it: the cause may lie outside the model (instrument setup, an effect of another form)")
+    elif verdict == "unexplained structure":
+        u = last.get("unexplained") or {}
+        where = (f" ({u['reading']} along {u['axis']}: {u['share']:.0%} of its residual)" if "axis" in u else "")
+        unexplained.append(f"the residual ({last['rms_um']:.3g} um) is above the noise ({last['noise_um']:.3g} um) "
+                           f"and holds structure{where} that no effect of the vocabulary explains: the cause may "
+                           f"lie outside the model (instrument setup, an effect of another form; see the last round)")
     if not known:
-        unexplained.append("the data has no sigma column: the noise is estimated from the residual itself, so the "
-                           "ratio of residual to noise cannot reveal a misfit; the decision rests on the candidate "
-                           "test alone")
+        unexplained.append("the data has no sigma column: the noise is estimated from the residual itself; the "
+                           "verdict rests on the candidate test and the residual-structure tests")
     if fit["groups"]:
         unexplained.append(f"{len(fit['groups'])} groups of parameters cannot be told apart by this data (their "
                            f"combinations are determined; see the fit)")
@@ -279,9 +205,10 @@ def _verdict(obj, rounds: list[dict], fit: dict, max_rounds: int) -> dict:
                     + (f", after adding {len(found)} effect(s) the data showed." if found else "."))
     else:
         headline = (f"The model does not yet explain the measurements: residual RMS {last['rms_um']:.3g} um against "
-                    f"noise {last['noise_um']:.3g} um.")
-    return {"explained": explained, "headline": headline, "rms_um": last["rms_um"], "noise_um": last["noise_um"],
-            "noise_source": last["noise_source"], "ratio": ratio, "rms_first_um": rounds[0]["rms_um"],
+                    f"noise {last['noise_um']:.3g} um ({verdict}).")
+    return {"explained": explained, "verdict": verdict, "headline": headline, "rms_um": last["rms_um"],
+            "noise_um": last["noise_um"], "noise_source": last["noise_source"], "ratio": ratio,
+            "rms_first_um": rounds[0]["rms_um"],
             "effects_found": [{"id": a, "iso": iso.name(obj, a),
                                "description": next((c["description"] for r in rounds for c in r["candidates"]
                                                     if c["id"] == a), "")} for a in found],
@@ -297,19 +224,12 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
     with summary.json (see report.compensation) or None. Rounds: diagnose, add the top candidate, repeat while
     the decision says an effect is missing, at most max_rounds diagnoses; frame: of the readings (None: the
     file's, else workpiece)."""
-    from ..diagnosis import diagnose as D
-    from ..estimation import fit as F
-    from ..model.error_model import load
-    from ..measurement.files import read
-    from ..plots.residuals import residual_figure, series_of
-    from . import compensation as C
-    from . import figures
     if max_rounds < 1:
         raise InputError(f"rounds: expected at least 1, got {max_rounds}")
     model = load(machine, convention)
     comp = C.read(compensation, model.machine.name) if compensation is not None else None
     meas = read(data, model.machine, min_rows=2, frame=frame)
-    effects = F.resolve_effects(model, F.machine_effects(model) + list(added))
+    effects = resolve_effects(model, machine_effects(model) + list(added))
     rounds, diags = [], []
     for k in range(1, max_rounds + 1):
         dg = D.diagnose(model, meas, effects, top=TOP)
@@ -317,11 +237,12 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
         rounds.append(_round_record(model, k, dg.to_json()))
         if not (dg.missing_effect and dg.candidates) or k == max_rounds:
             break
-        effects = effects + F.resolve_effects(model, [dg.candidates[0]["id"]])
+        effects = effects + resolve_effects(model, [dg.candidates[0]["id"]])
     final = diags[-1]
-    j = F.to_json(final.fit)
-    advice = separation(model, meas, final.fit.problem.effects, j["unidentifiable"], list(final.fit.problem.names))
-    fit = _fit_record(model, final.fit, advice)
+    j = fit_json(final.fit)
+    advice = sep.parameters(model, meas, final.fit.problem.effects, j["unidentifiable"],
+                            list(final.fit.problem.names))
+    fit = _fit_record(model, j, advice)
     record = {
         "title": title or f"Calibration report: {model.machine.title}",
         "generated": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
@@ -357,7 +278,6 @@ def _model_label(added) -> str:
 
 
 def _version() -> str:
-    from .. import __version__
     return __version__
 
 

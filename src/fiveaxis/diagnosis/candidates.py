@@ -1,0 +1,353 @@
+"""The candidate effects of a diagnosis, their scores against a residual, and the penalty of choosing one.
+
+Families (`fiveaxis.effects.families`; ids in `fiveaxis.model.effect_ids`):
+- polynomial `<param>:<var><deg>`: every error and L x every variable (t if the data has times) x degrees 1-3;
+- reversal `<param>:<var>r`: every error and L x every pose variable whose dir_<VAR> column has both signs;
+- periodic `<param>:<var>p<P>`: every error and L x every variable, the period P searched (a periodogram of the
+  residual, `fiveaxis.diagnosis.searches`): the best period per (param, var);
+- thermal `<param>:te<tau>`: every error and L, the time constant searched: the best per param;
+- custom: the machine file's `[effects.<name>]`.
+The pool is built on the rows of a screen: every reading in memory, a sample of poses for a set in row blocks
+(`fiveaxis.diagnosis.diagnose`). The searches of each cross-validation fold (its own periods and time constants on
+its training rows) are made here too, so that the decision's cross-validation repeats the search.
+
+Scores are inner products only, so they hold on raw rows and on the compressed rows of row blocks alike: with Q an
+orthonormal basis of the fitted design's column space and r orthogonal to it, adding column g lowers the weighted
+RSS by (g.r)^2 / (|g|^2 - |Q^T g|^2): one product Q^T G and one G^T r score every one-column candidate;
+multi-column candidates (periodic, custom) are scored with an orthonormal basis of their projected columns.
+
+The penalty (extended BIC, Chen & Chen 2008) of adding a candidate of k coefficients from family f is
+k ln N + 2 ln(F M_f): F the number of families searched, M_f the family's trials (its candidates; for the searched
+families the effective number of periods or time constants tried per parameter and variable, counted in
+`fiveaxis.diagnosis.searches`). A searched argument (the period, the time constant) is a parameter of the model
+too: it counts as one more coefficient, so a searched family wins over its plain counterpart (a polynomial in t, a
+linear error with a reversal) only where the data demand the searched shape.
+Units: weighted readings (readings / sigma); effect coefficients as in `fiveaxis.effects.families`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..effects import families as fx
+from ..effects.custom import load_custom
+from ..measurement import observations as ob
+from . import searches as es
+
+#: A candidate whose projected column keeps less than this fraction of its norm is already in the model.
+ABSORBED = 1e-6
+FAMILIES = ("polynomial", "reversal", "periodic", "thermal", "custom")
+#: Families whose candidates carry a searched argument (period, time constant): one more parameter each.
+SEARCHED = ("periodic", "thermal")
+#: Searched (parameter, variable) pairs whose period or time constant is searched again in each CV fold.
+CV_SEARCH_PAIRS = 8
+
+
+# -- scores -------------------------------------------------------------------------------------------------------
+@dataclass
+class Candidates:
+    """One-column candidates scored against one residual, without forming the projected columns.
+
+    With Q orthonormal and r orthogonal to span(Q): g_perp . r = g . r and |g_perp|^2 = |g|^2 - |Q^T g|^2, so one
+    product Q^T G (rank x M) and one G^T r score every candidate; memory stays that of G itself."""
+    effects: list              # fx.Effect
+    G: np.ndarray              # (N, M) weighted candidate columns (not copied)
+    Q: np.ndarray              # (N, r) orthonormal basis of the design's column space
+    QtG: np.ndarray            # (r, M)
+    gnorm: np.ndarray          # (M,) |g_perp|
+    ratio: np.ndarray          # (M,) |g_perp| / |g|: how much of the column the model does not already have
+    gain: np.ndarray           # (M,) drop of the weighted RSS if added
+    beta: np.ndarray           # (M,) coefficient along the unit projected column
+
+    @property
+    def ok(self) -> np.ndarray:
+        return self.ratio > ABSORBED
+
+    def cos_with(self, j: int) -> np.ndarray:
+        """|cos| between the projected column of j and those of every candidate."""
+        num = self.G.T @ self.G[:, j] - self.QtG.T @ self.QtG[:, j]
+        den = self.gnorm * self.gnorm[j]
+        return np.where(self.ok & self.ok[j], np.abs(num) / np.where(den > 0, den, 1.0), 0.0)
+
+
+def project(Q: np.ndarray, G: np.ndarray, rw: np.ndarray, effects, g2=None) -> Candidates:
+    """Score candidate columns G against the weighted residual rw after projecting both off span(Q).
+
+    g2: squared column norms of G when known."""
+    rw = rw - Q @ (Q.T @ rw)
+    QtG = Q.T @ G
+    if g2 is None:
+        g2 = np.einsum("ij,ij->j", G, G)
+    p2 = np.clip(g2 - np.einsum("ij,ij->j", QtG, QtG), 0.0, None)
+    gn = np.sqrt(p2)
+    ratio = np.where(g2 > 0, gn / np.sqrt(np.where(g2 > 0, g2, 1.0)), 0.0)
+    ok = ratio > ABSORBED
+    beta = np.where(ok, (G.T @ rw) / np.where(ok, gn, 1.0), 0.0)
+    return Candidates(list(effects), G, Q, QtG, gn, ratio, beta ** 2, beta)
+
+
+@dataclass
+class Scored:
+    """A multi-column candidate scored against one residual: gain, independent columns k, the orthonormal basis
+    Qb of its projected columns and the coefficients (as fitted) when added alone."""
+    gain: float
+    k: int
+    Qb: np.ndarray
+    coefs: np.ndarray
+
+
+def score_block(Q: np.ndarray, Gb: np.ndarray, rw: np.ndarray) -> Scored:
+    """One multi-column candidate (periodic, custom): gain |Qb^T r|^2, Qb an orthonormal basis of its columns
+    projected off span(Q); rw orthogonal to span(Q)."""
+    Gp = Gb - Q @ (Q.T @ Gb)
+    Gp -= Q @ (Q.T @ Gp)
+    Qb, R = np.linalg.qr(Gp)
+    keep = np.abs(np.diag(R)) > ABSORBED * np.maximum(np.linalg.norm(Gb, axis=0), 1e-300)
+    Qb = Qb[:, keep]
+    y = Qb.T @ rw
+    coefs = np.zeros(Gb.shape[1])
+    if keep.any():
+        coefs[keep] = np.linalg.solve(R[np.ix_(keep, keep)], y) if keep.all() else \
+            np.linalg.lstsq(R[:, keep][keep], y, rcond=None)[0]
+    return Scored(float(y @ y), int(keep.sum()), Qb, coefs)
+
+
+def pair_gram(Gp: np.ndarray):
+    """(|c|^2, |s|^2, c.s) of the column pairs (2i, 2i+1) of Gp."""
+    c, s = Gp[:, 0::2], Gp[:, 1::2]
+    return np.einsum("ij,ij->j", c, c), np.einsum("ij,ij->j", s, s), np.einsum("ij,ij->j", c, s)
+
+
+def pair_gains(Q: np.ndarray, Gp: np.ndarray, rw: np.ndarray, gram=None) -> np.ndarray:
+    """Gains of the 2-column candidates (columns 2i, 2i+1 of Gp) against rw (orthogonal to span(Q)): b^T S^+ b with
+    b = G^T r and S the Gram matrix of the columns projected off Q, |G|^2 - (Q^T G)^T (Q^T G); gram: pair_gram of
+    Gp when known."""
+    if not Gp.shape[1]:
+        return np.zeros(0)
+    cc, ss, cs = pair_gram(Gp) if gram is None else gram
+    QtG = Q.T @ Gp
+    qc, qs = QtG[:, 0::2], QtG[:, 1::2]
+    b = Gp.T @ rw
+    return es.two_column_gain(b[0::2], b[1::2], cc - np.einsum("ij,ij->j", qc, qc),
+                              ss - np.einsum("ij,ij->j", qs, qs), cs - np.einsum("ij,ij->j", qc, qs), cc + ss)
+
+
+# -- the penalty --------------------------------------------------------------------------------------------------
+def ebic_penalty(N: int, M: int, k: int = 1, families: int = 1) -> float:
+    """Penalty of adding k coefficients chosen among M trials of one of `families` families: k ln N (BIC) +
+    2 ln(families x M) (extended BIC with a prior uniform over the families, then over the family's trials)."""
+    return k * math.log(N) + 2.0 * math.log(max(families * M, 1))
+
+
+def deltas(rss, gains, N, pens, known_sigma):
+    """Change of the extended BIC when candidates with these gains (drops of the weighted RSS) and penalties are
+    added (negative: worth it). With a sigma column the weighted RSS is chi2 with unit variance."""
+    gains = np.asarray(gains, float)
+    if known_sigma:
+        return -gains + pens
+    if rss <= 0:                          # an exact fit: nothing left to explain
+        return np.asarray(pens, float) + 0.0 * gains
+    return N * np.log(np.maximum(rss - gains, 1e-300 * rss) / rss) + pens
+
+
+@dataclass
+class Prior:
+    """The families searched and their trials: the penalty of the decision."""
+    trials: dict               # family -> M_f
+
+    @property
+    def F(self) -> int:
+        return max(1, sum(1 for m in self.trials.values() if m > 0))
+
+    def penalty(self, family: str, N: int, k: int = 1) -> float:
+        """Penalty of a candidate of k coefficients of a family (a searched family's argument counts as one
+        more)."""
+        return ebic_penalty(N, self.trials.get(family, 1), k + (family in SEARCHED), self.F)
+
+    def to_json(self, N: int) -> dict:
+        return {f: {"M": int(m), "penalty_one_coefficient": self.penalty(f, N, 1),
+                    **({"penalty_two_coefficients": self.penalty(f, N, 2)} if f in ("periodic", "custom") else {}),
+                    **({"searched_argument": "counted as one more coefficient"} if f in SEARCHED else {})}
+                for f, m in self.trials.items() if m > 0}
+
+
+# -- the pool -----------------------------------------------------------------------------------------------------
+@dataclass
+class Pool:
+    """Every candidate of one diagnosis on the screen's rows: one-column ones (polynomial, reversal, thermal) as
+    the weighted columns G, periodic ones as pairs of columns of Gp (sin, cos), custom ones as blocks; the
+    searches behind the periodic and thermal ones, and those of every cross-validation fold."""
+    singles: list
+    single_family: np.ndarray  # (S,) family of each single
+    G: np.ndarray              # (N, S)
+    periodic: list             # periodic effects, the columns 2i, 2i+1 of Gp
+    Gp: np.ndarray             # (N, 2 B)
+    customs: list
+    custom_cols: list          # (N, k) weighted columns per custom effect
+    prior: Prior
+    params: list               # parameters of the searches (errors and L)
+    P: np.ndarray              # (N, np) their weighted design columns
+    bands: list                # es.Band per variable searched for periods
+    grid: object               # es.TauGrid or None
+    periodic_found: list       # es.Found, full data (same order as periodic)
+    thermal_found: list        # es.Found, full data
+    n_fixed: int               # polynomial + reversal + custom candidates
+    fold_found: list = field(default_factory=list)   # per CV fold: [(family, es.Found)] searched on its training rows
+    resampled: set = field(default_factory=set)      # ids of candidates the folds search again (their own periods)
+
+    @property
+    def blocks(self) -> list:
+        """Multi-column candidates: the periodic ones, then the custom ones."""
+        return self.periodic + self.customs
+
+    @property
+    def block_family(self) -> list:
+        return ["periodic"] * len(self.periodic) + ["custom"] * len(self.customs)
+
+    def block_cols(self, b: int) -> np.ndarray:
+        B = len(self.periodic)
+        return self.Gp[:, 2 * b:2 * b + 2] if b < B else self.custom_cols[b - B]
+
+    def searched_json(self) -> dict:
+        out = {}
+        if self.bands:
+            out["periodic"] = {"bands": [b.to_json() for b in self.bands],
+                               "pairs": len(self.periodic_found), "trials": self.prior.trials.get("periodic", 0)}
+        if self.grid is not None:
+            out["thermal"] = dict(self.grid.to_json(), parameters=len(self.thermal_found),
+                                  trials=self.prior.trials.get("thermal", 0))
+        return out
+
+
+def candidate_matrix(block, w: np.ndarray, effects) -> np.ndarray:
+    """Weighted design columns (m_b, k) of candidate effects at a block's readings."""
+    return block.effect_columns(effects) * w[:, None]
+
+
+def param_columns(block, w: np.ndarray):
+    """The parameters effects can change (errors and L) and their weighted design columns (m_b, np)."""
+    params = list(block.prob.model.errors) + [fx.TOOL]
+    P = np.column_stack([block.param_column(p) for p in params]) * w[:, None]
+    return params, P
+
+
+def customs(model, present) -> list:
+    """The machine file's custom effects not already in the model."""
+    return [load_custom(model.machine, nm) for nm in model.machine.effects if nm not in present]
+
+
+def build_pool(block, w, Q: np.ndarray, rw: np.ndarray, present: set, custom: list, periodic: bool = True,
+               folds=None, unseen=()) -> Pool:
+    """Every candidate of a diagnosis on a screen block (its readings' weights w, residual rw, basis Q), effects
+    already present left out; periodic: search periods (the costly search); folds: (training readings, basis and
+    residual per fold, see `fold_searches`) to repeat the searches per fold; unseen: parameters the data do not
+    see (their columns within the data's resolution: no effect of theirs is a candidate)."""
+    prob = block.prob
+    machine, model = prob.model.machine, prob.model
+    unseen = set(unseen)
+    poly = [e for e in fx.vocabulary(machine, model.errors, prob.meas.t is not None)
+            if e.id not in present and e.param not in unseen]
+    rev = [e for e in fx.reversals(machine, model.errors, prob.meas.dirs) if e.id not in present and
+           e.param not in unseen]
+    params, P = param_columns(block, w)
+    seen = [i for i, p in enumerate(params) if p not in unseen]
+    params, P = [params[i] for i in seen], P[:, seen]
+    sums = es.row_sums(params, P, rw, Q, prob.obs.row, prob.meas.n)
+    bands = []
+    for tok, s in (prob.scales.items() if periodic else ()):
+        if s.column is None and prob.meas.t is None:
+            continue
+        b = es.band(tok, prob.ctx.raw(tok) * s.to_unit, sums.live)
+        if b is not None:
+            bands.append(b)
+    per = [f for f in es.periodic(sums, bands) if f.effect.id not in present]
+    grid = es.tau_grid(prob.meas.t, sums.live) if prob.meas.t is not None else None
+    therm = [f for f in es.thermal(sums, grid) if f.effect.id not in present] if grid is not None else []
+    active = int(np.sum(sums.W2.sum(axis=0) > 0))
+    trials = {"polynomial": len(poly), "reversal": len(rev),
+              "periodic": active * sum(b.trials for b in bands) if per else 0,
+              "thermal": active * grid.trials if therm else 0, "custom": len(custom)}
+    singles = poly + rev + [f.effect for f in therm]
+    fam = np.array(["polynomial"] * len(poly) + ["reversal"] * len(rev) + ["thermal"] * len(therm), dtype=object)
+    G = candidate_matrix(block, w, singles)
+    peff = [f.effect for f in per]
+    Gp = candidate_matrix(block, w, peff) if peff else np.zeros((len(rw), 0))
+    ccols = [candidate_matrix(block, w, [e]) for e in custom]
+    pool = Pool(singles, fam, G, peff, Gp, list(custom), ccols, Prior(trials), params, P, bands, grid, per, therm,
+                len(poly) + len(rev) + len(custom))
+    if folds is not None:
+        fold_searches(pool, prob, *folds)
+    return pool
+
+
+def fold_searches(pool: Pool, prob, train_sets) -> None:
+    """The period and time-constant searches of every CV fold, on its training rows, for the CV_SEARCH_PAIRS best
+    (parameter, variable) pairs of each searched family on the whole screen: the per-pose sums of all folds side by
+    side (one parameter column per fold and parameter), searched in one pass. train_sets: per fold (training
+    reading indices, orthonormal basis of the design on them, their residual of d w). Fills pool.fold_found and
+    pool.resampled."""
+    top_per = sorted(pool.periodic_found, key=lambda x: -x.gain)[:CV_SEARCH_PAIRS]
+    top_th = sorted(pool.thermal_found, key=lambda x: -x.gain)[:CV_SEARCH_PAIRS]
+    pool.fold_found = [[] for _ in train_sets]
+    pool.resampled = {x.effect.id for x in top_per} | {x.effect.id for x in top_th}
+    needed = sorted({x.param_index for x in top_per} | {x.param_index for x in top_th})
+    if not needed:
+        return
+    local = {p: j for j, p in enumerate(needed)}
+    q = len(needed)
+    m = pool.P.shape[0]
+    rmax = max(U.shape[1] for _, U, _ in train_sets)
+    parts = []
+    for train, U, r_tr in train_sets:
+        Qpad = np.zeros((m, rmax))
+        Qpad[train, :U.shape[1]] = U
+        rpad = np.zeros(m)
+        rpad[train] = r_tr
+        active = np.zeros(m, bool)
+        active[train] = True
+        parts.append(es.row_sums([pool.params[p] for p in needed], pool.P[:, needed], rpad, Qpad, prob.obs.row,
+                                 prob.meas.n, active))
+    sums = es.RowSums(parts[0].params * len(train_sets), np.hstack([s.W1 for s in parts]),
+                      np.hstack([s.W2 for s in parts]), np.concatenate([s.W3 for s in parts], axis=2),
+                      np.any([s.live for s in parts], axis=0))
+    pairs = {}
+    for x in top_per:
+        pairs.setdefault(x.effect.var, []).extend(f * q + local[x.param_index] for f in range(len(train_sets)))
+    results = [("periodic", x) for x in es.periodic(sums, pool.bands, pairs)] if pairs else []
+    if top_th and pool.grid is not None:
+        cols = [f * q + local[x.param_index] for f in range(len(train_sets)) for x in top_th]
+        results += [("thermal", x) for x in es.thermal(sums, pool.grid, cols)]
+    for fam, x in results:
+        pool.fold_found[x.param_index // q].append((fam, x))
+
+
+def folds_of_readings(prob, k: int, seed: int = 0) -> np.ndarray:
+    """The cross-validation fold (0..k-1) of every reading of prob: the readings of one pose (variables, L, t,
+    directions) are held out together, the poses shuffled with the seed and split into k folds."""
+    groups = ob.pose_groups(prob.meas)
+    ng = int(groups.max()) + 1 if len(groups) else 0
+    order = np.random.default_rng(seed).permutation(ng)
+    fold_of = np.empty(ng, dtype=int)
+    for f, part in enumerate(np.array_split(order, k)):
+        fold_of[part] = f
+    return fold_of[groups][prob.obs.row]
+
+
+# -- the headline among aliases -----------------------------------------------------------------------------------
+def plausibility(machine, effect) -> tuple:
+    """Sort key of a candidate among candidates the data cannot tell apart (aliases): the most plausible physical
+    cause first. (1) an axis's own error along its own travel (the positioning, straightness and angular errors
+    of X along x; a reversal of X's own positioning) before another axis's error changing with X's position or
+    direction; (2) a translation along the axis itself before the other error motions; (3) the lowest order:
+    reversal and degree 1 before degree 2 and 3; a polynomial before a searched shape (periodic, thermal); (4) the
+    most local: the parameter's axis nearest to the variable's in the kinematic chain; (5) the machine's error
+    order. Custom effects head their set (the user wrote them for it)."""
+    if not isinstance(effect, fx.Effect):
+        return (-1,)
+    own = fx.is_own(machine, effect)
+    along = fx.own_positioning(machine, effect)
+    order = 0 if effect.kind == "reversal" else (effect.deg if effect.kind == "poly" else 4)
+    distance = fx.chain_distance(machine, effect)
+    return (0 if own else 1, 0 if along else 1, order, distance)

@@ -1,0 +1,428 @@
+"""The decision of a diagnosis, written once: which candidate effects the data demand, as a set.
+
+Input: the rows of the decision's columns [A w | candidate columns | r w | d w] (A the fitted design's free
+columns, r the fit's residual, d the readings less the held parameters' part, w the weights), per cross-validation
+fold: the raw readings in memory (`RawRows`), or the TSQR factor of each fold's readings for a set in row blocks
+(`CompressedRows`). Every projection, gain, extended BIC, selection step and held-out error below depends on the
+columns only through their inner products, which both keep: the same code decides in memory and in row blocks.
+
+1. Score every candidate alone (`fiveaxis.diagnosis.candidates`): its drop of the weighted RSS and the change of
+   the extended BIC (negative: worth its penalty).
+2. Cross-validation (K folds of poses): on each fold's training rows the best candidate by extended BIC (the
+   searched families with their periods and time constants searched again there), its held-out error against
+   the model alone, summed over the folds.
+3. The set: forward selection by extended BIC, and after every step a backward check (a member whose removal
+   lowers the set's extended BIC leaves): when effects of different families compete for the same structure (a
+   sine in time with the period of a bidirectional test's cycle mimics a positioning error plus a reversal), the
+   sets are compared, and a member the others make redundant is dropped. The set's members head the listing.
+4. The listing: the candidates best first; candidates the data cannot tell apart (projected columns with
+   |cos| > ALIAS_COS) are one entry, headed by the most plausible physical cause (`candidates.plausibility`), the
+   others listed as its aliases.
+Units: weighted readings (readings / sigma); RMS values in mm over the readings in mm (tool tip and 1-D).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..estimation import solver as sv
+from . import candidates as cd
+
+K_FOLDS = 5
+FORWARD_MAX = 4
+ALIAS_COS = 0.999
+
+
+@dataclass
+class Layout:
+    """Where each candidate's columns are among the decision's columns: the fitted design's p free columns first,
+    then the candidates', then r w and d w."""
+    p: int
+    effects: list
+    families: list
+    cols: list                 # per candidate: its column indices
+    fold: list                 # per candidate: None, or the CV fold whose search found it (used there only)
+    resampled: set = field(default_factory=set)   # candidates whose search every fold repeats (its own found)
+
+    @property
+    def c(self) -> int:
+        return self.p + sum(len(c) for c in self.cols) + 2
+
+    @property
+    def ir(self) -> int:
+        return self.c - 2
+
+    @property
+    def id_(self) -> int:
+        return self.c - 1
+
+    def main(self) -> list[int]:
+        """The candidates of the whole data (not of one fold's search)."""
+        return [k for k, f in enumerate(self.fold) if f is None]
+
+
+def layout(p: int, items, resampled=()) -> Layout:
+    """A Layout of candidates items = [(effect, family, fold or None)], columns in that order; resampled: ids of
+    candidates whose search every fold repeats."""
+    cols, at = [], p
+    for e, _, _ in items:
+        cols.append(list(range(at, at + len(e.names))))
+        at += len(e.names)
+    effects = [e for e, _, _ in items]
+    folds = [k for _, _, k in items]
+    again = {k for k, (e, f) in enumerate(zip(effects, folds)) if f is None and e.id in set(resampled)}
+    return Layout(p, effects, [f for _, f, _ in items], cols, folds, again)
+
+
+class RawRows:
+    """The decision's columns on the raw readings (in memory): X (m, c) and each reading's fold."""
+
+    def __init__(self, X: np.ndarray, fold: np.ndarray, mm: np.ndarray, w: np.ndarray, folds: int):
+        self.X, self.fold, self.mm, self.w, self.folds = X, fold, mm, w, folds
+
+    @property
+    def N(self) -> int:
+        return len(self.X)
+
+    def all(self) -> np.ndarray:
+        return self.X
+
+    def train(self, f: int) -> np.ndarray:
+        return self.X[self.fold != f]
+
+    def test(self, f: int) -> np.ndarray:
+        return self.X[self.fold == f]
+
+    def count(self, f: int) -> int:
+        return int(np.sum(self.fold == f))
+
+    @property
+    def n_mm(self) -> int:
+        return int(self.mm.sum())
+
+    def rms_mm(self, cols, x, ir: int) -> float:
+        """RMS (mm) over the readings in mm of (r w - X[:, cols] x) / w."""
+        if not self.n_mm:
+            return 0.0
+        r = (self.X[self.mm, ir] - self.X[np.ix_(self.mm, cols)] @ x) / self.w[self.mm]
+        return float(np.sqrt(np.mean(r ** 2)))
+
+
+class CompressedRows:
+    """The decision's columns as the TSQR factor of each fold's readings (row blocks), with their Gram matrix over
+    the readings in mm with weights 1/w^2 (for RMS values in mm)."""
+
+    def __init__(self, c: int, folds: int):
+        self.R = [None] * folds
+        self.rows = np.zeros(folds, int)
+        self.gram_mm = np.zeros((c, c))
+        self.n_mm = 0
+        self.folds = folds
+
+    def merge(self, R: list, rows: np.ndarray, gram_mm: np.ndarray, n_mm: int):
+        """Add one block's part (`compress_block`)."""
+        for f, Rf in enumerate(R):
+            if Rf is not None:
+                self.R[f] = sv.tsqr(self.R[f], Rf)
+        self.rows += rows
+        self.gram_mm += gram_mm
+        self.n_mm += n_mm
+
+    @property
+    def N(self) -> int:
+        return int(self.rows.sum())
+
+    def all(self) -> np.ndarray:
+        return np.vstack([R for R in self.R if R is not None])
+
+    def train(self, f: int) -> np.ndarray:
+        return np.vstack([R for g, R in enumerate(self.R) if R is not None and g != f])
+
+    def test(self, f: int) -> np.ndarray:
+        return self.R[f] if self.R[f] is not None else np.zeros((0, self.gram_mm.shape[0]))
+
+    def count(self, f: int) -> int:
+        return int(self.rows[f])
+
+    def rms_mm(self, cols, x, ir: int) -> float:
+        if not self.n_mm:
+            return 0.0
+        v = np.zeros(self.gram_mm.shape[0])
+        v[ir] = 1.0
+        v[list(cols)] -= x
+        return float(math.sqrt(max(v @ self.gram_mm @ v, 0.0) / self.n_mm))
+
+
+def compress_block(X: np.ndarray, fold: np.ndarray, mm: np.ndarray, w: np.ndarray, folds: int):
+    """One block's part of CompressedRows: per fold, the TSQR factor of its readings' rows of X; the Gram matrix
+    of X / w over the readings in mm."""
+    R = [sv.tsqr(None, X[fold == f]) if np.any(fold == f) else None for f in range(folds)]
+    Xm = X[mm] / w[mm, None]
+    return R, np.bincount(fold, minlength=folds), Xm.T @ Xm, int(mm.sum())
+
+
+def orthonormal(X: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of the columns of X (rows, k) of full column rank."""
+    return np.linalg.qr(X)[0] if X.shape[1] else np.zeros((X.shape[0], 0))
+
+
+def basis_map(idf, Zb: np.ndarray):
+    """An orthonormal basis Q (rows, r) of the determined column space on rows Zb of the design's free columns,
+    and the map M (p, r) with Q = Zb M: coefficients of a combination of Q's columns on the design's columns."""
+    if not idf.rank:
+        return np.zeros((len(Zb), 0)), np.zeros((Zb.shape[1], 0))
+    safe = np.where(idf.norms > 0, idf.norms, 1.0)
+    M = np.where(idf.norms[:, None] > 0, idf.Vt.T / safe[:, None], 0.0) / idf.s
+    Q0 = Zb @ M
+    Qq, Rq = np.linalg.qr(Q0)
+    return Qq, M @ np.linalg.inv(Rq)
+
+
+def fit_set(Z: np.ndarray, Q: np.ndarray, M: np.ndarray, cols: list[int], target: int, p: int):
+    """The first-order fit of column target on the design (basis Q = Z[:, :p] M) and the columns cols:
+    (coefficients on range(p) + cols, weighted RSS). Columns the design already holds get 0."""
+    t = Z[:, target]
+    z = np.zeros(len(cols))
+    if cols:
+        G = Z[:, cols]
+        Gp = G - Q @ (Q.T @ G)
+        Gp = Gp - Q @ (Q.T @ Gp)
+        Qg, R = np.linalg.qr(Gp)
+        keep = np.abs(np.diag(R)) > cd.ABSORBED * np.maximum(np.linalg.norm(G, axis=0), 1e-300)
+        if keep.any():
+            z[keep] = np.linalg.lstsq(R[np.ix_(keep, keep)], (Qg.T @ t)[keep], rcond=None)[0]
+        t = t - G @ z
+    y = Q.T @ t
+    r = t - Q @ y
+    return np.concatenate([M @ y, z]), float(r @ r)
+
+
+@dataclass
+class Outcome:
+    """What the decision found: the decision record (JSON), the accepted set (forward selection with backward
+    checks), the listing and the coefficients of the accepted set's fit (for the residual after it)."""
+    decision: dict
+    forward: list              # [{"id", "rms_mm"}] in the order the set was built
+    accepted: list             # candidate indices of the set
+    listed: list               # candidate items, best first
+    coefs: np.ndarray          # coefficients on columns base + the set's columns (first order)
+    cols: list                 # those columns
+    rss: float                 # weighted RSS of the fit's residual projected off the design
+    noise_mm: float | None = None
+    scored: dict = field(default_factory=dict)   # per main candidate: delta EBIC
+
+
+def decide(rows, lay: Layout, prior: cd.Prior, idf, known: bool, top: int, describe, head_key) -> Outcome:
+    """The decision on rows (RawRows or CompressedRows) of the layout's columns; idf: the fit's identifiability
+    (its determined space on the rows; the folds keep its rank); describe(k, coefs, rms, gain, rss, delta) -> a
+    candidate item (dict); head_key(k): the sort key of candidate k among aliases (most plausible first)."""
+    Z = rows.all()
+    N = rows.N
+    base = list(range(lay.p))
+    rank = idf.rank
+    Q, M = basis_map(idf, Z[:, base])
+    rw = Z[:, lay.ir] - Q @ (Q.T @ Z[:, lay.ir])
+    rss = float(rw @ rw)
+    main = lay.main()
+    pens = {k: prior.penalty(lay.families[k], N, len(lay.cols[k])) for k in main}
+    gains = _gains(Q, Z, rw, lay, main)
+    d = {k: float(cd.deltas(rss, [gains[k]], N, pens[k], known)[0]) for k in main}
+    sse0, sse1, chosen = cross_validate(rows, lay, prior, known, rank)
+    accepted, forward_rss = select(Z, Q, rw, lay, main, pens, N, known)
+    order = sorted(main, key=lambda k: d[k])
+    best = accepted[0] if accepted else (order[0] if order else None)
+    d_best = d[best] if best is not None else math.inf
+    decision = {"rule": "extended BIC (penalty k ln N + 2 ln(F M_f) for k coefficients from family f of F, M_f "
+                        "trials; a searched period or time constant counts as a coefficient) and nested K-fold "
+                        "cross-validation; the effects accepted as a set (forward selection with backward checks)",
+                "N": N, "F": prior.F, "families": prior.to_json(N), "M": int(sum(prior.trials.values())),
+                "penalty": pens[best] if best is not None else cd.ebic_penalty(N, 1),
+                "best": lay.effects[best].id if best is not None else None,
+                "best_family": lay.families[best] if best is not None else None,
+                "delta_ebic_best": d_best, "ebic_pass": bool(d_best < 0), "cv_folds": rows.folds,
+                "cv_sse_without": sse0, "cv_sse_with": sse1, "cv_pass": bool(sse1 < sse0), "cv_chosen": chosen}
+    extra = [c for k in accepted for c in lay.cols[k]]
+    coefs, _ = fit_set(Z, Q, M, extra, lay.ir, lay.p)
+    set_cols = base + extra
+    forward = []
+    for i in range(len(accepted)):
+        extra_i = [c for k in accepted[:i + 1] for c in lay.cols[k]]
+        x, _ = fit_set(Z, Q, M, extra_i, lay.ir, lay.p)
+        forward.append({"id": lay.effects[accepted[i]].id, "rms_mm": rows.rms_mm(base + extra_i, x, lay.ir)})
+    listed = listing(Z, Q, M, rw, rss, lay, main, d, gains, accepted, rows, top, describe, head_key)
+    out = Outcome(decision, forward, accepted, listed, coefs, set_cols, rss, scored=d)
+    if not known:
+        n_coef = sum(len(lay.cols[k]) for k in accepted)
+        dof = max(rows.n_mm * (1 - (rank + n_coef) / N), 1.0)
+        out.noise_mm = rows.rms_mm(set_cols, coefs, lay.ir) * math.sqrt(rows.n_mm / dof) if rows.n_mm else 0.0
+    return out
+
+
+def _gains(Q, Z, rw, lay: Layout, ks) -> dict:
+    """Drop of the weighted RSS when each candidate joins the model alone."""
+    out = {}
+    singles = [k for k in ks if len(lay.cols[k]) == 1]
+    if singles:
+        c = cd.project(Q, Z[:, [lay.cols[k][0] for k in singles]], rw, [lay.effects[k] for k in singles])
+        out.update({k: float(g) for k, g in zip(singles, c.gain)})
+    pairs = [k for k in ks if len(lay.cols[k]) == 2 and lay.families[k] == "periodic"]
+    if pairs:
+        pg = cd.pair_gains(Q, Z[:, [c for k in pairs for c in lay.cols[k]]], rw)
+        out.update({k: float(g) for k, g in zip(pairs, pg)})
+    for k in ks:
+        if k not in out:
+            out[k] = cd.score_block(Q, Z[:, lay.cols[k]], rw).gain
+    return out
+
+
+def extend(Q: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of span(Q) + span(G): G's columns projected off Q, those the model already holds
+    (kept below ABSORBED of their norm) left out."""
+    Gp = G - Q @ (Q.T @ G)
+    Gp = Gp - Q @ (Q.T @ Gp)
+    Qg, R = np.linalg.qr(Gp)
+    keep = np.abs(np.diag(R)) > cd.ABSORBED * np.maximum(np.linalg.norm(G, axis=0), 1e-300)
+    return np.hstack([Q, Qg[:, keep]])
+
+
+def _set_rss(Z, Q, rw, lay: Layout, members) -> float:
+    """Weighted RSS of rw (orthogonal to Q) after the members' columns join the model."""
+    if not members:
+        return float(rw @ rw)
+    Qs = extend(Q, Z[:, [c for k in members for c in lay.cols[k]]])
+    r = rw - Qs @ (Qs.T @ rw)
+    return float(r @ r)
+
+
+def _set_ebic(rss0, rss, N, pen, known) -> float:
+    """Extended BIC of a set relative to the model alone: its RSS and its members' penalties."""
+    return float(cd.deltas(rss0, [rss0 - rss], N, pen, known)[0])
+
+
+def select(Z, Q, rw, lay: Layout, ks, pens: dict, N: int, known: bool):
+    """The set of candidates the rule accepts: forward selection by extended BIC (at most FORWARD_MAX), each step
+    followed by backward checks (a member whose removal lowers the set's extended BIC leaves). Returns (the set in
+    order of entry, the weighted RSS after it)."""
+    rss0 = float(rw @ rw)
+    used: list[int] = []
+    tried = set()
+    rss_cur = rss0
+    for _ in range(2 * FORWARD_MAX):
+        if len(used) >= FORWARD_MAX:
+            break
+        # Forward: the candidate that lowers the set's extended BIC most.
+        Qc = extend(Q, Z[:, [c for k in used for c in lay.cols[k]]]) if used else Q
+        r_cur = rw - Qc @ (Qc.T @ rw) if used else rw
+        cand = [k for k in ks if k not in used and k not in tried]
+        if not cand:
+            break
+        g = _gains(Qc, Z, r_cur, lay, cand)
+        dv = {k: float(cd.deltas(float(r_cur @ r_cur), [g[k]], N, pens[k], known)[0]) for k in cand}
+        k = min(cand, key=lambda j: (dv[j], j))
+        if dv[k] >= 0:
+            break
+        used.append(k)
+        rss_cur = _set_rss(Z, Q, rw, lay, used)
+        # Backward: drop a member the others make redundant (the newest member stays: it was just worth it).
+        while len(used) > 1:
+            full = _set_ebic(rss0, rss_cur, N, sum(pens[j] for j in used), known)
+            best_drop, best_val = None, full
+            for j in used[:-1]:
+                rest = [u for u in used if u != j]
+                val = _set_ebic(rss0, _set_rss(Z, Q, rw, lay, rest), N, sum(pens[u] for u in rest), known)
+                if val < best_val - 1e-9:
+                    best_drop, best_val = j, val
+            if best_drop is None:
+                break
+            used.remove(best_drop)
+            tried.add(best_drop)
+            rss_cur = _set_rss(Z, Q, rw, lay, used)
+    return used, rss_cur
+
+
+def cross_validate(rows, lay: Layout, prior: cd.Prior, known: bool, rank: int):
+    """K-fold CV of "add the best candidate": per fold, the candidate with the best extended BIC on the training
+    rows (a searched family's candidates replaced by the fold's own search where it searched again), the held-out
+    weighted SSE of the first-order fit of d w without and with it (the design at the fit's rank). Returns (SSE
+    without, SSE with, ids chosen)."""
+    base = list(range(lay.p))
+    sse0 = sse1 = 0.0
+    chosen = []
+    for f in range(rows.folds):
+        if not rows.count(f):
+            continue
+        Ztr, Zte = rows.train(f), rows.test(f)
+        Ntr = rows.N - rows.count(f)
+        idf = sv.identify(sv.tsqr(None, Ztr[:, base]), rank=rank)
+        Qtr, Mtr = basis_map(idf, Ztr[:, base])
+        th0, rr = fit_set(Ztr, Qtr, Mtr, [], lay.id_, lay.p)
+        r_tr = Ztr[:, lay.id_] - Qtr @ (Qtr.T @ Ztr[:, lay.id_])
+        ks = [k for k in range(len(lay.effects))
+              if (lay.fold[k] is None and k not in lay.resampled) or lay.fold[k] == f]
+        g = _gains(Qtr, Ztr, r_tr, lay, ks)
+        best, best_d = None, math.inf
+        for k in ks:
+            dk = float(cd.deltas(rr, [g[k]], Ntr, prior.penalty(lay.families[k], Ntr, len(lay.cols[k])), known)[0])
+            if dk < best_d:
+                best, best_d = k, dk
+        r0 = Zte[:, lay.id_] - Zte[:, base] @ th0
+        sse0 += float(r0 @ r0)
+        chosen.append(lay.effects[best].id if best is not None else None)
+        if best is None:
+            sse1 += float(r0 @ r0)
+            continue
+        th1, _ = fit_set(Ztr, Qtr, Mtr, lay.cols[best], lay.id_, lay.p)
+        r1 = Zte[:, lay.id_] - Zte[:, base + lay.cols[best]] @ th1
+        sse1 += float(r1 @ r1)
+    return sse0, sse1, chosen
+
+
+def _same_space(A: np.ndarray, B: np.ndarray) -> bool:
+    """Two orthonormal bases span nearly the same space (every principal cosine above ALIAS_COS)."""
+    if A.shape[1] != B.shape[1] or not A.shape[1]:
+        return False
+    s = np.linalg.svd(A.T @ B, compute_uv=False)
+    return bool(s.min() > ALIAS_COS)
+
+
+def listing(Z, Q, M, rw, rss, lay: Layout, main, d: dict, gains: dict, accepted, rows, top, describe,
+            head_key) -> list:
+    """The candidates best first (the accepted set first, in its order), aliases collapsed into one entry headed
+    by the most plausible physical cause."""
+    order = list(accepted) + sorted((k for k in main if k not in accepted), key=lambda k: (d[k], k))
+    bases = {}
+
+    def basis(k):
+        if k not in bases:
+            bases[k] = cd.score_block(Q, Z[:, lay.cols[k]], rw).Qb
+        return bases[k]
+
+    width = {k: len(lay.cols[k]) for k in main}
+    singles = [k for k in main if width[k] == 1]
+    cands = cd.project(Q, Z[:, [lay.cols[k][0] for k in singles]], rw, [lay.effects[k] for k in singles]) \
+        if singles else None
+    at = {k: i for i, k in enumerate(singles)}
+    listed, seen = [], set()
+    base = list(range(lay.p))
+    for k in order:
+        if len(listed) >= top:
+            break
+        if k in seen or (gains[k] <= 0 and k not in accepted):
+            continue
+        if width[k] == 1:
+            cos = cands.cos_with(at[k])
+            group = [singles[i] for i in np.flatnonzero(cos > ALIAS_COS) if singles[i] != k and singles[i] not in seen]
+        else:
+            group = [j for j in main if j != k and j not in seen and width[j] == width[k]
+                     and gains[j] > 0 and _same_space(basis(k), basis(j))]
+        members = [k] + group
+        head = min(members, key=lambda j: (head_key(j), d[j]))
+        seen.update(members)
+        x, _ = fit_set(Z, Q, M, lay.cols[head], lay.ir, lay.p)
+        item = describe(head, x[lay.p:], rows.rms_mm(base + lay.cols[head], x, lay.ir), gains[head], rss, d[head])
+        item["aliases"] = [lay.effects[j].id for j in members if j != head]
+        item["alias_members"] = [j for j in members if j != head]
+        listed.append(item)
+    return listed

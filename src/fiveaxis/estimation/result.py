@@ -1,0 +1,310 @@
+"""The fit's record: parameters with their identifiability, residuals, outliers; and its JSON form.
+
+`FitResult` is what `fiveaxis.estimation.fit.fit` returns; `parameters`, `setup_results` and `to_json` turn it into
+the values an engineer reads (mm and rad, standard and expanded uncertainties, k = 2): a parameter the data does
+not determine alone gets no number, only the combinations of such parameters that the data determines do. Text
+for people is built from the JSON record in `fiveaxis.report.text`.
+Units: mm for translations and readings, rad for rotations; effect coefficients in the units their effect gives.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..measurement import observations as ob
+from ..measurement import setups as su
+from ..model import iso_names as iso
+from ..units import human
+from .problem import Problem, unit as _unit
+from .solver import Identifiability
+
+#: Coverage factor of the expanded uncertainty in reports.
+K_EXPANDED = 2.0
+#: Correlations stronger than this are listed.
+STRONG_CORRELATION = 0.95
+#: Probability that a fit flags any reading of a clean (Gaussian) data set as a gross outlier (Bonferroni).
+OUTLIER_ALPHA = 1e-3
+
+
+@dataclass
+class Outliers:
+    """Readings left out of a fit as gross outliers: their data rows in the file, what they read, the residual
+    (mm or rad, with the final parameters) and z = residual * w / scale."""
+    rows: np.ndarray           # (k,) data row of each reading (1-based, as in error messages)
+    labels: list               # (k,) dx, dy, dz, di, dj, dk or du
+    group: np.ndarray          # (k,) ob.LENGTH or ob.ANGLE
+    residual: np.ndarray       # (k,) mm or rad
+    z: np.ndarray              # (k,)
+    threshold: float           # |z| above which a reading is an outlier
+    scale: float               # robust scale of the weighted residual (1 = the sigma column)
+    readings: int              # readings of the data set, outliers included
+    index: np.ndarray = None   # (k,) their indices among the readings (observation rows) of the data set
+
+    @property
+    def count(self) -> int:
+        return len(self.rows)
+
+    @property
+    def data_rows(self) -> list[int]:
+        """Distinct data rows holding an outlier, ascending."""
+        return sorted({int(r) for r in self.rows})
+
+    def to_json(self) -> list[dict]:
+        out = []
+        for r, lab, g, res, z in zip(self.rows, self.labels, self.group, self.residual, self.z):
+            unit = "rad" if g == ob.ANGLE else "mm"
+            out.append({"row": int(r), "reading": str(lab), "residual": float(res), "unit": unit, "z": float(z)})
+        return out
+
+
+def no_outliers(readings: int) -> Outliers:
+    return Outliers(np.zeros(0, int), [], np.zeros(0, int), np.zeros(0), np.zeros(0), math.inf, 1.0, readings,
+                    np.zeros(0, int))
+
+
+@dataclass
+class FitResult:
+    """The fitted parameters with their identifiability, and the residual (readings: mm, rad)."""
+    problem: Problem
+    theta: np.ndarray          # all parameter values (fixed ones included; minimum norm along undetermined ones)
+    cov: np.ndarray            # (p, p) covariance (zero rows and columns for fixed parameters)
+    idf: Identifiability       # of the free parameters
+    residual: np.ndarray       # (m,) of the model reported: exact, or first order (see `exact`)
+    residual_first: np.ndarray  # (m,) first-order model
+    sigma2: float              # variance factor (1 with a sigma column: weights are 1/sigma)
+    known_sigma: bool
+    iterations: int
+    uncertainty_scale: float = 1.0   # sqrt(reduced chi2) applied to the uncertainties (1: not scaled)
+    groups: list = field(default_factory=list)          # lists of names not determined alone
+    combinations: list = field(default_factory=list)    # Combination records
+    correlations: list = field(default_factory=list)    # (name, name, r)
+    outliers: "Outliers" = None                          # gross outliers left out of the fit (see Outliers)
+    design: object = None      # the design backend of the problem (`fiveaxis.estimation.design`)
+    exact: bool = True         # the residual is the exact model's (False: the refinement fell back, see note)
+    note: str = ""             # what the refinement said (one line), empty when nothing is worth saying
+
+    @property
+    def names(self):
+        return self.problem.names
+
+    @property
+    def free_names(self):
+        return [n for n, f in zip(self.problem.names, self.problem.free) if f]
+
+    def _rms(self, group) -> float | None:
+        g = self.problem.obs.group == group
+        return float(np.sqrt(np.mean(self.residual[g] ** 2))) if g.any() else None
+
+    @property
+    def rms_mm_without_outliers(self) -> float:
+        """RMS of the residual of the fitted readings in mm (tip and 1-D), outliers left out."""
+        v = self._rms(ob.LENGTH)
+        return v if v is not None else 0.0
+
+    @property
+    def rms_mm(self) -> float:
+        """RMS of the residual of every reading in mm (tip and 1-D), outliers included."""
+        o = self.outliers
+        if o is None or not o.count:
+            return self.rms_mm_without_outliers
+        g = self.problem.obs.group == ob.LENGTH
+        og = o.group == ob.LENGTH
+        n = int(g.sum() + og.sum())
+        if not n:
+            return 0.0
+        return float(np.sqrt((np.sum(self.residual[g] ** 2) + np.sum(o.residual[og] ** 2)) / n))
+
+    @property
+    def rms_rad(self) -> float | None:
+        """RMS of the residual of the tool-axis readings (rad), None without them."""
+        return self._rms(ob.ANGLE)
+
+    @property
+    def dof(self) -> int:
+        return len(self.residual) - self.idf.rank
+
+    @property
+    def chi2(self) -> float:
+        return float(np.sum((self.residual * self.problem.w) ** 2))
+
+    def noise(self, group) -> float | None:
+        """Standard deviation of one reading of a group (mm or rad): from the file, or estimated."""
+        g = self.problem.obs.group == group
+        if not g.any():
+            return None
+        w = self.problem.w[g]
+        return float(np.sqrt(self.sigma2 * np.mean(1.0 / w ** 2)))
+
+    def std(self) -> np.ndarray:
+        return np.sqrt(np.clip(np.diag(self.cov), 0, None))
+
+
+def _entry(value, std, unit) -> dict:
+    """A determined parameter: value, standard uncertainty, expanded uncertainty (k = 2), unit."""
+    return {"determined": True, "value": value, "std": std, "expanded_k2": K_EXPANDED * std, "unit": unit}
+
+
+def _undetermined(unit, note) -> dict:
+    """A parameter the data does not determine alone: no number at all (never null or NaN), and why."""
+    return {"determined": False, "unit": unit, "note": note}
+
+
+def parameters(res: FitResult) -> dict:
+    """Per-parameter values in physical units (machine errors and effect coefficients; setups apart); an
+    undetermined parameter has value None and a note; a fixed one its value and std 0."""
+    prob, model = res.problem, res.problem.model
+    std = res.std()
+    out = {}
+    in_group = {n: g for g in res.groups for n in g}
+    fi = {n: i for i, n in enumerate(res.free_names)}
+    for i, name in enumerate(prob.names):
+        if su.is_setup_param(name):
+            continue
+        if name in prob.fixed:
+            out[name] = {"determined": True, "value": prob.fixed[name], "std": 0.0, "unit": _unit(prob, name),
+                         "fixed": True}
+        elif name in in_group:
+            if res.idf.norms[fi[name]] == 0:
+                note = "no effect on the measured readings at these poses"
+            else:
+                forms = [c.formula for c in res.combinations if name in c.terms]
+                note = "not determined alone by this data" + (f"; see {'; '.join(forms)}" if forms else "")
+            out[name] = _undetermined(_unit(prob, name), note)
+        else:
+            out[name] = _entry(float(res.theta[i]), float(std[i]), _unit(prob, name))
+    k = prob.n_errors
+    for eff in prob.effects:
+        idx = list(range(k, k + len(eff.names)))
+        vals = eff.physical(model.machine, res.theta[idx], prob.scales)
+        stds = eff.physical(model.machine, std[idx], prob.scales)
+        for j, nm in enumerate(eff.names):
+            entry = out[nm]
+            if entry["determined"] and not entry.get("fixed"):
+                entry.update(_entry(vals[j][0], abs(stds[j][0]), vals[j][1]))
+            else:
+                entry["unit"] = vals[j][1]
+            entry["description"] = eff.describe(model.machine, res.theta[idx])
+        k += len(eff.names)
+    return out
+
+
+def setup_results(res: FitResult) -> list[dict]:
+    """Each setup: its kind, frame, the fitted placement unknowns (mm, rad) and what its readings cannot see."""
+    prob = res.problem
+    std = res.std()
+    index = {n: i for i, n in enumerate(prob.names)}
+    in_group = {n for g in res.groups for n in g}
+    out = []
+    for s in prob.setups.setups:
+        item = s.to_json()
+        params = {}
+        for nm in s.names:
+            i = index[nm]
+            unit = prob.setups.unit(nm.split("[")[0])
+            if nm in prob.fixed:
+                params[nm] = {"determined": True, "value": prob.fixed[nm], "std": 0.0, "unit": unit, "fixed": True}
+            elif nm in in_group:
+                forms = [c.formula for c in res.combinations if nm in c.terms]
+                params[nm] = _undetermined(unit, "not determined alone by this data"
+                                           + (f"; see {'; '.join(forms)}" if forms else ""))
+            else:
+                params[nm] = _entry(float(res.theta[i]), float(std[i]), unit)
+        item["parameters"] = params
+        text = placement_text(s, params)
+        if text:
+            item["placement"] = text
+        out.append(item)
+    return out
+
+
+def placement_text(setup, params: dict) -> str:
+    """'lies rotated by 0.0281 deg about z (+- 0.0012 deg, k = 2; 14.6 um at its extent of 30 mm) and shifted by
+    (-44.1, 79.3) um': the placement of a setup in words, from its determined unknowns."""
+    def val(sym):
+        p = params.get(f"{sym}[{setup.id}]")
+        return p if p is not None and p["determined"] else None
+    parts = []
+    rot = [(sym[2:], val(sym)) for sym in ("w_x", "w_y", "w_z", "w_n") if val(sym) is not None]
+    for axis, p in rot:
+        about = "the plate's normal" if axis == "n" else axis
+        u = p.get("expanded_k2")
+        parts.append(f"rotated by {math.degrees(p['value']):.4g} deg about {about}"
+                     + (f" (+- {math.degrees(u):.2g} deg, k = 2)" if u else "")
+                     + (f", {abs(p['value']) * setup.extent_mm * 1000:.3g} um at its extent of "
+                        f"{setup.extent_mm:.4g} mm" if setup.extent_mm else ""))
+    shift = [(sym[2:], val(sym)) for sym in ("c_x", "c_y", "c_z", "c_1", "c_2")]
+    shift = [(k, p) for k, p in shift if p is not None]
+    if shift:
+        parts.append("shifted by (" + ", ".join(f"{p['value'] * 1000:.3g}" for _, p in shift) + ") um along "
+                     + ", ".join(k for k, _ in shift))
+    return ("lies " + " and ".join(parts)) if parts else ""
+
+
+def to_json(res: FitResult) -> dict:
+    prob = res.problem
+    obs = prob.obs
+    counts = {ob.KIND_NAMES[k]: int(np.sum(obs.kind == k)) for k in range(3) if (obs.kind == k).any()}
+    first = res.residual_first
+    lg = obs.group == ob.LENGTH
+    o = res.outliers if res.outliers is not None else no_outliers(obs.m)
+    out = {
+        "file": str(prob.meas.path), "n": prob.meas.n, "readings": counts, "frame": obs.frame,
+        "rms_mm": res.rms_mm,
+        "rms_mm_without_outliers": res.rms_mm_without_outliers,
+        "outliers": o.data_rows,
+        "outlier_readings": o.to_json(),
+        "outlier_rule": outlier_rule(o, res.known_sigma),
+        "outlier_readings_of": o.readings,
+        "rms_first_order_mm": float(np.sqrt(np.mean(first[lg] ** 2))) if lg.any() else 0.0,
+        "rank": res.idf.rank, "n_parameters": res.idf.n_params, "condition": res.idf.condition,
+        "sigma": "sigma column" if res.known_sigma else "estimated from the residual",
+        "uncertainty_scale": res.uncertainty_scale,
+        "noise_mm": res.noise(ob.LENGTH),
+        "effects": [e.id for e in prob.effects],
+        "fixed": dict(prob.fixed),
+        "parameters": {k: dict(v, iso=iso.name(prob.model, k)) if iso.name(prob.model, k) else v
+                       for k, v in parameters(res).items()},
+        "setups": setup_results(res),
+        "unidentifiable": res.groups,
+        "combinations": [dict({"formula": c.formula, "terms": c.terms, "value": c.value, "std": c.std,
+                               "expanded_k2": K_EXPANDED * c.std, "unit": combination_unit(prob, c.terms)},
+                              **({"note": "effect coefficients in this combination are their change at the end of "
+                                          "the scaled range (u = 1), in the parameter's unit"}
+                                 if set(c.terms) - set(prob.model.errors) - set(prob.setups.names) else {}))
+                         for c in res.combinations],
+        "correlations": [{"a": a, "b": b, "r": r} for a, b, r in res.correlations],
+        "iterations": res.iterations,
+        "residual_model": "exact" if res.exact else "first order",
+    }
+    if res.note:
+        out["note"] = res.note
+    if res.idf.resolution is not None:
+        out["resolution"] = res.idf.resolution
+    if res.known_sigma:
+        out["reduced_chi2"] = res.chi2 / max(res.dof, 1)
+    if res.rms_rad is not None:
+        out["rms_rad"] = res.rms_rad
+        out["noise_rad"] = res.noise(ob.ANGLE)
+    if out["noise_mm"] is None:
+        del out["noise_mm"]
+    return out
+
+
+def outlier_rule(o: Outliers, known_sigma: bool) -> str:
+    """The rule that flagged the outliers, in words."""
+    if known_sigma:
+        scale = "sigma" + (f" x {o.scale:.3g} (the residual is wider than the sigma column says)" if o.scale > 1
+                           else " (the sigma column)")
+    else:
+        scale = f"{human(o.scale, 'mm')} (robust noise estimate: 1.4826 x the median |residual|)"
+    return (f"|residual| above {o.threshold:.3g} x {scale} after a robust fit (Huber weights); the threshold keeps "
+            f"the chance of flagging any reading of clean Gaussian data below {OUTLIER_ALPHA:g}")
+
+
+def combination_unit(prob, terms) -> str:
+    """The unit of a combination: that of its first term (a combination mixes parameters of one unit, or of
+    units the readings relate: mm and rad times the tool length)."""
+    first = next(iter(terms))
+    return _unit(prob, first) or "scaled"

@@ -1,0 +1,373 @@
+"""Weighted least squares over the passes of a design backend, written once for every backend.
+
+A pass runs a function on every block of the design (`fiveaxis.estimation.design`: one block in memory, row
+blocks for large sets, on Dask workers if asked) and combines the blocks' parts:
+- `factor`: the triangular factor R of the weighted design A w by TSQR (R of [R; A_b w_b], block after block: the R
+  of a QR of the whole design), the factor of the design's change within the data's resolution, and
+  g = (A w)^T (d w);
+- `identify`: rank, condition and null space from R. Columns are scaled to unit norm (the criterion is scale
+  invariant) and a direction v is determined when its singular value is above RANK_RTOL of the largest AND above
+  RESOLUTION_MARGIN times |dA v|, dA the change of the (unit-norm) design when the poses, tool lengths and reading
+  directions move within their resolution: a direction the rounding of the data can create or erase is not
+  determined by the data, whatever its singular value in the rounded design (at controller resolution, 0.001 mm
+  and 0.0001 deg, the structural null directions of an R-test design have singular values near 1e-6, at 7
+  significant digits near 1e-7; determined directions are above 1e-2). A column smaller than RESOLUTION_MARGIN
+  times its own change (a rotation about z read by a ballbar whose lever arm is zero up to rounding) is not seen;
+- `solve`: the minimum-norm solution in the determined subspace from g (semi-normal equations; `least_squares`
+  adds one step of iterative refinement, so the accuracy is that of a QR solution);
+- `refine`: Gauss-Newton steps on the exact nonlinear model, each in the determined subspace, with a line search
+  (a step that does not lower the weighted residual is halved, up to four times); the exact residual is then
+  compared with the first-order one;
+- `robust_step`: a step of iteratively reweighted least squares (the normal matrix of the least-squares fit less
+  the rows whose weight the step lowers).
+Units: the design's (readings in mm or rad per unit parameter); weights 1/sigma.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import partial
+
+import numpy as np
+
+from ..exceptions import InputError
+
+#: Singular values below RANK_RTOL * largest (of the unit-norm columns) count as zero: those directions are not
+#: determined by the data.
+RANK_RTOL = 1e-8
+#: A column whose norm is below this fraction of the largest is rounding noise and counts as zero.
+ZERO_COLUMN_RTOL = 1e-12
+#: A direction (or a column) is determined only when it stands this many times above what moving the poses, tool
+#: lengths and reading directions within their resolution does to it.
+RESOLUTION_MARGIN = 10.0
+#: A null-space component below this (unit-norm coordinates) does not touch a parameter.
+NULL_TOL = 1e-6
+#: Rows per QR of the TSQR (small QRs stay in cache: 512 rows of 45 columns twice as fast as 49,152 rows at once).
+QR_ROWS = 512
+#: Halvings of a Gauss-Newton step before the refinement stops (the step does not lower the residual).
+LINE_SEARCH = 4
+#: The exact model's refinement is kept when its weighted RMS is at most this factor above the first order's.
+EXACT_TOLERANCE = 1.01
+
+
+def tsqr(R: np.ndarray | None, X: np.ndarray) -> np.ndarray:
+    """The triangular factor of [R; X] (R None: of X): after all blocks, the R of a QR of the stacked blocks."""
+    for i in range(0, max(len(X), 1), QR_ROWS):
+        Y = X[i:i + QR_ROWS] if R is None else np.vstack([R, X[i:i + QR_ROWS]])
+        R = np.linalg.qr(Y, mode="r")
+    return R
+
+
+def merge(factors) -> np.ndarray | None:
+    """The TSQR merge of the blocks' factors (None if any block has none)."""
+    R = None
+    for Rb in factors:
+        if Rb is None:
+            return None
+        R = tsqr(R, Rb)
+    return R
+
+
+@dataclass
+class Identifiability:
+    """Rank, condition and null space of a weighted design with unit-norm columns."""
+    norms: np.ndarray          # (p,) column norms of the weighted design (0: not seen)
+    s: np.ndarray              # (r,) singular values of the determined directions (unit-norm columns)
+    Vt: np.ndarray             # (r, p) their right singular vectors
+    null: np.ndarray           # (p, p - r) null-space basis (unit-norm coordinates)
+    rank: int
+    condition: float
+    determined: np.ndarray     # (p,) bool: the parameter alone is determined
+    resolution: dict | None = None   # what the data's resolution did to the rank (None: full precision)
+
+    @property
+    def n_params(self) -> int:
+        return len(self.norms)
+
+    def scaled(self, X: np.ndarray) -> np.ndarray:
+        """Columns of X (rows of the weighted design: raw or compressed) divided by their norms (0: not seen)."""
+        safe = np.where(self.norms > 0, self.norms, 1.0)
+        return np.where(self.norms > 0, X / safe, 0.0)
+
+    def basis(self, X: np.ndarray) -> np.ndarray:
+        """Orthonormal basis (rows, rank) of the determined column space on rows X of the weighted design."""
+        return (self.scaled(X) @ self.Vt.T) / self.s if self.rank else np.zeros((X.shape[0], 0))
+
+
+def identify(R: np.ndarray, E: np.ndarray | None = None, floor: float | None = None,
+             rank: int | None = None) -> Identifiability:
+    """Rank, condition and null space from rows of the weighted design (its factor R, or raw rows); E: rows of
+    the design's change within the data's resolution (same rows' factor or the same raw rows), or None; floor:
+    a rank threshold relative to the largest singular value to use instead of RANK_RTOL; rank: at most this many
+    directions (a part of the data keeps the rank the whole data gave)."""
+    norms = np.linalg.norm(R, axis=0)
+    if not (norms.size and np.isfinite(norms).all()):
+        if norms.size:
+            raise InputError("the design of this fit is not finite (the readings or an effect's columns are not "
+                             "usable numbers)")
+    norms = np.where(norms > ZERO_COLUMN_RTOL * norms.max(initial=0.0), norms, 0.0)
+    unseen = None
+    if E is not None:
+        enorms = np.linalg.norm(E, axis=0)
+        unseen = (norms > 0) & (norms <= RESOLUTION_MARGIN * enorms)
+        norms = np.where(unseen, 0.0, norms)
+    safe = np.where(norms > 0, norms, 1.0)
+    X = np.where(norms > 0, R / safe, 0.0)
+    p = X.shape[1]
+    try:
+        _, s, Vt = np.linalg.svd(X, full_matrices=True)
+    except np.linalg.LinAlgError:
+        raise InputError("the design of this fit could not be decomposed (SVD did not converge): the readings or "
+                         "an effect's columns are not usable numbers") from None
+    k = len(s)
+    rel = RANK_RTOL if floor is None else floor
+    threshold = np.full(k, rel * s[0] if k and s[0] > 0 else math.inf)
+    resolution = None
+    if E is not None and k:
+        dv = np.linalg.norm(np.where(norms > 0, E / safe, 0.0) @ Vt[:k].T, axis=0)
+        moved = RESOLUTION_MARGIN * dv
+        resolution = {"rule": f"a direction is determined when its singular value is above {RESOLUTION_MARGIN:g} x "
+                              f"what moving the data within their resolution does to it",
+                      "directions_below": int(np.sum((s > threshold) & (s <= moved))),
+                      "columns_not_seen": int(unseen.sum()),
+                      "largest_change": float(dv.max(initial=0.0) / s[0]) if s[0] > 0 else 0.0}
+        threshold = np.maximum(threshold, moved)
+    keep = np.flatnonzero(s > threshold) if k else np.zeros(0, int)
+    if rank is not None:
+        keep = keep[:rank]
+    drop = np.setdiff1d(np.arange(p), keep)
+    r = len(keep)
+    null = Vt[drop].T                      # includes the unit vectors of zero columns
+    determined = np.linalg.norm(null, axis=1) < NULL_TOL if null.size else np.ones(p, bool)
+    cond = float(s[keep[0]] / s[keep[-1]]) if r else math.inf
+    return Identifiability(norms, s[keep], Vt[keep], null, r, cond, determined, resolution)
+
+
+def solve(idf: Identifiability, g: np.ndarray) -> np.ndarray:
+    """Minimum-norm least-squares solution in the determined subspace from g = (A w)^T (r w) (parameter units)."""
+    if not idf.rank:
+        return np.zeros(idf.n_params)
+    safe = np.where(idf.norms > 0, idf.norms, 1.0)
+    gs = np.where(idf.norms > 0, g / safe, 0.0)
+    y = idf.Vt.T @ ((idf.Vt @ gs) / idf.s ** 2)
+    return y / safe
+
+
+def covariance(idf: Identifiability, sigma2: float) -> np.ndarray:
+    """Covariance (p, p) of the minimum-norm solution for a variance factor sigma2 (parameter units)."""
+    safe = np.where(idf.norms > 0, idf.norms, 1.0)
+    C = (idf.Vt.T / idf.s ** 2) @ idf.Vt * sigma2
+    return C / np.outer(safe, safe)
+
+
+@dataclass
+class Combination:
+    """A combination of parameters the data determines, although its members are not determined alone."""
+    terms: dict                # name -> coefficient
+    value: float
+    std: float
+
+    @property
+    def formula(self) -> str:
+        return formula(self.terms)
+
+
+def formula(terms: dict) -> str:
+    """'ex_x + Syz', '2*dx_B - 0.5*ey_A': coefficients that are +-1 are not printed."""
+    out = ""
+    for name, c in terms.items():
+        sign = "-" if c < 0 else "+"
+        mag = abs(c)
+        txt = name if abs(mag - 1) < 1e-9 else f"{mag:.4g}*{name}"
+        out += (f"-{txt}" if sign == "-" else txt) if not out else f" {sign} {txt}"
+    return out
+
+
+def groups_and_combinations(idf: Identifiability, theta, cov, names):
+    """Connected sets of parameters coupled by the null space, and the combinations the data determines."""
+    from scipy.linalg import qr                              # SciPy: loaded where combinations are asked for
+    from scipy.sparse.csgraph import connected_components
+    p = idf.n_params
+    if idf.null.size == 0:
+        return [], []
+    NN = idf.null @ idf.null.T
+    touched = ~idf.determined
+    link = (np.abs(NN) > NULL_TOL) & np.outer(touched, touched)
+    ncomp, label = connected_components(link, directed=False)
+    groups, combos = [], []
+    for c in range(ncomp):
+        members = [i for i in range(p) if touched[i] and label[i] == c]
+        if not members:
+            continue
+        groups.append([names[i] for i in members])
+        live = [i for i in members if idf.norms[i] > 0]
+        if not live:
+            continue
+        P = np.eye(len(live)) - NN[np.ix_(live, live)]
+        k = int(round(np.trace(P)))       # number of determined combinations in this group
+        if k <= 0:
+            continue
+        Q, R, piv = qr(P, pivoting=True)
+        B = Q[:, :k].T                    # rows span the determined combinations (unit-norm coordinates)
+        piv = sorted(piv[:k])
+        rows = np.linalg.solve(B[:, piv], B)
+        for row in rows:
+            coef = row * idf.norms[live]        # unit-norm coordinates -> parameter units
+            coef = coef / coef[np.argmax(np.abs(coef) > 1e-9 * np.max(np.abs(coef)))]
+            terms = {names[i]: float(c_) for i, c_ in zip(live, coef) if abs(c_) > 1e-9}
+            vec = np.zeros(p)
+            for i, c_ in zip(live, coef):
+                vec[i] = c_
+            combos.append(Combination(terms, float(vec @ theta), float(math.sqrt(max(vec @ cov @ vec, 0)))))
+    return groups, combos
+
+
+# -- passes -------------------------------------------------------------------------------------------------------
+def _factor_block(block, w, free, fixed_vals):
+    A = block.A
+    Af = A if free.all() else A[:, free]
+    rhs = block.prob.d - A[:, ~free] @ fixed_vals if (~free).any() else block.prob.d
+    E = block.delta()
+    Rd = tsqr(None, (E if free.all() else E[:, free]) * w[:, None]) if E is not None else None
+    return tsqr(None, Af * w[:, None]), Rd, Af.T @ (w ** 2 * rhs)
+
+
+def factor(design, w, free, fixed_vals, floor: float | None = None):
+    """One pass: (identifiability of the weighted free columns, g = (A_free w)^T ((d - A_fixed fixed) w))."""
+    parts = design.map(partial(_factor_block, free=free, fixed_vals=fixed_vals), (w,))
+    g = np.sum([gb for _, _, gb in parts], axis=0) if parts else np.zeros(int(free.sum()))
+    R = merge(R for R, _, _ in parts)
+    if R is None:
+        R = np.zeros((0, int(free.sum())))
+    return identify(R, merge(Rd for _, Rd, _ in parts), floor), g
+
+
+def _linear_block(block, w, theta, free):
+    r = block.prob.d - block.A @ theta
+    return r, (block.A[:, free].T @ (w ** 2 * r))
+
+
+def linear(design, w, theta, free):
+    """One pass: the first-order model's residual d - A theta (m,) and its gradient (A_free w)^T (r w)."""
+    parts = design.map(partial(_linear_block, theta=theta, free=free), (w,))
+    return _stack(parts)
+
+
+def _exact_block(block, w, theta, free, grad):
+    r = block.prob.d - block.prob.exact(theta)
+    return r, (block.A[:, free].T @ (w ** 2 * r) if grad else None)
+
+
+def exact(design, w, theta, free, grad: bool = True):
+    """One pass: the exact model's residual (m,) and, if grad, its gradient (A_free w)^T (r w) (first-order
+    design: Gauss-Newton)."""
+    parts = design.map(partial(_exact_block, theta=theta, free=free, grad=grad), (w,))
+    return _stack(parts)
+
+
+def residual(design, w, theta, free, exact_model: bool = True) -> np.ndarray:
+    """The residual (m,) of the exact or of the first-order model at theta."""
+    return exact(design, w, theta, free, grad=False)[0] if exact_model else linear(design, w, theta, free)[0]
+
+
+def _stack(parts):
+    r = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0)
+    gs = [p[1] for p in parts if p[1] is not None]
+    return r, (np.sum(gs, axis=0) if gs else None)
+
+
+def least_squares(design, w, free, fixed_vals, floor: float | None = None):
+    """The first-order weighted least-squares fit: (theta (p,), identifiability, first-order residual (m,))."""
+    idf, g = factor(design, w, free, fixed_vals, floor)
+    theta = np.zeros(len(free))
+    theta[~free] = fixed_vals
+    theta[free] = solve(idf, g)
+    r, g1 = linear(design, w, theta, free)
+    if idf.rank:
+        theta[free] += solve(idf, g1)           # one step of iterative refinement of the semi-normal equations
+        r = linear(design, w, theta, free)[0]
+    return theta, idf, r
+
+
+@dataclass
+class Refinement:
+    """The outcome of the exact model's refinement."""
+    theta: np.ndarray
+    residual: np.ndarray       # (m,) of the model reported (exact, or first order when it fell back)
+    iterations: int
+    exact: bool                # the exact model's residual is reported (False: fell back to the first order)
+    note: str = ""
+
+
+def refine(design, w, free, theta0, idf: Identifiability, r_first, max_iter: int) -> Refinement:
+    """Gauss-Newton steps on the exact model from the first-order solution theta0, in the determined subspace,
+    with a line search; the first-order result when the exact model cannot get below it (weighted RMS within
+    EXACT_TOLERANCE)."""
+    theta = theta0.copy()
+    r, g = exact(design, w, theta, free)
+    cost = float(np.sum((r * w) ** 2))
+    iterations = 0
+    for it in range(1, max_iter + 1):
+        step = solve(idf, g)
+        taken = False
+        alpha = 1.0
+        for _ in range(LINE_SEARCH + 1):
+            trial = theta.copy()
+            trial[free] = trial[free] + alpha * step
+            r_t, g_t = exact(design, w, trial, free)
+            cost_t = float(np.sum((r_t * w) ** 2))
+            if math.isfinite(cost_t) and cost_t <= cost:
+                theta, r, g, taken = trial, r_t, g_t, True
+                converged = cost - cost_t <= 1e-12 * cost
+                cost = cost_t
+                break
+            alpha *= 0.5
+        if not taken:
+            break
+        iterations = it
+        scale = np.abs(theta[free]) * idf.norms
+        if converged or np.all(np.abs(alpha * step) * idf.norms <= 1e-10 * (np.max(scale, initial=0.0) + 1e-300)):
+            break
+    first = float(np.sum((r_first * w) ** 2))
+    if not math.isfinite(cost) or cost > EXACT_TOLERANCE ** 2 * first:
+        rms = lambda c: math.sqrt(c / max(len(w), 1))   # noqa: E731 - weighted RMS in words below
+        note = (f"the exact model could not get below the first-order residual (weighted RMS {rms(cost):.4g} "
+                f"against {rms(first):.4g} after {iterations} Gauss-Newton step(s)): the first-order result is "
+                f"reported")
+        return Refinement(theta0.copy(), r_first, iterations, False, note)
+    return Refinement(theta, r, iterations, True)
+
+
+def _gram_block(block, w, h, rhs, free):
+    A = block.A if free.all() else block.A[:, free]
+    low = np.flatnonzero(h < 1.0)
+    Ad = A[low] * (w[low] * np.sqrt(1.0 - h[low] ** 2))[:, None]
+    return Ad.T @ Ad, A.T @ (w * h * rhs)
+
+
+def robust_step(design, w, free, h, rhs, idf0: Identifiability):
+    """A step of the robust fit: the least-squares step of the free parameters for row weights w h (0 < h <= 1)
+    and right-hand side rhs (m,), restricted to idf0's determined directions (positive weights keep the null
+    space): (identifiability of the columns weighted w h, step). The normal matrix of the columns weighted w h is
+    that of the columns weighted w (from idf0: D V S^2 V^T D, D the column norms) less the Gram matrix of the rows
+    whose weight the step lowers; it squares the condition number, which the steps tolerate (they are iterated)."""
+    p = int(free.sum())
+    rank = idf0.rank
+    parts = design.map(partial(_gram_block, free=free), (w, h, rhs))
+    D = idf0.norms
+    M = (idf0.Vt.T * idf0.s ** 2) @ idf0.Vt * np.outer(D, D)
+    if parts:
+        M = M - np.sum([m for m, _ in parts], axis=0)
+    g = np.sum([gb for _, gb in parts], axis=0) if parts else np.zeros(p)
+    norms = np.sqrt(np.clip(np.diag(M), 0.0, None))
+    norms = np.where((norms > ZERO_COLUMN_RTOL * norms.max(initial=0.0)) & (D > 0), norms, 0.0)
+    safe = np.where(norms > 0, norms, 1.0)
+    lam, V = np.linalg.eigh(np.where(np.outer(norms > 0, norms > 0), M / np.outer(safe, safe), 0.0))
+    top = np.argsort(lam)[::-1]
+    keep, rest = top[:rank], top[rank:]
+    s = np.sqrt(np.clip(lam[keep], 0.0, None))
+    s = np.where(s > 0, s, 1.0)
+    null = V[:, rest]
+    idf = Identifiability(norms, s, V[:, keep].T, null, rank, float(s[0] / s[-1]) if rank else math.inf,
+                          np.linalg.norm(null, axis=1) < NULL_TOL if null.size else np.ones(p, bool))
+    return idf, solve(idf, g)

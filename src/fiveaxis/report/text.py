@@ -1,0 +1,246 @@
+"""Text for people, built from the JSON records of the estimators: the fit (`fiveaxis.estimation.result.to_json`)
+and the diagnosis (`fiveaxis.diagnosis.diagnose.Diagnosis.to_json`). Values in um and urad, expanded uncertainties
+(k = 2), in the manner of lmfit's fit_report; the records stay the one source of every number printed.
+"""
+from __future__ import annotations
+
+import math
+
+from ..diagnosis import residual_tests as st
+from ..effects.families import TIME
+from ..estimation.result import STRONG_CORRELATION
+from ..units import human
+
+#: More outliers than this fraction of the readings are suspicious: said so in the report.
+OUTLIER_MANY = 0.01
+
+
+def fit(j: dict) -> str:
+    """A fit's record (`fiveaxis.estimation.result.to_json`) for people: um and urad, expanded uncertainty (k = 2)."""
+    readings = ", ".join(f"{v} {k}" for k, v in j["readings"].items())
+    lines = ["[[Fit]]",
+             f"    file:            {j['file']} ({j['frame']} frame)",
+             f"    poses:           {j['n']} ({readings} readings)",
+             f"    parameters:      {j['n_parameters']} fitted, determined by this data: rank {j['rank']}"
+             + (f"; held fixed: {', '.join(j['fixed'])}" if j["fixed"] else ""),
+             f"    condition:       {j['condition']:.4g} (design with unit-norm columns)",
+             f"    residual RMS:    {j['rms_mm_without_outliers'] * 1000:.4g} um "
+             + (f"(exact model; first order {j['rms_first_order_mm'] * 1000:.4g} um, {j['iterations']} Gauss-Newton "
+                f"steps)" if j["residual_model"] == "exact" else "(first-order model)")
+             + (f"; tool axis {j['rms_rad'] * 1e6:.4g} urad" if "rms_rad" in j else "")
+             + (f"; {j['rms_mm'] * 1000:.4g} um with the outliers" if j["outliers"] else "")]
+    if j.get("note"):
+        lines.append(f"    note:            {j['note']}")
+    res = j.get("resolution")
+    if res and (res["directions_below"] or res["columns_not_seen"]):
+        lines.append(f"    resolution:      {res['directions_below']} direction(s) and {res['columns_not_seen']} "
+                     f"parameter(s) within what the resolution of the poses can create: not determined (rule: "
+                     f"{res['rule']})")
+    lines += outlier_lines(j)
+    if j["sigma"] == "sigma column":
+        lines.append(f"    reduced chi2:    {j['reduced_chi2']:.4g} (weights from the sigma column)")
+        if j["uncertainty_scale"] > 1:
+            lines.append(f"    uncertainties:   scaled by sqrt(reduced chi2) = {j['uncertainty_scale']:.3g}: the fit is "
+                         f"worse than the sigma column says")
+    else:
+        noise = []
+        if "noise_mm" in j:
+            noise.append(f"{j['noise_mm'] * 1000:.4g} um")
+        if "noise_rad" in j:
+            noise.append(f"{j['noise_rad'] * 1e6:.4g} urad (tool axis)")
+        lines.append(f"    noise estimate:  {', '.join(noise)} (no sigma column: from the residual)")
+    if j["effects"]:
+        lines.append(f"    added effects:   {', '.join(j['effects'])}")
+    lines.append("[[Parameters determined by this data]]  value +- expanded uncertainty (k = 2); ISO 230 names in "
+                 "brackets")
+    for name, p in j["parameters"].items():
+        if not p["determined"]:
+            continue
+        shown = f"{name} ({p['iso']})" if p.get("iso") else name
+        if p.get("fixed"):
+            lines.append(f"    {shown:18s} {human(p['value'], p['unit'])} (held fixed)")
+            continue
+        lines.append(f"    {shown:18s} {human(p['value'], p['unit'])} +- {human(p['expanded_k2'], p['unit'])}"
+                     + (f"   {p['description']}" if "description" in p else ""))
+    if j["setups"]:
+        lines.append("[[Setups: placement of the artefacts (not machine errors)]]  value +- expanded uncertainty "
+                     "(k = 2)")
+        for s in j["setups"]:
+            vals = []
+            for nm, p in s["parameters"].items():
+                short = nm.split("[")[0]
+                if not p["determined"]:
+                    vals.append(f"{short} not determined alone")
+                elif p.get("fixed"):
+                    vals.append(f"{short} {human(p['value'], p['unit'])} (fixed)")
+                else:
+                    vals.append(f"{short} {human(p['value'], p['unit'])} +- {human(p['expanded_k2'], p['unit'])}")
+            unseen = f"; not seen by its readings: {', '.join(n.split('[')[0] for n in s['not_seen_by_the_readings'])}" \
+                if s["not_seen_by_the_readings"] else ""
+            lines.append(f"    {s['id']} ({s['kind']}, {s['frame']} frame, {s['readings']} readings): "
+                         f"{'; '.join(vals)}{unseen}")
+            if "placement" in s and s["kind"] != "point":
+                lines.append(f"        {s['id']} {s['placement']}")
+    if j["combinations"]:
+        lines.append("[[Combinations determined by this data (members are not determined alone)]]")
+        for c in j["combinations"]:
+            unit = c["unit"] if c["unit"] in ("mm", "rad") else ""
+            if unit:
+                lines.append(f"    {c['formula']} = {human(c['value'], unit)} +- {human(c['expanded_k2'], unit)}")
+            else:
+                lines.append(f"    {c['formula']} = {c['value']: .6g} +- {c['expanded_k2']:.2g}")
+    if j["unidentifiable"]:
+        lines.append("[[Not determined alone by this data]]")
+        for g in j["unidentifiable"]:
+            lines.append(f"    {', '.join(g)}")
+    if j["correlations"]:
+        lines.append(f"[[Strong correlations (|r| >= {STRONG_CORRELATION})]]")
+        for c in j["correlations"]:
+            lines.append(f"    C({c['a']}, {c['b']}) = {c['r']:+.4f}")
+    return "\n".join(lines)
+
+
+def outlier_lines(j: dict, limit: int = 12) -> list[str]:
+    """Text lines on the outliers of a fit or diagnosis JSON record (empty without outliers)."""
+    if not j.get("outliers"):
+        return []
+    items = []
+    for o in j["outlier_readings"][:limit]:
+        items.append(f"row {o['row']} {o['reading']} {human(o['residual'], o['unit'])}")
+    more = len(j["outlier_readings"]) - limit
+    many = len(j["outlier_readings"]) > OUTLIER_MANY * j["outlier_readings_of"]
+    lines = [f"    outliers:        {len(j['outlier_readings'])} reading(s) in {len(j['outliers'])} data row(s) left "
+             f"out of the fit: {', '.join(items)}" + (f", ... and {more} more (JSON: outlier_readings)"
+                                                      if more > 0 else ""),
+             f"                     rule: {j['outlier_rule']}"]
+    if many:
+        lines.append("                     that many: the model may be missing an effect whose largest deviations "
+                     "look like outliers (fiveaxis diagnose tells the two apart)")
+    return lines
+
+
+def diagnosis(j: dict) -> str:
+    """The text report of a diagnosis JSON record (Diagnosis.to_json)."""
+    d = j["decision"]
+    noise = j["noise_mm"]
+    rms = j["rms_mm_without_outliers"]
+    ratio = rms / noise if noise > 0 else math.inf
+    lines = [f"[[Diagnosis]] {j['file']}: {j['n']} poses, {j['readings']} readings"
+             + (f", model + {', '.join(j['added'])}" if j["added"] else ""),
+             f"    residual RMS {rms * 1000:.4g} um against noise {noise * 1000:.4g} um "
+             f"({j['noise_source']}): ratio {ratio:.3g}"
+             + (f"; chi2 {d['chi2']:.5g} for {d['chi2_dof']} dof, p = {d['chi2_p']:.2g}" if "chi2" in d else "")]
+    if j["outliers"]:
+        lines.append(f"    residual RMS with the outliers: {j['rms_mm'] * 1000:.4g} um")
+        lines += outlier_lines(j)
+    lines += _structure_lines(j)
+    fams = ", ".join(f"{f} {v['M']}" for f, v in d["families"].items())
+    verdict = {"missing effect": "MISSING EFFECT", "no missing effect": "no missing effect found",
+               "unexplained structure": "UNEXPLAINED STRUCTURE (" + (
+                   "candidates pass, but structure remains after them" if d.get("passes") else
+                   "the residual is above the noise; no candidate passes") + ")"}[j["verdict"]]
+    lines.append(f"    decision: {verdict} "
+                 f"(best candidate {d['best']}: delta EBIC {d['delta_ebic_best']:.1f} with penalty "
+                 f"{d['penalty']:.1f}; trials per family: {fams}; {d['cv_folds']}-fold CV held-out SSE "
+                 f"{d['cv_sse_without']:.4g} -> {d['cv_sse_with']:.4g})"
+                 + ("; outliers left out of the decision" if j["outliers"] else ""))
+    b = d.get("in_blocks")
+    if b:
+        lines.append(f"    in row blocks of {b['block_poses']:,} poses: every candidate screened on a sample of "
+                     f"{b['sample_poses']:,} poses, the best {b['scored_on_all_readings']} decided on all "
+                     f"{j['readings']:,} readings (structure tests on the sample)")
+    lines.append("[[Candidates]] best first: RMS after adding it, share of the residual it explains")
+    for k, c in enumerate(j["candidates"], 1):
+        coef = "" if c["coefficient"] is None or c["family"] in ("periodic", "reversal", "thermal", "custom") \
+            else f"coef {c['coefficient']:.3g} {c['unit']}: "
+        shown = f"{c['id']} ({c['iso']})" if c.get("iso") else c["id"]
+        lines.append(f"    {k:2d}. {shown:18s} -> {c['rms_mm'] * 1000:.4g} um ({c['explained']:.1%}) "
+                     f"{coef}{c['description']}")
+        if c["aliases"]:
+            lines.append(f"        aliases on this data: {', '.join(c['aliases'])}")
+        for tip in c.get("separate_by", []):
+            groups = " | ".join(", ".join(g) for g in tip["separates"])
+            lines.append(f"        measuring with {tip['measure']} would separate: {groups}")
+        if c["aliases"] and "separate_by" in c and not c["separate_by"]:
+            lines.append("        neither another tool length nor wider axis ranges would separate them (their columns stay "
+                         "parallel)")
+    if j.get("hidden_by_placement"):
+        hid = j["hidden_by_placement"]
+        lines.append(f"[[Not visible with this placement]] {len(hid)} candidate(s) the setups' placement unknowns "
+                     f"absorb (a machine error that looks like the artefact lying differently), e.g. "
+                     f"{', '.join(h['id'] for h in hid[:4])} (setup {', '.join(sorted({s for h in hid for s in h['setups']}))})")
+        tips = sorted({h["separate_by"] for h in hid if h["separate_by"]})
+        for t in tips:
+            lines.append(f"        {t}")
+    if j["verdict"] == "missing effect" and j["candidates"]:
+        lines.append(f"    next: fiveaxis diagnose FILE --add {j['candidates'][0]['id']}")
+    u = j.get("unexplained")
+    if u:
+        lines += _unexplained_lines(u)
+    return "\n".join(lines)
+
+
+_WHAT = {"trend": "a cubic trend", "order": "structure (von Neumann)", "direction": "a direction dependence"}
+
+
+def _structure_line(t: dict, head: str) -> str:
+    s = t.get("strongest")
+    if not t["significant"] or s is None:
+        return f"    {head}: none significant (p = {t['p']:.2g} over {t['tests']} tests)"
+    return (f"    {head}: {_WHAT[s['test']]} of {s['reading']} along {s['var']} holds {s['share']:.0%} of its residual "
+            f"(p = {t['p']:.2g} over {t['tests']} tests)")
+
+
+def _structure_lines(j: dict) -> list[str]:
+    """The residual-structure tests of a diagnosis JSON record, in words."""
+    st_j = j["structure_test"]
+    lines = []
+    if st_j.get("after"):
+        lines.append(_structure_line(st_j["fit"], "residual structure"))
+        lines.append(_structure_line(st_j, f"after the effects the rule accepts ({', '.join(st_j['after'])})"))
+    else:
+        lines.append(_structure_line(st_j, "residual structure"))
+        shares = sorted(((tok, max(v.values())) for tok, v in j["structure"].items() if v), key=lambda s: -s[1])
+        if not st_j["significant"] and shares:
+            lines[-1] = lines[-1][:-1] + "; largest share explained by a cubic: " + ", ".join(
+                f"{tok} {share:.0%}" for tok, share in shares[:3]) + ")"
+    if "noise_local_mm" in st_j and st_j["significant"] and j["verdict"] != "missing effect":
+        lines.append(f"    noise of the readings along {st_j['strongest']['var']} with the structure removed "
+                     f"(difference-based): {st_j['noise_local_mm'] * 1000:.4g} um; residual RMS / that noise "
+                     f"{st_j.get('ratio_to_local_noise', math.inf):.3g}")
+    return lines
+
+
+def _unexplained_lines(u: dict) -> list[str]:
+    if u.get("after"):
+        lines = [f"[[Unexplained structure]] after the candidates the rule accepts ({', '.join(u['after'])}), "
+                 f"structure remains: the vocabulary only approximates it"]
+    else:
+        lines = ["[[Unexplained structure]] the residual is above the noise and no candidate explains it"]
+    if "variable" not in u:
+        lines.append(f"    {u['note']}")
+        return lines
+    lines.append(f"    {u['reading']} along {u['axis']}: {u['share']:.0%} of the {u['reading']} residual "
+                 f"(test: {u['test']}, p = {u['p']:.2g})")
+    if u.get("profile"):
+        unit = u["profile_unit"]
+        parts = [f"{b['from']:.4g}..{b['to']:.4g}: {human(b['mean'], unit, 2)}" for b in u["profile"]]
+        lines.append(f"    profile (mean residual by {u['variable']}): " + ", ".join(parts))
+    if "direction" in u:
+        dd = u["direction"]
+        dep = "depends" if dd["p"] < st.ALPHA else "does not depend"
+        lines.append(f"    direction: it {dep} on the approach direction of {dd['axis']} (dir_{dd['axis']}: "
+                     f"p = {dd['p']:.2g}, {dd['share']:.0%} of the residual)")
+    if "periodic" in u:
+        pp = u["periodic"]
+        lines.append(f"    periodicity: the best period along {u['variable']} ({pp['best']}) explains "
+                     f"{pp['explained']:.1%} of the fit's residual")
+    if "time" in u and u["time"]["p"] < st.ALPHA and u["variable"] != TIME:
+        lines.append(f"    time: it also changes with t (p = {u['time']['p']:.2g}, {u['time']['share']:.0%})")
+    if u.get("candidates_on_variable"):
+        lines.append(f"    closest candidates along {u['variable']}: {', '.join(u['candidates_on_variable'])} "
+                     + ("(they pass the decision but leave this structure)" if u.get("after")
+                        else "(not accepted by the decision)"))
+    lines.append("    a custom effect to fill in (machine file; then fiveaxis diagnose FILE --machine EDITED.toml):")
+    lines += [f"        {t}" for t in u["template"].splitlines()]
+    return lines
