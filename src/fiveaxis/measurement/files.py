@@ -147,11 +147,16 @@ def quantum(values: np.ndarray) -> np.ndarray:
     for 12.345 in a column written to 0.001; 5e-5 for 214.2245 in a column of 7 significant digits). From the
     column's decimals (the most any value needs: a fixed-point column) and significant digits (the most any value
     needs: a column of significant digits), each value's resolution is the coarser of the two at its magnitude;
-    full double precision comes out near 1e-16 of the value. NaN where the value is NaN."""
+    full double precision comes out near 1e-16 of the value. A column of one value (A = 0 in every row, a beam
+    along x: 1, 0, 0) is exact: its rounding, if any, is one offset shared by every row (a constant error the model
+    holds), not a perturbation from row to row. NaN where the value is NaN."""
     v = np.asarray(values, dtype=float)
     out = np.full(v.shape, np.nan)
     ok = np.isfinite(v)
     if not ok.any():
+        return out
+    if np.all(v[ok] == v[ok][0]):
+        out[ok] = 0.0
         return out
     x = np.abs(v[ok])
     e = np.floor(np.log10(np.where(x > 0, x, 1.0)))
