@@ -282,6 +282,54 @@ def build_pool(block, w, Q: np.ndarray, rw: np.ndarray, present: set, custom: li
     return pool
 
 
+def search_again(pool: Pool, block, w, Q: np.ndarray, rw: np.ndarray, chosen: list, present: set) -> int:
+    """The period and time-constant searches again, against the residual the chosen effects (effect records with
+    their weighted columns (m, k) on the block) leave, all but those on the searched variable (they compete with
+    the searched shape for it: a warm-up the polynomials in t took first gets its own time constant): a searched
+    shape hidden under larger effects is found. Q: orthonormal basis of the design; rw: the weighted residual off
+    it. New candidates join the pool (the trials of the prior are those of the first search: the same grid).
+    Returns how many joined."""
+    prob = block.prob
+    found = []
+    tokens = [b.token for b in pool.bands] + ([fx.TIME] if pool.grid is not None else [])
+    for tok in dict.fromkeys(tokens):
+        others = [cols for e, cols in chosen if e.var != tok]
+        Qx = extend(Q, np.hstack(others)) if others else Q
+        r = rw - Qx @ (Qx.T @ rw)
+        sums = es.row_sums(pool.params, pool.P, r, Qx, prob.obs.row, prob.meas.n)
+        found += [("periodic", f) for f in es.periodic(sums, [b for b in pool.bands if b.token == tok])]
+        if tok == fx.TIME and pool.grid is not None:
+            found += [("thermal", f) for f in es.thermal(sums, pool.grid)]
+    have = {e.id for e in pool.singles} | {e.id for e in pool.periodic} | set(present)
+    new, seen = [], set()
+    for fam, f in found:
+        if f.effect.id not in have and f.effect.id not in seen:
+            new.append((fam, f))
+            seen.add(f.effect.id)
+    therm = [f for fam, f in new if fam == "thermal"]
+    per = [f for fam, f in new if fam == "periodic"]
+    if therm:
+        pool.singles = pool.singles + [f.effect for f in therm]
+        pool.single_family = np.concatenate([pool.single_family, np.array(["thermal"] * len(therm), dtype=object)])
+        pool.G = np.hstack([pool.G, candidate_matrix(block, w, [f.effect for f in therm])])
+        pool.thermal_found = pool.thermal_found + therm
+    if per:
+        pool.periodic = pool.periodic + [f.effect for f in per]
+        pool.Gp = np.hstack([pool.Gp, candidate_matrix(block, w, [f.effect for f in per])])
+        pool.periodic_found = pool.periodic_found + per
+    return len(therm) + len(per)
+
+
+def extend(Q: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of span(Q) + span(G): G's columns projected off Q, those the model already holds
+    (kept below ABSORBED of their norm) left out."""
+    Gp = G - Q @ (Q.T @ G)
+    Gp = Gp - Q @ (Q.T @ Gp)
+    Qg, R = np.linalg.qr(Gp)
+    keep = np.abs(np.diag(R)) > ABSORBED * np.maximum(np.linalg.norm(G, axis=0), 1e-300)
+    return np.hstack([Q, Qg[:, keep]])
+
+
 def fold_searches(pool: Pool, prob, train_sets) -> None:
     """The period and time-constant searches of every CV fold, on its training rows, for the CV_SEARCH_PAIRS best
     (parameter, variable) pairs of each searched family on the whole screen: the per-pose sums of all folds side by
@@ -341,13 +389,15 @@ def plausibility(machine, effect) -> tuple:
     cause first. (1) an axis's own error along its own travel (the positioning, straightness and angular errors
     of X along x; a reversal of X's own positioning) before another axis's error changing with X's position or
     direction; (2) a translation along the axis itself before the other error motions; (3) the lowest order:
-    reversal and degree 1 before degree 2 and 3; a polynomial before a searched shape (periodic, thermal); (4) the
-    most local: the parameter's axis nearest to the variable's in the kinematic chain; (5) the machine's error
-    order. Custom effects head their set (the user wrote them for it)."""
+    reversal and degree 1 before degree 2 and 3; a polynomial before a searched shape (periodic, thermal); (4) a
+    translation before a rotation (a rotation shows only through a lever arm); (5) the most local: the parameter's
+    axis nearest to the variable's in the kinematic chain; (6) the machine's error order. Custom effects head their
+    set (the user wrote them for it)."""
     if not isinstance(effect, fx.Effect):
         return (-1,)
     own = fx.is_own(machine, effect)
     along = fx.own_positioning(machine, effect)
     order = 0 if effect.kind == "reversal" else (effect.deg if effect.kind == "poly" else 4)
+    rotation = effect.param != fx.TOOL and machine.is_angular(effect.param)
     distance = fx.chain_distance(machine, effect)
-    return (0 if own else 1, 0 if along else 1, order, distance)
+    return (0 if own else 1, 0 if along else 1, order, 1 if rotation else 0, distance)

@@ -230,17 +230,26 @@ def decide(rows, lay: Layout, prior: cd.Prior, idf, known: bool, top: int, descr
     gains = _gains(Q, Z, rw, lay, main)
     d = {k: float(cd.deltas(rss, [gains[k]], N, pens[k], known)[0]) for k in main}
     sse0, sse1, chosen = cross_validate(rows, lay, prior, known, rank)
-    accepted, forward_rss = select(Z, Q, rw, lay, main, pens, N, known)
+    accepted, _ = select(Z, Q, rw, lay, main, pens, N, known)
+    accepted = _ranked(Z, Q, rw, lay, [_head(Z, Q, lay, main, k, head_key) for k in accepted], pens, N, known)
     order = sorted(main, key=lambda k: d[k])
-    best = accepted[0] if accepted else (order[0] if order else None)
-    d_best = d[best] if best is not None else math.inf
+    if accepted:       # the set: its extended BIC against the model alone, its members' penalties
+        best = accepted[0]
+        d_best = _set_ebic(rss, _set_rss(Z, Q, rw, lay, accepted), N, sum(pens[k] for k in accepted), known)
+        penalty = sum(pens[k] for k in accepted)
+    else:
+        best = order[0] if order else None
+        d_best = d[best] if best is not None else math.inf
+        penalty = pens[best] if best is not None else cd.ebic_penalty(N, 1)
     decision = {"rule": "extended BIC (penalty k ln N + 2 ln(F M_f) for k coefficients from family f of F, M_f "
                         "trials; a searched period or time constant counts as a coefficient) and nested K-fold "
-                        "cross-validation; the effects accepted as a set (forward selection with backward checks)",
+                        "cross-validation; the effects accepted as a set (stepwise: forward, backward and swap "
+                        "moves on the set's extended BIC)",
                 "N": N, "F": prior.F, "families": prior.to_json(N), "M": int(sum(prior.trials.values())),
-                "penalty": pens[best] if best is not None else cd.ebic_penalty(N, 1),
+                "penalty": penalty,
                 "best": lay.effects[best].id if best is not None else None,
                 "best_family": lay.families[best] if best is not None else None,
+                "accepted": [lay.effects[k].id for k in accepted],
                 "delta_ebic_best": d_best, "ebic_pass": bool(d_best < 0), "cv_folds": rows.folds,
                 "cv_sse_without": sse0, "cv_sse_with": sse1, "cv_pass": bool(sse1 < sse0), "cv_chosen": chosen}
     extra = [c for k in accepted for c in lay.cols[k]]
@@ -260,6 +269,29 @@ def decide(rows, lay: Layout, prior: cd.Prior, idf, known: bool, top: int, descr
     return out
 
 
+def _head(Z, Q, lay: Layout, ks, k: int, head_key) -> int:
+    """The most plausible candidate among k and its aliases (the same projected columns: the same fit)."""
+    rw0 = np.zeros(len(Z))
+    width = len(lay.cols[k])
+    same = [j for j in ks if len(lay.cols[j]) == width]
+    if width == 1:
+        c = cd.project(Q, Z[:, [lay.cols[j][0] for j in same]], rw0, [lay.effects[j] for j in same])
+        group = [same[i] for i in np.flatnonzero(c.cos_with(same.index(k)) > ALIAS_COS)]
+    else:
+        bk = cd.score_block(Q, Z[:, lay.cols[k]], rw0).Qb
+        group = [j for j in same if _same_space(bk, cd.score_block(Q, Z[:, lay.cols[j]], rw0).Qb)]
+    return min(set(group) | {k}, key=lambda j: (head_key(j), j))
+
+
+def _ranked(Z, Q, rw, lay: Layout, members, pens, N, known) -> list:
+    """The members of a set, the most important first: by how much the set's extended BIC rises without it."""
+    rss0 = float(rw @ rw)
+    full = _set_ebic(rss0, _set_rss(Z, Q, rw, lay, members), N, sum(pens[u] for u in members), known)
+    rise = {j: _set_ebic(rss0, _set_rss(Z, Q, rw, lay, [u for u in members if u != j]), N,
+                         sum(pens[u] for u in members if u != j), known) - full for j in members}
+    return sorted(members, key=lambda j: (-rise[j], j))
+
+
 def _gains(Q, Z, rw, lay: Layout, ks) -> dict:
     """Drop of the weighted RSS when each candidate joins the model alone."""
     out = {}
@@ -277,21 +309,11 @@ def _gains(Q, Z, rw, lay: Layout, ks) -> dict:
     return out
 
 
-def extend(Q: np.ndarray, G: np.ndarray) -> np.ndarray:
-    """An orthonormal basis of span(Q) + span(G): G's columns projected off Q, those the model already holds
-    (kept below ABSORBED of their norm) left out."""
-    Gp = G - Q @ (Q.T @ G)
-    Gp = Gp - Q @ (Q.T @ Gp)
-    Qg, R = np.linalg.qr(Gp)
-    keep = np.abs(np.diag(R)) > cd.ABSORBED * np.maximum(np.linalg.norm(G, axis=0), 1e-300)
-    return np.hstack([Q, Qg[:, keep]])
-
-
 def _set_rss(Z, Q, rw, lay: Layout, members) -> float:
     """Weighted RSS of rw (orthogonal to Q) after the members' columns join the model."""
     if not members:
         return float(rw @ rw)
-    Qs = extend(Q, Z[:, [c for k in members for c in lay.cols[k]]])
+    Qs = cd.extend(Q, Z[:, [c for k in members for c in lay.cols[k]]])
     r = rw - Qs @ (Qs.T @ rw)
     return float(r @ r)
 
@@ -301,45 +323,68 @@ def _set_ebic(rss0, rss, N, pen, known) -> float:
     return float(cd.deltas(rss0, [rss0 - rss], N, pen, known)[0])
 
 
+#: Rounds of forward, backward and swap moves of the set selection, at most.
+SELECT_ROUNDS = 12
+
+
 def select(Z, Q, rw, lay: Layout, ks, pens: dict, N: int, known: bool):
-    """The set of candidates the rule accepts: forward selection by extended BIC (at most FORWARD_MAX), each step
-    followed by backward checks (a member whose removal lowers the set's extended BIC leaves). Returns (the set in
-    order of entry, the weighted RSS after it)."""
+    """The set of candidates the rule accepts, as a set: stepwise selection by the set's extended BIC (its RSS and
+    its members' penalties). Forward: the candidate that lowers it most joins (at most FORWARD_MAX members);
+    backward: a member whose removal lowers it leaves; swap: a member is replaced by the candidate that lowers it
+    most in its place (a searched shape that first took the place of two plain effects, a sine in time for a
+    linear error and a reversal, gives way to them), or two members by one (two polynomials in time by the
+    exponential warm-up they approximate). Stops when no move lowers it. Returns (the set in order of entry, the
+    weighted RSS after it)."""
     rss0 = float(rw @ rw)
-    used: list[int] = []
-    tried = set()
-    rss_cur = rss0
-    for _ in range(2 * FORWARD_MAX):
-        if len(used) >= FORWARD_MAX:
-            break
-        # Forward: the candidate that lowers the set's extended BIC most.
-        Qc = extend(Q, Z[:, [c for k in used for c in lay.cols[k]]]) if used else Q
-        r_cur = rw - Qc @ (Qc.T @ rw) if used else rw
-        cand = [k for k in ks if k not in used and k not in tried]
+
+    def score(members):
+        return _set_ebic(rss0, _set_rss(Z, Q, rw, lay, members), N, sum(pens[u] for u in members), known)
+
+    def best_addition(members, exclude=()):
+        """(the candidate that lowers the set's extended BIC most when added to members, the new value)."""
+        Qc = cd.extend(Q, Z[:, [c for k in members for c in lay.cols[k]]]) if members else Q
+        r = rw - Qc @ (Qc.T @ rw) if members else rw
+        cand = [k for k in ks if k not in members and k not in exclude]
         if not cand:
-            break
-        g = _gains(Qc, Z, r_cur, lay, cand)
-        dv = {k: float(cd.deltas(float(r_cur @ r_cur), [g[k]], N, pens[k], known)[0]) for k in cand}
-        k = min(cand, key=lambda j: (dv[j], j))
-        if dv[k] >= 0:
-            break
-        used.append(k)
-        rss_cur = _set_rss(Z, Q, rw, lay, used)
-        # Backward: drop a member the others make redundant (the newest member stays: it was just worth it).
+            return None, math.inf
+        g = _gains(Qc, Z, r, lay, cand)
+        base = score(members)
+        rss = float(r @ r)
+        val = {k: base + float(cd.deltas(rss, [g[k]], N, pens[k], known)[0]) for k in cand}
+        k = min(cand, key=lambda j: (val[j], j))
+        return k, val[k]
+
+    used: list[int] = []
+    current = 0.0
+    for _ in range(SELECT_ROUNDS):
+        moved = False
+        if len(used) < FORWARD_MAX:
+            k, val = best_addition(used)
+            if k is not None and val < current - 1e-9:
+                used.append(k)
+                current, moved = val, True
         while len(used) > 1:
-            full = _set_ebic(rss0, rss_cur, N, sum(pens[j] for j in used), known)
-            best_drop, best_val = None, full
-            for j in used[:-1]:
-                rest = [u for u in used if u != j]
-                val = _set_ebic(rss0, _set_rss(Z, Q, rw, lay, rest), N, sum(pens[u] for u in rest), known)
-                if val < best_val - 1e-9:
-                    best_drop, best_val = j, val
-            if best_drop is None:
+            drops = {j: score([u for u in used if u != j]) for j in used}
+            j = min(drops, key=lambda u: (drops[u], u))
+            if drops[j] >= current - 1e-9:
                 break
-            used.remove(best_drop)
-            tried.add(best_drop)
-            rss_cur = _set_rss(Z, Q, rw, lay, used)
-    return used, rss_cur
+            used.remove(j)
+            current, moved = drops[j], True
+        swap = None                      # (members out, member in, value): one for one, or one for two
+        outs = [(j,) for j in used] + [(i, j) for a, i in enumerate(used) for j in used[a + 1:]]
+        for out in outs:
+            rest = [u for u in used if u not in out]
+            k, val = best_addition(rest, exclude=out)
+            if k is not None and val < current - 1e-9 and (swap is None or val < swap[2]):
+                swap = (out, k, val)
+        if swap is not None:
+            at = min(used.index(j) for j in swap[0])
+            used = [u for u in used if u not in swap[0]]
+            used.insert(at, swap[1])
+            current, moved = swap[2], True
+        if not moved:
+            break
+    return used, _set_rss(Z, Q, rw, lay, used)
 
 
 def cross_validate(rows, lay: Layout, prior: cd.Prior, known: bool, rank: int):

@@ -235,6 +235,23 @@ def _cut(pool: cd.Pool, sc: Screen, known: bool):
     return sorted(singles), sorted(periodic)
 
 
+def _search_after_first_choice(pool: cd.Pool, sc: Screen, present: set, known: bool) -> None:
+    """The set the rule would accept on the screen (`decision.select`), and the period and time-constant
+    searches again against the residual it leaves (`candidates.search_again`)."""
+    items = [it for it in _items(pool, None) if it[2] is None]
+    if not items or not (pool.bands or pool.grid is not None):
+        return
+    X = np.hstack([pool.G, pool.Gp, *pool.custom_cols])
+    lay = dc.layout(0, items)
+    N = len(sc.rw)
+    main = lay.main()
+    pens = {k: pool.prior.penalty(lay.families[k], N, len(lay.cols[k])) for k in main}
+    chosen, _ = dc.select(X, sc.Q, sc.rw, lay, main, pens, N, known)
+    if chosen:
+        cd.search_again(pool, sc.block, sc.w, sc.Q, sc.rw, [(lay.effects[k], X[:, lay.cols[k]]) for k in chosen],
+                        present)
+
+
 def _train_sets(sc: Screen, fold: np.ndarray, rank: int, folds: int):
     """Per CV fold on the screen: (training readings, orthonormal basis of the design there at the fit's rank,
     the residual of d w fitted on it), for the folds' own searches."""
@@ -284,6 +301,7 @@ def diagnose_fit(res: FitResult, top: int = 10) -> "Diagnosis":
     fold_s = cd.folds_of_readings(sc.prob, dc.K_FOLDS)
     pool = cd.build_pool(sc.block, sc.w, sc.Q, sc.rw, present, custom,
                          folds=(_train_sets(sc, fold_s, res.idf.rank, dc.K_FOLDS),), unseen=unseen(res))
+    _search_after_first_choice(pool, sc, present, known)
     keep = None if sc.whole else _cut(pool, sc, known)
     items = _items(pool, keep)
     lay = dc.layout(int(free.sum()), items, pool.resampled)
@@ -407,7 +425,7 @@ def candidate_item(prob, eff, family, coefs, rms_after, gain, rss, delta) -> dic
     phys = eff.physical(machine, np.asarray(coefs, float), prob.scales)
     item = {"id": eff.id, "family": family, "aliases": [], "rms_mm": rms_after,
             "explained": float(gain / rss) if rss > 0 else 0.0, "delta_ebic": delta,
-            "description": eff.describe(machine, coefs),
+            "description": eff.describe(machine, coefs, prob.ctx),
             "coefficient": phys[0][0] if phys else None, "unit": phys[0][1] if phys else ""}
     if len(phys) > 1:
         item["coefficients"] = [{"name": nm, "value": v, "unit": u} for nm, (v, u) in zip(eff.names, phys)]

@@ -50,7 +50,7 @@ class CustomEffect:
     def description(self) -> str:
         return f"custom effect {self.name}: {self.param} += {self.expr}"
 
-    def describe(self, machine, coefs=None) -> str:
+    def describe(self, machine, coefs=None, ctx=None) -> str:
         return self.description
 
     def basis(self, ctx) -> np.ndarray:

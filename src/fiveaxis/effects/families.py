@@ -187,8 +187,8 @@ class Effect:
             return [(float(c) / half ** self.deg, f"{unit}/{per}") for c in coefs]
         return [(float(c), unit) for c in coefs]
 
-    def describe(self, machine, coefs=None) -> str:
-        return describe(machine, self, coefs)
+    def describe(self, machine, coefs=None, ctx: "EffectContext | None" = None) -> str:
+        return describe(machine, self, coefs, ctx)
 
 
 def parse(effect_id: str, machine, errors, where: str = "effect") -> Effect:
@@ -333,9 +333,13 @@ def own_positioning(machine, effect: Effect) -> bool:
 
 def chain_distance(machine, effect: Effect) -> int:
     """How far apart the parameter's place and the variable's axis are along the kinematic loop tool -> base ->
-    workpiece (0: the same axis; time, the tool length and the chain ends: the loop's length)."""
+    workpiece (0: the same axis; the tool length and the chain ends: the loop's length). In time, the tool
+    length comes first (0: the spindle's thermal growth, the first thing ISO 230-3 measures), every other error
+    after it."""
     loop = [a.name for a in reversed(machine.tool_chain)] + [a.name for a in machine.workpiece_chain]
-    if effect.var == TIME or effect.param == TOOL:
+    if effect.var == TIME:
+        return 0 if effect.param == TOOL else len(loop)
+    if effect.param == TOOL:
         return len(loop)
     ax = _axis_of(machine, effect.param)
     where = ax.name if ax is not None else machine.pige_place(effect.param)
@@ -345,10 +349,11 @@ def chain_distance(machine, effect: Effect) -> int:
     return abs(loop.index(where) - loop.index(var_axis))
 
 
-def describe(machine, effect: Effect, coefs=None) -> str:
+def describe(machine, effect: Effect, coefs=None, ctx: "EffectContext | None" = None) -> str:
     """A plain-language description of an effect, e.g. 'the roll of the X carriage changing linearly along X';
     with its fitted coefficients (as fitted: scaled polynomial coefficients, amplitudes in mm or rad) also its
-    size, e.g. 'the X axis reverses with a backlash of 6.1 um'."""
+    size, e.g. 'the X axis reverses with a backlash of 6.1 um'; a polynomial's size is its largest change over the
+    range of its variable in ctx (the data), else at the end of the stroke."""
     what = describe_param(machine, effect.param)
     name, unit = _var_words(machine, effect.var)
     size_unit = effect.unit_of(machine)
@@ -389,9 +394,27 @@ def describe(machine, effect: Effect, coefs=None) -> str:
         end = "at the end of the stroke"
     text = f"{what} {how}"
     if c is not None:
-        text += f" by {human(c[0], size_unit, 2)} {end}"
+        if ctx is not None and ctx.n:
+            size, lo, hi = _change_over_range(effect, c[0], ctx)
+            to = ctx.scales[effect.var].to_unit
+            text += (f" by {human(size, size_unit, 2)} over the measured range ({ids.fmt(lo * to)} to "
+                     f"{ids.fmt(hi * to)} {unit})")
+        else:
+            text += f" by {human(c[0], size_unit, 2)} {end}"
     note = _note(machine, effect)
     return f"{text} ({note})" if note else text
+
+
+def _change_over_range(effect: Effect, coef: float, ctx: "EffectContext"):
+    """(the largest change of a polynomial effect from its value at the start of the data's range of its
+    variable, the range's ends in model units)."""
+    raw = ctx.raw(effect.var)
+    lo, hi = float(np.min(raw)), float(np.max(raw))
+    s = ctx.scales[effect.var]
+    u = (np.linspace(lo, hi, 101) - s.centre) / s.half
+    f = coef * u ** effect.deg
+    k = int(np.argmax(np.abs(f - f[0])))
+    return float(f[k] - f[0]), lo, hi
 
 
 def _note(machine, effect: Effect) -> str:
