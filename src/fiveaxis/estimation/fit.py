@@ -38,7 +38,7 @@ from ..exceptions import InputError
 from ..measurement import observations as ob
 from . import design as dsg
 from . import solver as sv
-from .problem import Problem, build, unit
+from .problem import Problem, build, lead_priority, unit
 from .result import OUTLIER_ALPHA, STRONG_CORRELATION, FitResult, Outliers, combination_unit, no_outliers
 
 #: Tuning constant of the Huber weights of the robust fit (95% efficiency on Gaussian noise).
@@ -128,7 +128,8 @@ def fit_problem(prob: Problem, design, refine: bool = True, max_iter: int = 6) -
     res = FitResult(prob, ref.theta, cov, idf, residual, r_first, sigma2, known, ref.iterations, scale,
                     design=design, exact=ref.exact, note=ref.note)
     fnames = [prob.names[i] for i in fi]
-    res.groups, res.combinations = sv.groups_and_combinations(idf, ref.theta[fi], covf, fnames)
+    res.groups, res.combinations = sv.groups_and_combinations(idf, ref.theta[fi], covf, fnames,
+                                                              [lead_priority(prob, n) for n in fnames])
     std = np.sqrt(np.clip(np.diag(covf), 0, None))
     det = np.flatnonzero(idf.determined & (idf.norms > 0))
     for a_i, a in enumerate(det):
@@ -249,7 +250,8 @@ def predicted(prob: Problem) -> dict:
     names = [n for n, f in zip(prob.names, free) if f]
     idf, _ = sv.factor(dsg.InMemory(prob), prob.w, free, prob.fixed_values)
     cov = sv.covariance(idf, 1.0)
-    groups, combos = sv.groups_and_combinations(idf, np.zeros(len(names)), cov, names)
+    groups, combos = sv.groups_and_combinations(idf, np.zeros(len(names)), cov, names,
+                                                [lead_priority(prob, n) for n in names])
     std = np.sqrt(np.clip(np.diag(cov), 0, None))
     return {"rank": idf.rank, "n_parameters": idf.n_params, "condition": idf.condition,
             "determined": {n: {"std": float(s), "unit": unit(prob, n)}

@@ -199,6 +199,22 @@ def unit(prob: Problem, name: str) -> str:
     return ""
 
 
+def lead_priority(prob: Problem, name: str) -> int:
+    """Which parameter leads a combination the data determine (lower first): the location of a rotary axis (ISO
+    230-7 E_X0C, E_A0C, ...), a squareness of the linear axes, a rotary axis's error motions, a linear axis's, the
+    tool length and effect coefficients; an artefact's placement last (never the quantity an engineer reports)."""
+    machine = prob.model.machine
+    if su.is_setup_param(name):
+        return 9
+    if name not in prob.model.errors:
+        return 5
+    if name in machine.pige_kinds:
+        place = machine.pige_place(name)
+        return 0 if place in machine.variables and machine.axis(place).type == "rotary" else 1
+    axis = next((a for a in machine.axes if name in a.pdge), None)
+    return 2 if axis is not None and axis.type == "rotary" else 3
+
+
 def truth_vector(prob: Problem, errors: dict, effects: dict | None = None, setups: dict | None = None) -> np.ndarray:
     """Parameter values in the problem's order from known values (a simulation's truth): errors by name (mm, rad),
     effect coefficients by coefficient name (as fitted), setup unknowns by name; missing ones are zero."""

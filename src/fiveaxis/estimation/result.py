@@ -13,12 +13,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..effects import families as fx
 from ..measurement import observations as ob
 from ..measurement import setups as su
 from ..model import iso_names as iso
 from ..units import human
 from .problem import Problem, unit as _unit
-from .solver import Identifiability
+from .solver import Identifiability, formula
 
 #: Coverage factor of the expanded uncertainty in reports.
 K_EXPANDED = 2.0
@@ -185,8 +186,35 @@ def parameters(res: FitResult) -> dict:
                 entry.update(_entry(vals[j][0], abs(stds[j][0]), vals[j][1]))
             else:
                 entry["unit"] = vals[j][1]
-            entry["description"] = eff.describe(model.machine, res.theta[idx])
+            entry["description"] = eff.describe(model.machine, res.theta[idx], prob.ctx)
         k += len(eff.names)
+    return out
+
+
+def quantities(res: FitResult) -> list[dict]:
+    """The combinations the data determine, as the physical quantity each is led by (`solver.groups_and_
+    combinations`: a rotary axis's location, a squareness, an error motion), with what it is relative to: {"lead",
+    "iso", "quantity" (in words), "relative_to" (in words), "value", "std", "expanded_k2", "unit", "formula"}.
+    Combinations led by an artefact's placement are the placements' business (`setup_results`), not listed."""
+    prob = res.problem
+    machine = prob.model.machine.with_convention(prob.model.convention)
+    out = []
+    for c in res.combinations:
+        lead = next(iter(c.terms))
+        if su.is_setup_param(lead):
+            continue
+        errs = {n: v for n, v in c.terms.items() if n != lead and not su.is_setup_param(n)}
+        setups = sorted({n.split("[", 1)[1][:-1] for n in c.terms if su.is_setup_param(n)})
+        words = []
+        if errs:
+            words.append(formula({(iso.name(prob.model, n) or n): v for n, v in errs.items()}).lstrip("+ "))
+        if setups:
+            words.append(f"the placement of {', '.join(setups)}")
+        unit = combination_unit(prob, c.terms)
+        out.append({"lead": lead, "iso": iso.name(prob.model, lead),
+                    "quantity": fx.describe_param(machine, lead) if lead in prob.model.errors else lead,
+                    "relative_to": " and ".join(words), "value": c.value, "std": c.std,
+                    "expanded_k2": K_EXPANDED * c.std, "unit": unit, "formula": c.formula})
     return out
 
 
@@ -274,6 +302,7 @@ def to_json(res: FitResult) -> dict:
                                           "the scaled range (u = 1), in the parameter's unit"}
                                  if set(c.terms) - set(prob.model.errors) - set(prob.setups.names) else {}))
                          for c in res.combinations],
+        "quantities": quantities(res),
         "correlations": [{"a": a, "b": b, "r": r} for a, b, r in res.correlations],
         "iterations": res.iterations,
         "residual_model": "exact" if res.exact else "first order",

@@ -183,13 +183,18 @@ def formula(terms: dict) -> str:
     return out
 
 
-def groups_and_combinations(idf: Identifiability, theta, cov, names):
-    """Connected sets of parameters coupled by the null space, and the combinations the data determines."""
-    from scipy.linalg import qr                              # SciPy: loaded where combinations are asked for
-    from scipy.sparse.csgraph import connected_components
+def groups_and_combinations(idf: Identifiability, theta, cov, names, priority=None):
+    """Connected sets of parameters coupled by the null space, and the combinations the data determines.
+
+    Each combination is led by one parameter (coefficient 1; the other leads of its set do not appear in it):
+    the leads are chosen in order of `priority` (per parameter, lower first: the physical quantity an engineer
+    reports, e.g. the location of a rotary axis, leads; an artefact's placement never does), among parameters
+    that add a determined direction."""
+    from scipy.sparse.csgraph import connected_components   # SciPy: loaded where combinations are asked for
     p = idf.n_params
     if idf.null.size == 0:
         return [], []
+    prio = np.zeros(p) if priority is None else np.asarray(priority, float)
     NN = idf.null @ idf.null.T
     touched = ~idf.determined
     link = (np.abs(NN) > NULL_TOL) & np.outer(touched, touched)
@@ -207,19 +212,37 @@ def groups_and_combinations(idf: Identifiability, theta, cov, names):
         k = int(round(np.trace(P)))       # number of determined combinations in this group
         if k <= 0:
             continue
-        Q, R, piv = qr(P, pivoting=True)
-        B = Q[:, :k].T                    # rows span the determined combinations (unit-norm coordinates)
-        piv = sorted(piv[:k])
+        w, V = np.linalg.eigh(P)
+        B = V[:, np.argsort(w)[::-1][:k]].T          # rows span the determined combinations (unit-norm coords)
+        piv = _leads(B, [prio[i] for i in live], k)
         rows = np.linalg.solve(B[:, piv], B)
-        for row in rows:
-            coef = row * idf.norms[live]        # unit-norm coordinates -> parameter units
-            coef = coef / coef[np.argmax(np.abs(coef) > 1e-9 * np.max(np.abs(coef)))]
-            terms = {names[i]: float(c_) for i, c_ in zip(live, coef) if abs(c_) > 1e-9}
+        for row, lead in zip(rows, piv):
+            coef = row * idf.norms[live] / idf.norms[live[lead]]   # unit-norm coordinates -> parameter units
+            terms = {names[live[lead]]: 1.0}
+            terms.update({names[i]: float(c_) for j, (i, c_) in enumerate(zip(live, coef))
+                          if j != lead and abs(c_) > 1e-9 * np.max(np.abs(coef))})
             vec = np.zeros(p)
             for i, c_ in zip(live, coef):
                 vec[i] = c_
+            vec[live[lead]] = 1.0
             combos.append(Combination(terms, float(vec @ theta), float(math.sqrt(max(vec @ cov @ vec, 0)))))
     return groups, combos
+
+
+def _leads(B: np.ndarray, priority, k: int) -> list[int]:
+    """k columns of B (k, n) that are independent, chosen in order of priority (then by size): greedy
+    Gram-Schmidt on the columns."""
+    order = sorted(range(B.shape[1]), key=lambda j: (priority[j], -np.linalg.norm(B[:, j])))
+    chosen, basis = [], np.zeros((B.shape[0], 0))
+    scale = np.max(np.linalg.norm(B, axis=0))
+    for j in order:
+        x = B[:, j] - basis @ (basis.T @ B[:, j])
+        if np.linalg.norm(x) > 1e-6 * scale:
+            chosen.append(j)
+            basis = np.column_stack([basis, x / np.linalg.norm(x)])
+            if len(chosen) == k:
+                break
+    return sorted(chosen)
 
 
 # -- passes -------------------------------------------------------------------------------------------------------

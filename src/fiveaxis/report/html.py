@@ -195,17 +195,29 @@ def _fit(rec: dict) -> str:
            f"parameters, of which the data determines {f['rank']} independent directions (condition number "
            f"{_num(f['condition'], 3)}). Uncertainty scale: {_e(f['sigma'])}"
            + (f", reduced chi\u00b2 {_num(f['reduced_chi2'], 3)}" if f["reduced_chi2"] is not None else "")
-           + ". Values with an expanded uncertainty U (k = 2); parameters the data cannot determine alone are "
-             "greyed, their determined combinations follow the table.</p>"]
-    rows, classes = [], []
+           + ". Values with an expanded uncertainty U (k = 2): first what the data determine alone, then what they "
+             "determine relative to what they cannot separate it from; the parameters the data cannot determine "
+             "alone are listed after, with the measurement that would separate them.</p>"]
+    rows = []
     for p in f["parameters"]:
-        value = _num(p["value"], 4) if p["determined"] else "not determined"
-        u = _num(p["u_k2"], 2) if p["determined"] else ""
-        rows.append([f'<span class="code">{_e(p["name"])}</span>', _e(p["iso"] or "\u2013"), _e(p["description"]),
-                     value, u, _e(_unit(p["unit"])), _e(p["note"])])
-        classes.append("" if p["determined"] else "undetermined")
-    out.append(_table(["parameter", "ISO 230", "meaning", "value", "U (k = 2)", "unit", "note"], rows,
-                      "parameters", numeric=(3, 4), row_class=classes))
+        if p["determined"]:
+            rows.append([f'<span class="code">{_e(p["name"])}</span>', _e(p["iso"] or "\u2013"),
+                         _e(p["description"]), _num(p["value"], 4), _num(p["u_k2"], 2), _e(_unit(p["unit"])),
+                         _e(p["note"])])
+    if rows:
+        out.append(_table(["parameter", "ISO 230", "meaning", "value", "U (k = 2)", "unit", "note"], rows,
+                          "parameters", numeric=(3, 4)))
+    if f.get("quantities"):
+        out.append("<h3>Determined relative to what the data cannot separate</h3><p>Each quantity is determined "
+                   "together with the others named beside it (the locations of the rotary axes relative to the "
+                   "axes' zero offsets, an axis's tilt relative to the artefacts' placement); the exact formula "
+                   "is one click away.</p>")
+        rows = [[f'<span class="code">{_e(q["name"])}</span>', _e(q["iso"] or "\u2013"), _e(q["quantity"]),
+                 _num(q["value"], 4), _num(q["u_k2"], 2), _e(_unit(q["unit"])),
+                 f'relative to {_e(q["relative_to"])}<details><summary>formula</summary>'
+                 f'<span class="code">{_e(q["formula"])}</span></details>'] for q in f["quantities"]]
+        out.append(_table(["quantity", "ISO 230", "meaning", "value", "U (k = 2)", "unit", "relative to"], rows,
+                          "quantities", numeric=(3, 4)))
     if f.get("setups"):
         out.append("<h3>Setups: where the artefacts lay</h3><p>The unknown placement of each artefact or instrument "
                    "(offsets c, a length offset l of 1-D readings, rotations w), fitted beside the machine's errors; "
@@ -221,12 +233,11 @@ def _fit(rec: dict) -> str:
         for text in sorted({p["setup"] + " " + p["placement"] for p in f["setups"] if p["placement"]}):
             out.append(f"<p>{_e(text)}.</p>")
     if f["combinations"]:
-        out.append("<h3>Combinations the data determines</h3><p>Members of these sums are not determined "
-                   "alone; the sum is (coefficients are exact ratios of their effects).</p>")
         rows = [[f'<span class="code">{_e(c["formula"])}</span>', f'<span class="code">{_e(c["formula_iso"])}</span>',
                  _num(c["value"], 4), _num(c["u_k2"], 2), _e(_unit(c["unit"]))] for c in f["combinations"]]
-        out.append(_table(["combination", "in ISO 230 names", "value", "U (k = 2)", "unit"], rows, "combinations",
-                          numeric=(2, 3)))
+        out.append(f"<details><summary>Every combination the data determine, as formulas ({len(rows)})</summary>"
+                   + _table(["combination", "in ISO 230 names", "value", "U (k = 2)", "unit"], rows, "combinations",
+                            numeric=(2, 3)) + "</details>")
     if f["groups"]:
         out.append("<h3>What the data cannot separate, and which measurement would</h3>")
         rows = []

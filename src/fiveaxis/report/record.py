@@ -141,6 +141,13 @@ def _fit_record(model, j: dict, groups_advice) -> dict:
         std, _ = people(c["std"], j["parameters"][first]["unit"])
         combos.append({"formula": c["formula"], "formula_iso": _iso_formula(model, c["terms"]), "value": value,
                        "u_k2": 2 * std, "unit": unit, "note": c.get("note", "")})
+    quantities = []
+    for q in j["quantities"]:
+        value, unit = people(q["value"], q["unit"])
+        std, _ = people(q["std"], q["unit"])
+        quantities.append({"name": q["lead"], "iso": q["iso"], "quantity": q["quantity"],
+                           "relative_to": q["relative_to"], "value": value, "u_k2": 2 * std, "unit": unit,
+                           "formula": q["formula"]})
     setups = []
     for su_ in j.get("setups", []):
         for name, p in su_["parameters"].items():
@@ -155,7 +162,7 @@ def _fit_record(model, j: dict, groups_advice) -> dict:
             "n_parameters": j["n_parameters"], "condition": j["condition"], "sigma": j["sigma"],
             "reduced_chi2": j.get("reduced_chi2"), "effects": j["effects"],
             "effects_iso": [iso.name(model, e) for e in j["effects"]], "parameters": params,
-            "combinations": combos, "groups": groups_advice,
+            "combinations": combos, "quantities": quantities, "groups": groups_advice,
             "correlations": [dict(c, a_iso=iso.name(model, c["a"]), b_iso=iso.name(model, c["b"]))
                              for c in j["correlations"]]}
 

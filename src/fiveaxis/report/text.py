@@ -81,18 +81,23 @@ def fit(j: dict) -> str:
                          f"{'; '.join(vals)}{unseen}")
             if "placement" in s and s["kind"] != "point":
                 lines.append(f"        {s['id']} {s['placement']}")
-    if j["combinations"]:
-        lines.append("[[Combinations determined by this data (members are not determined alone)]]")
-        for c in j["combinations"]:
-            unit = c["unit"] if c["unit"] in ("mm", "rad") else ""
-            if unit:
-                lines.append(f"    {c['formula']} = {human(c['value'], unit)} +- {human(c['expanded_k2'], unit)}")
-            else:
-                lines.append(f"    {c['formula']} = {c['value']: .6g} +- {c['expanded_k2']:.2g}")
-    if j["unidentifiable"]:
-        lines.append("[[Not determined alone by this data]]")
-        for g in j["unidentifiable"]:
-            lines.append(f"    {', '.join(g)}")
+    if j["quantities"]:
+        lines.append("[[Determined relative to what this data cannot separate them from]]  value +- expanded "
+                     "uncertainty (k = 2)")
+        for q in j["quantities"]:
+            unit = q["unit"] if q["unit"] in ("mm", "rad") else ""
+            shown = f"{q['lead']} ({q['iso']})" if q.get("iso") else q["lead"]
+            value = (f"{human(q['value'], unit)} +- {human(q['expanded_k2'], unit)}" if unit
+                     else f"{q['value']:.6g} +- {q['expanded_k2']:.2g}")
+            lines.append(f"    {shown:18s} {value}   {q['quantity']}, relative to {q['relative_to']}")
+    placements = len(j["combinations"]) - len(j["quantities"])
+    if j["unidentifiable"] or placements:
+        count = sum(len(g) for g in j["unidentifiable"])
+        lines.append(f"[[Not determined alone by this data]] {count} parameter(s) in {len(j['unidentifiable'])} "
+                     f"group(s)" + (f"; {placements} combination(s) of the artefacts' placements" if placements
+                                    else "")
+                     + " (JSON: unidentifiable, combinations with their formulas; `fiveaxis report` says which "
+                       "extra measurement would separate them)")
     if j["correlations"]:
         lines.append(f"[[Strong correlations (|r| >= {STRONG_CORRELATION})]]")
         for c in j["correlations"]:
@@ -139,8 +144,10 @@ def diagnosis(j: dict) -> str:
                "unexplained structure": "UNEXPLAINED STRUCTURE (" + (
                    "candidates pass, but structure remains after them" if d.get("passes") else
                    "the residual is above the noise; no candidate passes") + ")"}[j["verdict"]]
+    what = (f"the set {' + '.join(d['accepted'])}" if len(d.get("accepted") or []) > 1
+            else f"best candidate {d['best']}")
     lines.append(f"    decision: {verdict} "
-                 f"(best candidate {d['best']}: delta EBIC {d['delta_ebic_best']:.1f} with penalty "
+                 f"({what}: delta EBIC {d['delta_ebic_best']:.1f} with penalty "
                  f"{d['penalty']:.1f}; trials per family: {fams}; {d['cv_folds']}-fold CV held-out SSE "
                  f"{d['cv_sse_without']:.4g} -> {d['cv_sse_with']:.4g})"
                  + ("; outliers left out of the decision" if j["outliers"] else ""))
