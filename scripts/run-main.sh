@@ -114,5 +114,5 @@ say "Calibration report of the compensated A/C trunnion, with the compensation's
 "$BIN/fiveaxis" report "$CDIR/before.csv" --machine ac_trunnion --compensation "$CDIR/comp" \
     -o "$OUT/ac_trunnion_compensated.html" "${PDF[@]}" --force
 say "Reports written (open in a browser):"
-for f in "$OUT"/*.html "$OUT"/*.pdf; do [ -e "$f" ] && echo "    $(cd "$(dirname "$f")" && pwd)/$(basename "$f")"; done
+scripts/list-outputs.sh "$OUT"
 # --- end section: report

@@ -324,7 +324,7 @@ def _plan_from_file(args, model, lengths):
     line = meas.u is not None
     return Plan("poses file", meas.poses, meas.L, meas.has_L, "line" if line else
                 ("tip+axis" if args.with_axis else "tip"), u=meas.u, setup=meas.setup, setup_kind=meas.setup_kind,
-                setup_frame=meas.setup_frame, dirs=meas.dirs, frame=meas.frame)
+                setup_frame=meas.setup_frame, dirs=meas.dirs, frame=meas.frame, t=meas.t)
 
 
 def run_model(args) -> int:

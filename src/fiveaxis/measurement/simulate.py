@@ -114,7 +114,7 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
 
     instrument: a plan of `fiveaxis.measurement.instruments` (n: about how many poses), or `plan` given; tool_lengths: None
     (the machine's L0, no L column) or (min, max) mm for a random L per pose (tip plans); duration: s over which the
-    poses are measured in order (t column), None for no t column; setup_scale: size of the random setup placements
+    poses are measured in order (t column), None for no t column (a plan with times keeps its own); setup_scale: size of the random setup placements
     relative to SETUP_OFFSET_MM and SETUP_ROTATION_RAD; errors: {name: value} (mm, rad) set instead of drawn;
     setup_kind: the kind of every setup of the plan (point, rigid, planar) instead of the instrument's;
     placements: {setup id: {"c_mm": [3], "l_mm": x, "w_rad": [3]}} set instead of drawn (any key may be left out);
@@ -133,9 +133,12 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
     if setup_kind is not None:
         plan.setup_kind = {s: setup_kind for s in plan.setup_kind}
     m = plan.n
-    t = None if duration is None else np.sort(rng.uniform(0, duration, m))
-    if t is not None:
-        t[-1] = duration          # the last pose ends the run: u = t / duration
+    if plan.t is not None:        # the plan's own times (a poses file's t column): kept
+        t = np.asarray(plan.t, dtype=float)
+    else:
+        t = None if duration is None else np.sort(rng.uniform(0, duration, m))
+        if t is not None:
+            t[-1] = duration      # the last pose ends the run: u = t / duration
     sd = np.array([BASE_ANGULAR_RAD if machine.is_angular(e) else BASE_LINEAR_MM for e in model.errors])
     base = rng.normal(0.0, 1.0, len(sd)) * sd * base_scale
     for name, value in (errors or {}).items():
