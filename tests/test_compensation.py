@@ -109,7 +109,7 @@ def test_errors_at_reproduces_the_simulation(fitted):
 def test_fitted_model_predicts_what_the_fit_predicts(fitted):
     model, sim, res, fm = fitted
     d, _ = _tip_errors(model, fm, sim.meas.poses, sim.meas.poses)
-    assert np.max(np.abs(d.ravel() - res.problem.predict(res.theta))) < 1e-12
+    assert np.max(np.abs(d.ravel() - res.problem.exact(res.theta))) < 1e-12
 
 
 def test_model_from_another_machine_is_refused(fitted):
@@ -418,7 +418,7 @@ def test_custom_effect_in_the_model_file(tmp_path):
     assert rec.kind == "custom" and rec.id == "leadscrew" and rec.param == "dx_x"
     assert np.allclose(rec.values, [0.004, 0.002], atol=1e-4)
     d, _ = _tip_errors(MF.load_model(fm), fm, sim.meas.poses, sim.meas.poses)
-    assert np.max(np.abs(d.ravel() - res.problem.predict(res.theta))) < 1e-12
+    assert np.max(np.abs(d.ravel() - res.problem.exact(res.theta))) < 1e-12
 
 
 # -- the tool-length dimension ---------------------------------------------------------------------------------------
