@@ -10,6 +10,7 @@ import importlib
 import sys
 
 from .exceptions import InputError, one_line
+from . import __version__
 
 #: sub-command -> (module, one-line help). The module's `register(parser)` adds options and sets `func`.
 COMMANDS = {
@@ -52,7 +53,6 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
 
 
 def _version() -> str:
-    from . import __version__
     return __version__
 
 

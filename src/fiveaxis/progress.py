@@ -34,7 +34,7 @@ def bar(total: int, enabled=None, desc: str = "", unit: str = "pose", long: bool
     terminal) when `long`, one line every LOG_INTERVAL seconds. `long` says whether the caller expects the run
     to take a while (e.g. more than a few chunks of poses).
     """
-    from tqdm import tqdm
+    from tqdm import tqdm   # loaded only where a progress bar is shown
     stream = sys.stderr if stream is None else stream
     tty = hasattr(stream, "isatty") and stream.isatty()
     if enabled is None:

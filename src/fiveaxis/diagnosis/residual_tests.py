@@ -21,6 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..measurement import observations as ob
+from scipy.stats import f as f_dist
+from scipy.stats import norm, t as t_dist
 
 #: Significance level of the structure test, over all its variables, readings and directions (Bonferroni).
 ALPHA = 1e-3
@@ -67,8 +69,6 @@ def _order(v: np.ndarray) -> np.ndarray:
 
 def tests(prob, rw: np.ndarray) -> list[Test]:
     """Every test of the weighted residual rw (m,) of a problem (see the module docstring)."""
-    from scipy.stats import f as f_dist
-    from scipy.stats import norm, t as t_dist
     labels = prob.obs.labels()
     out = []
     variables = _variables(prob)

@@ -35,6 +35,7 @@ import numpy as np
 
 from ..model import effect_ids as ids
 from ..effects import families as fx
+from scipy.sparse import csr_matrix
 
 OVERSAMPLE = 3
 MIN_SPACINGS = 3
@@ -66,7 +67,6 @@ class RowSums:
 def row_sums(params, P, rw, Q, pose, n, active=None) -> RowSums:
     """RowSums of weighted parameter columns P (m, np) with the weighted residual rw (m,) and the basis Q (m, r);
     pose (m,) the pose index of each reading; active (m,) bool: the readings to sum (all by default)."""
-    from scipy.sparse import csr_matrix
     m = len(rw)
     keep = np.ones(m, bool) if active is None else np.asarray(active, bool)
     S = csr_matrix((keep.astype(float), (pose, np.arange(m))), shape=(n, m))

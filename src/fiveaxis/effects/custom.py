@@ -14,6 +14,7 @@ import numpy as np
 
 from ..model import provenance
 from ..exceptions import InputError
+from ..model.error_model import _import_file, cache_dir
 
 
 def effect_hash(machine, name: str) -> str:
@@ -69,7 +70,6 @@ class CustomEffect:
 
 def load_custom(machine, name: str) -> CustomEffect:
     """The custom effect `name` of a machine file, deriving its kernels on first use (needs SymPy then)."""
-    from ..model.error_model import _import_file, cache_dir
     if name not in machine.effects:
         raise InputError(f"{machine.path}: no custom effect '{name}' (expected a table [effects.{name}])")
     h = effect_hash(machine, name)

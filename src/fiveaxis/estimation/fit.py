@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from statistics import NormalDist
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -154,8 +155,7 @@ def _solve(design, w, free, fixed_vals, refine, max_iter):
 def outlier_threshold(N: int) -> float:
     """|z| above which one of N Gaussian readings is a gross outlier: the two-sided normal quantile of
     OUTLIER_ALPHA / N."""
-    from scipy.stats import norm   # SciPy: loaded where a robust fit is made
-    return float(norm.isf(OUTLIER_ALPHA / (2.0 * max(N, 1))))
+    return -NormalDist().inv_cdf(OUTLIER_ALPHA / (2.0 * max(N, 1)))
 
 
 def _robust_scale(z: np.ndarray, known: bool) -> float:

@@ -44,6 +44,9 @@ import numpy as np
 from ..effects import families as fx
 from ..exceptions import InputError
 from ..outputs import write_text
+from ..model.error_model import load
+from ..model.machine import MACHINES_DIR
+from ..effects.custom import load_custom
 
 FORMAT = "fiveaxis fitted model"
 VERSION = 1
@@ -185,8 +188,6 @@ def check_model(fm: FittedModel, model, where: str = "model file") -> None:
 def load_model(fm: FittedModel, where: str = "model file"):
     """The kernels of the machine file the model was fitted for (checked against its SHA-256): machine.file, or a
     shipped machine of the same name (a model file moved to another checkout)."""
-    from ..model.error_model import load
-    from ..model.machine import MACHINES_DIR
     path = Path(fm.machine_file)
     if not path.exists():
         shipped = MACHINES_DIR / f"{fm.machine}.toml"
@@ -227,7 +228,6 @@ def effect_of(rec: EffectRecord, model):
     """The effect (fiveaxis.effects.families interface) of a record: the vocabulary's from its id, or the machine file's
     custom effect."""
     if rec.kind == "custom":
-        from ..effects.custom import load_custom
         return load_custom(model.machine, rec.id)
     return fx.parse(rec.id, model.machine, model.errors, "model file effect")
 

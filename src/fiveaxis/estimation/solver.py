@@ -31,6 +31,7 @@ from functools import partial
 import numpy as np
 
 from ..exceptions import InputError
+from scipy.sparse.csgraph import connected_components
 
 #: Singular values below RANK_RTOL * largest (of the unit-norm columns) count as zero: those directions are not
 #: determined by the data.
@@ -190,7 +191,6 @@ def groups_and_combinations(idf: Identifiability, theta, cov, names, priority=No
     the leads are chosen in order of `priority` (per parameter, lower first: the physical quantity an engineer
     reports, e.g. the location of a rotary axis, leads; an artefact's placement never does), among parameters
     that add a determined direction."""
-    from scipy.sparse.csgraph import connected_components   # SciPy: loaded where combinations are asked for
     p = idf.n_params
     if idf.null.size == 0:
         return [], []

@@ -194,7 +194,7 @@ def _read_table(path: Path):
     if path.is_dir():
         raise InputError(f"{path}: is a folder (expected a measurement file, .csv or .parquet)")
     if suffix in (".parquet", ".pq"):
-        import pyarrow.parquet as pq
+        import pyarrow.parquet as pq   # optional heavy dependency: only for Parquet files
         try:
             table = pq.read_table(path)
         except Exception as exc:  # pyarrow raises several types for damaged files
@@ -202,7 +202,7 @@ def _read_table(path: Path):
         names = list(table.column_names)
         _duplicates(path, names)
         types = {n: table.schema.field(n).type for n in names}
-        import pyarrow.types as pat
+        import pyarrow.types as pat   # (as above)
         cols = {}
         for n in names:        # numbers as float arrays (nulls NaN: blank); anything else as Python cells
             t = types[n]
@@ -265,7 +265,7 @@ def _check_type(path, name, types, text: bool = False):
     """Parquet: a numeric column must hold numbers (or text to be parsed), not booleans, dates or times."""
     if not types or name not in types:
         return
-    import pyarrow.types as pat
+    import pyarrow.types as pat   # optional heavy dependency: only for Parquet files
     t = types[name]
     if text:
         if not (pat.is_string(t) or pat.is_large_string(t) or pat.is_integer(t) or pat.is_null(t)):
@@ -284,7 +284,7 @@ def _check_type(path, name, types, text: bool = False):
 def _numbers(path, name, cells, lines, keep, blank_ok: bool = False, types=None):
     """The cells of one column (rows `keep`) as floats; blank cells are NaN when blank_ok, else an error; the
     first bad cell is an InputError naming row and column. Vectorised: 10^6 cells in well under a second."""
-    import pandas as pd
+    import pandas as pd   # heavy (about 0.5 s): loaded where a file is read, not by `fiveaxis --help`
     _check_type(path, name, types)
     if isinstance(cells, np.ndarray):       # Parquet numbers: NaN is blank
         arr = cells[keep] if len(keep) != len(cells) else cells.copy()
@@ -570,7 +570,6 @@ def in_frame(meas: Measurements, machine, target: str) -> Measurements:
     """The same readings expressed in another frame (workpiece or machine): tip and axis deviations and 1-D
     directions rotated by the nominal workpiece rotation (`fiveaxis.model.frames`). Rows must measure all three
     components of a rotated vector."""
-    from ..model import frames
     if target not in FRAMES:
         raise InputError(f"unknown frame '{target}' (expected one of: {', '.join(FRAMES)})")
     if target == meas.frame or not frames.has_workpiece_rotation(machine):
@@ -594,7 +593,7 @@ def in_frame(meas: Measurements, machine, target: str) -> Measurements:
 def frame(meas: Measurements, machine):
     """The measurements as a pandas DataFrame in file units (angles in degrees), columns as in a file; cells of
     readings not taken are empty."""
-    import pandas as pd
+    import pandas as pd   # heavy: loaded where a file is written
     cols = {}
     for i, v in enumerate(meas.variables):
         vals = meas.poses[:, i]
@@ -631,13 +630,14 @@ def frame(meas: Measurements, machine):
 
 
 from ..outputs import file_mode  # noqa: E402,F401  (moved to fiveaxis.outputs; kept here for callers)
+from ..model import frames
+from ..outputs import write_with
 
 
 def write(df, path, force: bool = False) -> Path:
     """Write a DataFrame as CSV or Parquet (by suffix), atomically (`fiveaxis.outputs`).
 
     Refuses to replace an existing file unless force is True: nothing the user wrote is lost by accident."""
-    from ..outputs import write_with
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in (".csv", ".parquet", ".pq"):

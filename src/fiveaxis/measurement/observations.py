@@ -152,7 +152,7 @@ def _kernel(name: str):
     """The row loops of `design` and `apply`, compiled on first use (numba; cached on disk where numba can
     write)."""
     if name not in _KERNELS:
-        from numba import njit
+        from numba import njit   # heavy: the row loops are compiled on first use
         fn = {"design": _design_rows, "apply": _apply_rows}[name]
         try:
             _KERNELS[name] = njit(cache=True, nogil=True)(fn)

@@ -20,6 +20,7 @@ from . import observations as ob
 from . import setups as su
 from ..exceptions import InputError
 from .files import Measurements, frame
+from ..effects.custom import load_custom
 
 #: Standard deviations of the random base errors: a few um and tens of urad.
 BASE_LINEAR_MM = 3e-3
@@ -60,7 +61,6 @@ def parse_effect(spec: str, model):
     effect `=a` or `=a,b`: sine and cosine amplitudes); custom effects: `name=p1,p2,...`."""
     ident, _, value = spec.partition("=")
     if ident in model.machine.effects:
-        from ..effects.custom import load_custom
         eff = load_custom(model.machine, ident)
         vals = _floats(spec, value) if value else None
         if vals is not None and len(vals) != len(eff.names):

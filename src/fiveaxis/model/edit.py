@@ -16,8 +16,8 @@ COMMENT = "Effects added to the geometric model (fiveaxis model add)"
 
 def with_model_effects(text: str, path, effects) -> str:
     """The machine file text with the list `model.effects` set to effects (ids or custom effect names)."""
-    import tomlkit
-    from tomlkit.exceptions import TOMLKitError
+    import tomlkit   # optional heavy dependency: only `fiveaxis model add` edits machine files
+    from tomlkit.exceptions import TOMLKitError   # (as above)
     try:
         doc = tomlkit.parse(text)
     except TOMLKitError as exc:

@@ -24,6 +24,7 @@ from . import provenance
 from ..exceptions import InputError
 from .machine import Machine, data_dir, load_machine, module_name
 from .numba_cache import ensure_writable
+from .iso_names import canonical_keys
 
 
 def cache_dir() -> Path:
@@ -160,7 +161,6 @@ class Model:
             defaults = self.machine.default_errors()
             return np.array([defaults[n] for n in self.errors], dtype=float)
         if isinstance(errors, dict):
-            from .iso_names import canonical_keys     # project names or ISO 230 names (E_AX)
             errors = canonical_keys(self, errors, where="errors")
             return np.array([float(errors.get(n, 0.0)) for n in self.errors])
         arr = np.asarray(errors, dtype=float)

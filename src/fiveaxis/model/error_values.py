@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..exceptions import InputError
+from . import iso_names as iso
 
 
 @dataclass
@@ -66,7 +67,6 @@ class _Reader:
         self.known = set(model.errors)
 
     def put(self, name, raw, where):
-        from . import iso_names as iso
         name = iso.canonical(self.model, _short(str(name).strip(), 200), where=where)   # project or ISO 230 name
         self.out.values[name] = _number(raw, where, name)
 

@@ -15,6 +15,8 @@ from pathlib import Path
 
 from . import effect_ids, expressions
 from ..exceptions import InputError
+from importlib.resources import files
+import numpy as np
 
 #: Kinds of position-independent error: small rotation about or translation along a local axis.
 PIGE_KINDS = ("rx", "ry", "rz", "tx", "ty", "tz")
@@ -33,7 +35,6 @@ def data_dir(package: str) -> Path:
     """The folder of one of fiveaxis' data packages, found with importlib.resources: `fiveaxis_machines`
     (machines/), `fiveaxis_templates` (templates/), `fiveaxis_generated` (generated/) -- the source tree's
     folders in an editable install, the installed copies in site-packages otherwise."""
-    from importlib.resources import files
     return Path(str(files(package)))
 
 
@@ -219,7 +220,6 @@ class Machine:
 
     def random_poses(self, n: int, rng=None):
         """n poses drawn uniformly within the strokes, (n, nvar) in `variables` order, mm and rad."""
-        import numpy as np
         rng = np.random.default_rng(rng)
         cols = []
         for v in self.variables:

@@ -42,7 +42,7 @@ def ensure_writable(module_dir: Path, cache_base: Path) -> Path | None:
                 chosen = folder
                 os.environ["NUMBA_CACHE_DIR"] = str(folder)
                 if "numba" in sys.modules:          # numba read its configuration when it was imported
-                    from numba.core import config
+                    from numba.core import config   # numba: loaded only when its cache folder is set up
                     config.reload_config()
                 break
     _DONE[key] = chosen

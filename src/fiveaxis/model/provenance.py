@@ -9,6 +9,7 @@ import hashlib
 from pathlib import Path
 
 from .machine import data_dir
+from importlib import metadata
 
 #: Version of the code generator; raise it when the derivation changes what it writes for the same inputs.
 GENERATOR_VERSION = "1"
@@ -20,7 +21,6 @@ TEMPLATES = data_dir("fiveaxis_templates")
 @functools.lru_cache(maxsize=1)
 def sympy_version() -> str | None:
     """The installed SymPy's version, read without importing it (None when SymPy is not installed)."""
-    from importlib import metadata
     try:
         return metadata.version("sympy")
     except metadata.PackageNotFoundError:

@@ -1107,7 +1107,7 @@ def to_frame(res: PlanResult):
     """The plan as a DataFrame with the columns of a measurement file without readings: the machine's axes (mm,
     deg), L, dir_<AXIS>, ux uy uz (1-D plans), frame, setup, setup_kind, setup_frame. `simulate --poses` and
     `measurements.read(..., readings_required=False)` read it."""
-    import pandas as pd
+    import pandas as pd   # heavy: loaded where a plan is written
     plan, machine = res.plan, res.model.machine
     cols = {}
     for i, v in enumerate(res.model.variables):

@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from ..outputs import write_with
 
 
 #: Colours of the slices and bands: tab20 has 20 distinct colours, enough for the top 10 and more; "others"
@@ -18,9 +19,9 @@ OTHERS_COLOUR = "#b0b0b0"
 
 
 def _pyplot():
-    import matplotlib
+    import matplotlib   # optional heavy dependency: only where a figure is asked for
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt   # (as above)
     return plt
 
 
@@ -33,7 +34,6 @@ def _colours(n: int):
 
 def _save(fig, path: Path) -> Path:
     """Write fig as a PNG atomically (`fiveaxis.outputs`), replacing an earlier plot of that name."""
-    from ..outputs import write_with
     try:
         write_with(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight", pad_inches=0.25), force=True)
     finally:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import InputError
+from .indices import ranking
 
 #: The vital set is looked for among this many leading ranks (the paper's vital sets have 4 to 7 errors).
 VITAL_MAX_RANK = 10
@@ -35,7 +36,6 @@ SCENARIOS = ("none", "vital halved", "others halved", "all halved")
 def vital_set(names, proportions, max_rank: int = VITAL_MAX_RANK) -> list[str]:
     """The vital errors of a ranking (see the module docstring): names above the largest relative drop of the
     proportions (largest first) within the first max_rank ranks; ties are never split."""
-    from .indices import ranking
     p = np.asarray(proportions, dtype=float)
     order = ranking(list(names), p)
     idx = {n: i for i, n in enumerate(names)}

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..exceptions import InputError
+from ..model.machine import WORKSPACE_COUNT
 
 
 @dataclass(frozen=True)
@@ -209,7 +210,6 @@ def describe_source(machine) -> str:
     """Where the default workspace of a machine comes from, for reports."""
     named = [n for n in machine.variables if n in machine.workspace]
     if not named:
-        from ..model.machine import WORKSPACE_COUNT
         return f"the strokes of {machine.name}, {WORKSPACE_COUNT} points per axis"
     rest = [n for n in machine.variables if n not in machine.workspace]
     tail = f"; {' '.join(rest)}: the strokes" if rest else ""

@@ -30,6 +30,8 @@ import numpy as np
 
 from ..exceptions import InputError
 from .grid import Grid, GridAxis
+from ..progress import bar
+from ..guards import check_size
 
 #: Gauss-Legendre order used when none is given (see the convergence check in the settings of each result).
 DEFAULT_ORDER = 8
@@ -152,7 +154,6 @@ class SensitivityResult:
 
 def _progress(total: int, enabled, desc: str):
     """A bar for runs of more than 4 chunks (fiveaxis.progress: on a terminal, and in logs at a modest rate)."""
-    from ..progress import bar
     return bar(total, enabled, desc, "pose", long=total >= 4 * CHUNK, stream=sys.stderr)
 
 
@@ -270,7 +271,6 @@ def gsil(model, grid, errors=None, L0=None, LE=None, order=None, rel_tiny=REL_TI
     if grid.size == 0:
         raise InputError("the grid has no poses")
     t0 = time.perf_counter()
-    from ..guards import check_size
     if isinstance(grid, Grid):
         for a in grid.axes:
             check_size(a.count, f"points on axis {a.name}", max_size, how)

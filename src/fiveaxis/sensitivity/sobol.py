@@ -17,6 +17,8 @@ import numpy as np
 
 from ..exceptions import InputError
 from .indices import quadrature
+from scipy.stats import spearmanr
+from .indices import ranking
 
 #: Poses spread over the workspace at which J is computed (the sample behind every evaluation).
 MAX_POSES = 512
@@ -57,8 +59,8 @@ def sobol_total(model, grid, L0, LE, bound: float = 1e-4, n: int = 256, seed: in
     n is the base sample (a power of 2); the model is evaluated n * (41 + 2) times.
     Returns {"names", "S1", "ST", "ST_conf", "evaluations", "settings"}.
     """
-    from SALib.analyze import sobol as sobol_analyze
-    from SALib.sample import sobol as sobol_sample
+    from SALib.analyze import sobol as sobol_analyze   # optional heavy dependency: only `fiveaxis sobol`
+    from SALib.sample import sobol as sobol_sample   # (as above)
     if not (bound > 0 and np.isfinite(bound)):
         raise InputError(f"bound: expected a positive finite error magnitude (mm, rad), got {bound}")
     if n < 2 or n & (n - 1):
@@ -78,8 +80,6 @@ def sobol_total(model, grid, L0, LE, bound: float = 1e-4, n: int = 256, seed: in
 
 def compare(names, gsil_values, st_values, k: int = 4) -> dict:
     """Where GSIL and Sobol' total indices agree: Spearman rank correlation, top-k sets, largest rank shifts."""
-    from scipy.stats import spearmanr
-    from .indices import ranking
     rg = ranking(names, gsil_values)
     rs = ranking(names, st_values)
     pos_g = {n: i for i, n in enumerate(rg)}

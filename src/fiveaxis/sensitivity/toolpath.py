@@ -33,6 +33,8 @@ import numpy as np
 
 from ..exceptions import InputError
 from .grid import PoseList
+from ..guards import check_size
+from ..linuxcnc.rs274 import AXES
 
 NORMAL_COLUMNS = ("nx", "ny", "nz")
 #: Default sampling steps of G-code moves: mm along the linear axes, degrees along the rotary axes.
@@ -89,7 +91,6 @@ def _normals(raw: np.ndarray, where) -> np.ndarray:
 
 def read_csv(path, machine, max_rows: int | None = None) -> Toolpath:
     """A toolpath CSV (see the module docstring); max_rows: refuse longer files (fiveaxis.guards)."""
-    from ..guards import check_size
     path = Path(path)
     variables = machine.variables
     try:
@@ -247,8 +248,6 @@ def from_program(program, machine, step_mm: float = STEP_MM, step_deg: float = S
                  max_samples: int | None = None, how: str = "max_size={n}") -> Toolpath:
     """Sample the cutting moves (G1, G2/G3) of an interpreted program (fiveaxis.linuxcnc.rs274.Program) into a toolpath
     (no normals)."""
-    from ..linuxcnc.rs274 import AXES
-    from ..guards import check_size
     path = program.path
     if not (math.isfinite(step_mm) and step_mm > 0 and math.isfinite(step_deg) and step_deg > 0):
         raise InputError(f"sampling steps must be positive numbers, got {step_mm:g} mm and {step_deg:g} deg")
