@@ -136,9 +136,19 @@ def test_lines_follow_quoted_line_breaks(tmp_path, machine):
     assert "data row 2 (line 4)" in msg
 
 
-def test_every_measurement_column_is_a_reserved_axis_name():
-    """The reader's columns and the machine file's reserved axis names are one list (an axis named like a column
-    would be read twice)."""
-    from fiveaxis.measurement import files as M
+def test_every_measurement_column_is_a_reserved_axis_name(tmp_path):
+    """The reader's columns and the machine file's reserved axis names are one table (an axis named like a column
+    would be read twice): every column of the table is read (a bad cell in it is an error naming it) and is a
+    reserved axis name."""
+    from fiveaxis.model.columns import COLUMNS
     from fiveaxis.model.machine import RESERVED_COLUMNS
-    assert set(M.READINGS + M.NUMERIC_OPTIONAL + M.TEXT_OPTIONAL) <= set(RESERVED_COLUMNS)
+    machine = load_machine("li2018")
+    for column in COLUMNS:
+        assert column.name in RESERVED_COLUMNS
+        extra = {"du": ",ux,uy,uz", "setup_kind": ",setup", "setup_frame": ",setup"}.get(column.name, "")
+        cells = {"du": ",1,0,0", "setup_kind": ",s1", "setup_frame": ",s1"}.get(column.name, "")
+        reading = "dy" if column.name == "dx" else "dx"
+        bad = "s" * 201 if column.name == "setup" else "@@"          # any text is a setup id, but not that long
+        path = tmp_path / f"{column.name}.csv"
+        path.write_text(f"X,Y,Z,A,B,{reading},{column.name}{extra}\n0,0,0,0,0,0.001,{bad}{cells}\n")
+        assert f"column {column.name}" in _error(path, machine), column.name

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..exceptions import InputError
 from ..measurement.instruments import NAMES as INSTRUMENTS
-from ..measurement.files import FRAMES, SETUP_KINDS
+from ..model.columns import FRAMES, SETUP_KINDS
 
 
 def _common(p, file_arg=True):

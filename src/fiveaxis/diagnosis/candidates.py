@@ -293,7 +293,7 @@ def search_again(pool: Pool, block, w, Q: np.ndarray, rw: np.ndarray, chosen: li
     found = []
     tokens = [b.token for b in pool.bands] + ([fx.TIME] if pool.grid is not None else [])
     for tok in dict.fromkeys(tokens):
-        others = [cols for e, cols in chosen if e.var != tok]
+        others = [cols for e, cols in chosen if getattr(e, "var", None) != tok]   # a custom effect (no one variable) stays
         Qx = extend(Q, np.hstack(others)) if others else Q
         r = rw - Qx @ (Qx.T @ rw)
         sums = es.row_sums(pool.params, pool.P, r, Qx, prob.obs.row, prob.meas.n)

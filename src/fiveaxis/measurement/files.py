@@ -25,28 +25,13 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError
+from ..model.columns import (AXIS_DEVIATIONS, BY_NAME, COLUMNS, DEVIATIONS, DIRECTION, DIRECTION_PREFIX, FRAMES, LINE,
+                             READINGS, SETUP_KINDS)
 
-DEVIATIONS = ("dx", "dy", "dz")
-AXIS_DEVIATIONS = ("di", "dj", "dk")
-DIRECTION = ("ux", "uy", "uz")
-LINE = "du"
-READINGS = DEVIATIONS + AXIS_DEVIATIONS + (LINE,)
-NUMERIC_OPTIONAL = ("L", "t", "sigma", "sigma_axis") + DIRECTION
-TEXT_OPTIONAL = ("setup", "setup_kind", "setup_frame", "frame")
-OPTIONAL = ("L", "t") + AXIS_DEVIATIONS + (LINE,) + DIRECTION + ("sigma", "sigma_axis") + TEXT_OPTIONAL
-FRAMES = ("workpiece", "machine")
-SETUP_KINDS = ("point", "rigid", "planar")
 #: A rotary column "looks like radians" when every |value| is at most this (degrees would be tiny angles) while
 #: the axis' stroke reaches beyond RADIAN_STROKE degrees.
 RADIAN_MAX = math.pi
 RADIAN_STROKE = 10.0
-#: Plausibility limits: beyond them a value is not a measurement of a machine tool (an error, not a warning).
-MAX_DEVIATION_MM = 1000.0          # a deviation above a metre
-MAX_AXIS_DEVIATION = 2.0           # difference of two unit vectors
-MAX_TOOL_LENGTH_MM = 1e5
-MAX_TIME_S = 1e9
-SIGMA_RANGE_MM = (1e-9, 1e3)
-SIGMA_AXIS_RANGE_RAD = (1e-12, 1.0)
 STROKE_FACTOR = 10.0               # a pose beyond its stroke by more than 10 strokes
 UNIT_TOL = 1e-3                    # |u| within 1 +- UNIT_TOL is normalised with a warning
 ECHO = 40                          # characters of a bad cell echoed in a message
@@ -362,7 +347,8 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     min_rows: the least number of measured values (readings) accepted; frame: "workpiece" (default) or "machine",
     the frame of dx, dy, dz, di, dj, dk and ux, uy, uz; setup_kind / setup_frame: defaults for setups whose rows
     do not say (columns setup_kind, setup_frame win); readings_required=False reads a file of poses only (a plan
-    to simulate or to measure)."""
+    to simulate or to measure). The columns are checked against their table (`fiveaxis.model.columns`) in one
+    loop; then the rules that join columns and rows (RULES)."""
     path = Path(path)
     if frame is not None and frame not in FRAMES:
         raise InputError(f"unknown frame '{frame}' (expected one of: {', '.join(FRAMES)})")
@@ -371,21 +357,7 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
             raise InputError(f"unknown {what} '{value}' (expected one of: {', '.join(allowed)})")
     names, cols, lines, types = _read_table(path)
     variables = tuple(machine.variables)
-    dir_cols = [c for c in cols if c.startswith("dir_")]
-    for c in dir_cols:
-        if c[4:] not in variables:
-            raise InputError(f"{path}: header: column {c}: unknown axis '{c[4:]}' (expected dir_ followed by one of "
-                             f"{', '.join(variables)})")
-    missing = [c for c in variables if c not in cols]
-    if missing:
-        raise InputError(f"{path}: header: missing column(s) {', '.join(missing)} (required: the pose "
-                         f"{','.join(variables)} and readings dx,dy,dz and/or di,dj,dk, or du with ux,uy,uz)")
-    if readings_required and not any(c in cols for c in READINGS):
-        raise InputError(f"{path}: header: no measured values (expected columns dx,dy,dz (mm), di,dj,dk, or du with "
-                         f"ux,uy,uz)")
-    if LINE in cols and not all(c in cols for c in DIRECTION):
-        raise InputError(f"{path}: header: column du needs the direction columns ux,uy,uz "
-                         f"(missing: {', '.join(c for c in DIRECTION if c not in cols)})")
+    _check_header(path, cols, variables, readings_required)
     nrows = len(cols[names[0]]) if names else 0
     # Rows that are entirely empty (blank lines) are skipped; row numbers stay those of the file.
     filled = np.zeros(nrows, bool)
@@ -395,107 +367,201 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     keep = np.flatnonzero(filled)
     if not len(keep):
         raise InputError(f"{path}: no data rows (expected one row per measured pose under the header)")
-    n = len(keep)
-    num = lambda c, blank_ok=False: _numbers(path, c, cols[c], lines, keep, blank_ok, types)  # noqa: E731
-    if "frame" in cols:
-        said = _texts(path, "frame", cols["frame"], lines, keep, types)
+    f = _File(path, cols, lines, types, keep, machine, variables, readings_required, [], {})
+    for column in COLUMNS:                               # the table's columns, one loop
+        if column.name in cols:
+            f.data[column.name] = f.cells(column)
+    for v in variables:                                   # the pose: mm, degrees; no blank cell
+        f.data[v] = f.numbers(v)
+    for c in (c for c in cols if c.startswith(DIRECTION_PREFIX)):
+        f.data[c] = f.numbers(c)
+    for rule in RULES:
+        rule(f, frame, setup_kind, setup_frame, min_rows)
+    return f.measurements()
+
+
+def _check_header(path, cols, variables, readings_required):
+    """The header: the pose columns, readings (unless a plan), dir_ columns of known axes, what columns need."""
+    for c in cols:
+        if c.startswith(DIRECTION_PREFIX) and c[len(DIRECTION_PREFIX):] not in variables:
+            raise InputError(f"{path}: header: column {c}: unknown axis '{c[len(DIRECTION_PREFIX):]}' (expected dir_ "
+                             f"followed by one of {', '.join(variables)})")
+    missing = [c for c in variables if c not in cols]
+    if missing:
+        raise InputError(f"{path}: header: missing column(s) {', '.join(missing)} (required: the pose "
+                         f"{','.join(variables)} and readings dx,dy,dz and/or di,dj,dk, or du with ux,uy,uz)")
+    if readings_required and not any(c in cols for c in READINGS):
+        raise InputError(f"{path}: header: no measured values (expected columns dx,dy,dz (mm), di,dj,dk, or du with "
+                         f"ux,uy,uz)")
+    for column in COLUMNS:
+        lacking = [n for n in column.needs if n not in cols]
+        if column.name in cols and lacking:
+            raise InputError(f"{path}: header: column {column.name} needs the column(s) {','.join(column.needs)} "
+                             f"(missing: {', '.join(lacking)}; {column.name}: {column.meaning})")
+
+
+@dataclass
+class _File:
+    """A measurement file being read: its raw cells, the rows kept, the checked columns (data) and warnings."""
+    path: Path
+    cols: dict
+    lines: list | None
+    types: dict | None
+    keep: np.ndarray
+    machine: object
+    variables: tuple
+    readings_required: bool
+    warnings: list
+    data: dict
+    u: np.ndarray | None = None
+    frame: str = "workpiece"
+    setup: np.ndarray | None = None
+    setup_kind: dict = field(default_factory=dict)
+    setup_frame: dict = field(default_factory=dict)
+    has_line: np.ndarray | None = None
+
+    @property
+    def n(self) -> int:
+        return len(self.keep)
+
+    def where(self, i: int) -> str:
+        """'file: data row 3 (line 4)' of the i-th kept row."""
+        return _where(self.path, self.keep[i] + 1, self.lines)
+
+    def numbers(self, name: str, blank_ok: bool = False) -> np.ndarray:
+        return _numbers(self.path, name, self.cols[name], self.lines, self.keep, blank_ok, self.types)
+
+    def cells(self, column) -> np.ndarray:
+        """A column of the table, checked: numbers (blank where allowed, within its bound) or texts (among its
+        values)."""
+        if column.kind == "text":
+            vals = _texts(self.path, column.name, self.cols[column.name], self.lines, self.keep, self.types)
+            if column.values:
+                for i, v in enumerate(vals):
+                    if v is not None and v not in column.values:
+                        raise InputError(f"{self.where(i)}, column {column.name}: unknown value {_echo(v)} (expected "
+                                         f"one of: {', '.join(column.values)})")
+            return vals
+        vals = self.numbers(column.name, column.blank)
+        if column.bound is not None and column.group != "sigma":       # a sigma's range: where it is needed
+            x = np.abs(vals) if column.absolute else vals
+            _range_check(self.path, column.name, np.where(np.isnan(x), column.bound[0], x), self.keep, self.lines,
+                         *column.bound, column.bound_text)
+        return vals
+
+    def blank(self, name: str) -> np.ndarray:
+        return np.isnan(self.data[name]) if name in self.data else np.ones(self.n, bool)
+
+    def measurements(self) -> Measurements:
+        d = self.data
+        n = self.n
+        L = d["L"] if "L" in d else np.full(n, self.machine.tool_length)
+        resolution = {"poses": d["_pose_quantum"], "L": quantum(L) if "L" in d else np.zeros(n),
+                      "u": None if self.u is None else np.column_stack([quantum(d[c]) for c in DIRECTION])}
+
+        def cols3(names):
+            return np.column_stack([d[c] if c in d else np.full(n, np.nan) for c in names])
+        return Measurements(path=self.path, variables=self.variables, poses=d["_poses"], L=np.ascontiguousarray(L),
+                            d=cols3(DEVIATIONS), t=d.get("t"), sigma=d.get("sigma"),
+                            dv=cols3(AXIS_DEVIATIONS) if any(c in d for c in AXIS_DEVIATIONS) else None,
+                            has_L="L" in d, warnings=self.warnings, du=d.get(LINE), u=self.u,
+                            sigma_axis=d.get("sigma_axis"), setup=self.setup, setup_kind=self.setup_kind,
+                            setup_frame=self.setup_frame, dirs=d["_dirs"], rows=np.asarray(self.keep) + 1,
+                            frame=self.frame, quantum=resolution)
+
+
+# -- the rules that join columns and rows -----------------------------------------------------------------------
+def _rule_frame(f: _File, frame, *_):
+    """One frame for the whole file (column frame), agreeing with the frame asked for."""
+    said = f.data.get("frame")
+    if said is not None:
         for i, v in enumerate(said):
-            if v not in FRAMES or v != said[0]:
-                raise InputError(f"{_where(path, keep[i] + 1, lines)}, column frame: {_echo(v)} (expected one frame "
-                                 f"for the whole file: {' or '.join(FRAMES)})")
+            if v != said[0]:
+                raise InputError(f"{f.where(i)}, column frame: {_echo(v)} (expected one frame for the whole file: "
+                                 f"{' or '.join(FRAMES)})")
         if frame is not None and frame != said[0]:
-            raise InputError(f"{path}: column frame says {said[0]}, but the file is read in the {frame} frame (drop "
+            raise InputError(f"{f.path}: column frame says {said[0]}, but the file is read in the {frame} frame (drop "
                              f"the frame option or the column)")
         frame = said[0]
-    frame = frame or "workpiece"
-    data = {c: num(c) for c in variables}
-    for c in ("L", "t"):
-        if c in cols:
-            data[c] = num(c)
-    for c in READINGS + DIRECTION + ("sigma", "sigma_axis"):
-        if c in cols:
-            data[c] = num(c, blank_ok=True)
-    warnings = []
-    blank = lambda c: np.isnan(data[c]) if c in data else np.ones(n, bool)  # noqa: E731
-    has_tip = ~np.all([blank(c) for c in DEVIATIONS], axis=0)
-    has_axis = ~np.all([blank(c) for c in AXIS_DEVIATIONS], axis=0)
-    has_line = ~blank(LINE)
-    for mask, what in ((has_line & has_tip, "dx, dy, dz"), (has_line & has_axis, "di, dj, dk")):
+    f.frame = frame or "workpiece"
+
+
+def _rule_one_kind_per_row(f: _File, *_):
+    """A row reads either 1-D (du) or tool-tip/axis deviations, and something unless the file is a plan."""
+    has_tip = ~np.all([f.blank(c) for c in DEVIATIONS], axis=0)
+    has_axis = ~np.all([f.blank(c) for c in AXIS_DEVIATIONS], axis=0)
+    f.has_line = ~f.blank(LINE)
+    for mask, what in ((f.has_line & has_tip, "dx, dy, dz"), (f.has_line & has_axis, "di, dj, dk")):
         if mask.any():
-            r = keep[int(np.argmax(mask))]
-            raise InputError(f"{_where(path, r + 1, lines)}: both du and {what} (expected either a 1-D reading du "
+            raise InputError(f"{f.where(int(np.argmax(mask)))}: both du and {what} (expected either a 1-D reading du "
                              f"along ux,uy,uz or tool-tip/axis deviations, not both in one row)")
-    nothing = ~(has_tip | has_axis | has_line)
-    if readings_required and nothing.any():
-        r = keep[int(np.argmax(nothing))]
-        raise InputError(f"{_where(path, r + 1, lines)}: nothing measured (every reading cell is blank; expected "
-                         f"dx,dy,dz, di,dj,dk or du)")
-    # Plausibility of the readings and their uncertainties.
-    for c in DEVIATIONS + (LINE,):
-        if c in data:
-            v = np.nan_to_num(data[c])
-            _range_check(path, c, np.abs(v), keep, lines, 0, MAX_DEVIATION_MM,
-                         f"a deviation above {MAX_DEVIATION_MM:g} mm is not a measurement of a machine tool (mm "
-                         f"expected)")
-    for c in AXIS_DEVIATIONS:
-        if c in data:
-            _range_check(path, c, np.abs(np.nan_to_num(data[c])), keep, lines, 0, MAX_AXIS_DEVIATION,
-                         "a change of a unit vector is at most 2")
-    u = None
-    if not readings_required and all(c in cols for c in DIRECTION):
-        has_line = np.ones(n, bool)       # a plan of 1-D readings: every row reads along its direction
-    if LINE in cols or not readings_required and all(c in cols for c in DIRECTION):
-        U = np.column_stack([data[c] for c in DIRECTION])
-        nodir = has_line & np.any(np.isnan(U), axis=1)
-        if nodir.any():
-            r = keep[int(np.argmax(nodir))]
-            col = DIRECTION[int(np.argmax(np.isnan(U[int(np.argmax(nodir))])))]
-            raise InputError(f"{_where(path, r + 1, lines)}, column {col}: du without a direction (expected the "
-                             f"unit vector ux,uy,uz of the reading)")
-        norm = np.linalg.norm(np.nan_to_num(U), axis=1)
-        off = has_line & (np.abs(norm - 1.0) > UNIT_TOL)
-        if off.any():
-            i = int(np.argmax(off))
-            raise InputError(f"{_where(path, keep[i] + 1, lines)}, columns ux,uy,uz: direction of length "
-                             f"{norm[i]:.6g} (expected a unit vector)")
-        fix = has_line & (np.abs(norm - 1.0) > 1e-9)        # files hold 10 significant digits (write)
-        if fix.any():
-            warnings.append(f"{path}: {int(fix.sum())} direction(s) ux,uy,uz not of unit length (within "
-                            f"{UNIT_TOL:g}): normalised")
-        u = np.where(has_line[:, None], U / np.where(norm > 0, norm, 1.0)[:, None], np.nan)
-    for c, (lo, hi), unit, needed in (("sigma", SIGMA_RANGE_MM, "mm", has_tip | has_line),
-                                      ("sigma_axis", SIGMA_AXIS_RANGE_RAD, "rad", has_axis)):
-        if c not in data:
+    nothing = ~(has_tip | has_axis | f.has_line)
+    if f.readings_required and nothing.any():
+        raise InputError(f"{f.where(int(np.argmax(nothing)))}: nothing measured (every reading cell is blank; "
+                         f"expected dx,dy,dz, di,dj,dk or du)")
+    f.data["_has_tip"], f.data["_has_axis"] = has_tip, has_axis
+
+
+def _rule_directions(f: _File, *_):
+    """Every 1-D reading has a unit direction (normalised with a warning within UNIT_TOL)."""
+    if not f.readings_required and all(c in f.cols for c in DIRECTION):
+        f.has_line = np.ones(f.n, bool)       # a plan of 1-D readings: every row reads along its direction
+    if not (LINE in f.cols or not f.readings_required and all(c in f.cols for c in DIRECTION)):
+        return
+    U = np.column_stack([f.data[c] for c in DIRECTION])
+    nodir = f.has_line & np.any(np.isnan(U), axis=1)
+    if nodir.any():
+        i = int(np.argmax(nodir))
+        col = DIRECTION[int(np.argmax(np.isnan(U[i])))]
+        raise InputError(f"{f.where(i)}, column {col}: du without a direction (expected the unit vector ux,uy,uz of "
+                         f"the reading)")
+    norm = np.linalg.norm(np.nan_to_num(U), axis=1)
+    off = f.has_line & (np.abs(norm - 1.0) > UNIT_TOL)
+    if off.any():
+        i = int(np.argmax(off))
+        raise InputError(f"{f.where(i)}, columns ux,uy,uz: direction of length {norm[i]:.6g} (expected a unit "
+                         f"vector)")
+    fix = f.has_line & (np.abs(norm - 1.0) > 1e-9)        # files hold 10 significant digits (write)
+    if fix.any():
+        f.warnings.append(f"{f.path}: {int(fix.sum())} direction(s) ux,uy,uz not of unit length (within "
+                          f"{UNIT_TOL:g}): normalised")
+    f.u = np.where(f.has_line[:, None], U / np.where(norm > 0, norm, 1.0)[:, None], np.nan)
+
+
+def _rule_sigmas(f: _File, *_):
+    """A sigma column gives the standard deviation of every reading of its kind, within its range."""
+    needs = {"sigma": f.data["_has_tip"] | f.has_line, "sigma_axis": f.data["_has_axis"]}
+    for name, needed in needs.items():
+        if name not in f.data:
             continue
-        v = data[c]
+        column, v = BY_NAME[name], f.data[name]
         miss = needed & np.isnan(v)
         if miss.any():
-            r = keep[int(np.argmax(miss))]
-            raise InputError(f"{_where(path, r + 1, lines)}, column {c}: empty cell (expected the standard deviation "
-                             f"of the row's readings, {unit})")
-        _range_check(path, c, np.where(needed, v, lo), keep, lines, lo, hi,
-                     f"expected a standard deviation from {lo:g} to {hi:g} {unit}")
-    if "L" in data:
-        _range_check(path, "L", data["L"], keep, lines, 0.0, MAX_TOOL_LENGTH_MM,
-                     f"expected a tool length from 0 to {MAX_TOOL_LENGTH_MM:g} mm")
-    if "t" in data:
-        _range_check(path, "t", np.abs(data["t"]), keep, lines, 0.0, MAX_TIME_S,
-                     f"expected a time in s within +-{MAX_TIME_S:g}")
-    readings = int(np.sum([~blank(c) for c in READINGS if c in data]))
-    if readings_required and readings < min_rows:
-        raise InputError(f"{path}: {readings} measured value(s), fewer than the {min_rows} parameters this model can "
-                         f"identify (expected at least {min_rows})")
-    # Poses, in model units.
-    poses = np.empty((n, len(variables)))
-    pose_quantum = np.empty((n, len(variables)))
-    outside = {}
-    any_out = np.zeros(n, bool)
-    for i, v in enumerate(variables):
-        ax = machine.axis(v)
-        vals = data[v]
+            raise InputError(f"{f.where(int(np.argmax(miss)))}, column {name}: empty cell (expected the standard "
+                             f"deviation of the row's readings, {column.unit})")
+        lo, hi = column.bound
+        _range_check(f.path, name, np.where(needed, v, lo), f.keep, f.lines, lo, hi, column.bound_text)
+
+
+def _rule_enough(f: _File, frame, setup_kind, setup_frame, min_rows):
+    readings = int(np.sum([~f.blank(c) for c in READINGS if c in f.data]))
+    if f.readings_required and readings < min_rows:
+        raise InputError(f"{f.path}: {readings} measured value(s), fewer than the {min_rows} parameters this model "
+                         f"can identify (expected at least {min_rows})")
+
+
+def _rule_poses(f: _File, *_):
+    """Poses within reach of the strokes (far outside: an error; outside: a warning), angles in degrees (all within
+    +-pi while the stroke is wider: a warning), in model units with their resolution; dir_ columns +1 or -1."""
+    n = f.n
+    poses, pq = np.empty((n, len(f.variables))), np.empty((n, len(f.variables)))
+    outside, any_out = {}, np.zeros(n, bool)
+    for i, v in enumerate(f.variables):
+        ax = f.machine.axis(v)
+        vals = f.data[v]
         lo, hi = ax.stroke
         span = hi - lo
-        _range_check(path, v, vals, keep, lines, lo - STROKE_FACTOR * span, hi + STROKE_FACTOR * span,
+        _range_check(f.path, v, vals, f.keep, f.lines, lo - STROKE_FACTOR * span, hi + STROKE_FACTOR * span,
                      f"far outside the stroke [{lo:g}, {hi:g}] {'deg' if ax.type == 'rotary' else 'mm'} of the "
                      f"machine file")
         tol = 1e-6 * max(1.0, span)
@@ -503,67 +569,52 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
         if out.any():
             outside[v] = int(out.sum())
             any_out |= out
-        if ax.type == "rotary":
-            if max(abs(lo), abs(hi)) > RADIAN_STROKE and np.max(np.abs(vals)) <= RADIAN_MAX \
-                    and np.max(np.abs(vals)) > 0:
-                warnings.append(f"{path}: column {v}: all {n} angles are within +-{RADIAN_MAX:.4g} while the stroke "
-                                f"is [{lo:g}, {hi:g}] deg: are they radians? (angles are read as degrees)")
-            vals = np.radians(vals)
-        pose_quantum[:, i] = quantum(data[v]) * (math.pi / 180.0 if ax.type == "rotary" else 1.0)
-        poses[:, i] = vals
+        to = math.pi / 180.0 if ax.type == "rotary" else 1.0
+        if ax.type == "rotary" and max(abs(lo), abs(hi)) > RADIAN_STROKE and 0 < np.max(np.abs(vals)) <= RADIAN_MAX:
+            f.warnings.append(f"{f.path}: column {v}: all {n} angles are within +-{RADIAN_MAX:.4g} while the stroke "
+                              f"is [{lo:g}, {hi:g}] deg: are they radians? (angles are read as degrees)")
+        poses[:, i] = vals * to
+        pq[:, i] = quantum(vals) * to
     if outside:
         detail = ", ".join(f"{v}: {k}" for v, k in outside.items())
-        warnings.append(f"{path}: {int(np.sum(any_out))} of {n} poses outside the strokes of the machine file "
-                        f"({detail})")
+        f.warnings.append(f"{f.path}: {int(np.sum(any_out))} of {n} poses outside the strokes of the machine file "
+                          f"({detail})")
     dirs = {}
-    for c in dir_cols:
-        vals = num(c)
+    for c in (c for c in f.cols if c.startswith(DIRECTION_PREFIX)):
+        vals = f.data[c]
         bad = np.flatnonzero(np.abs(vals) != 1.0)
         if len(bad):
-            raise InputError(f"{_where(path, keep[bad[0]] + 1, lines)}, column {c}: expected +1 or -1 (the direction "
-                             f"in which {c[4:]} last moved), got {vals[bad[0]]:g}")
-        dirs[c[4:]] = vals
-    setup = kinds = frames = None
-    if "setup" in cols:
-        setup = _texts(path, "setup", cols["setup"], lines, keep, types)
-    skind, sframe = {}, {}
-    for col, default, allowed, target in (("setup_kind", setup_kind, SETUP_KINDS, skind),
-                                          ("setup_frame", setup_frame, FRAMES, sframe)):
-        vals = _texts(path, col, cols[col], lines, keep, types) if col in cols else None
-        if vals is not None and setup is None:
-            raise InputError(f"{path}: header: column {col} without a setup column (expected setup ids)")
-        for i in range(n if setup is not None else 0):
-            s = setup[i]
-            v = vals[i] if vals is not None else None
-            if v is not None and v not in allowed:
-                raise InputError(f"{_where(path, keep[i] + 1, lines)}, column {col}: unknown value {_echo(v)} "
-                                 f"(expected one of: {', '.join(allowed)})")
+            raise InputError(f"{f.where(int(bad[0]))}, column {c}: expected +1 or -1 (the direction in which "
+                             f"{c[len(DIRECTION_PREFIX):]} last moved), got {vals[bad[0]]:g}")
+        dirs[c[len(DIRECTION_PREFIX):]] = vals
+    f.data.update(_poses=poses, _pose_quantum=pq, _dirs=dirs)
+
+
+def _rule_setups(f: _File, frame, setup_kind, setup_frame, min_rows):
+    """Every setup has one kind and one frame (from its rows, else the defaults asked for)."""
+    f.setup = f.data.get("setup")
+    for col, default, allowed, target in (("setup_kind", setup_kind, SETUP_KINDS, f.setup_kind),
+                                          ("setup_frame", setup_frame, FRAMES, f.setup_frame)):
+        vals = f.data.get(col)
+        for i in range(f.n if f.setup is not None else 0):
+            s, v = f.setup[i], (vals[i] if vals is not None else None)
             if s is None:
                 if v is not None:
-                    raise InputError(f"{_where(path, keep[i] + 1, lines)}, column {col}: {v} for a row without a "
-                                     f"setup")
+                    raise InputError(f"{f.where(i)}, column {col}: {v} for a row without a setup")
                 continue
             if v is not None and target.get(s, v) != v:
-                raise InputError(f"{_where(path, keep[i] + 1, lines)}, column {col}: {v} for setup {s!r}, which "
-                                 f"earlier rows declare {target[s]} (expected one value per setup)")
+                raise InputError(f"{f.where(i)}, column {col}: {v} for setup {s!r}, which earlier rows declare "
+                                 f"{target[s]} (expected one value per setup)")
             if v is not None:
                 target[s] = v
-        if setup is not None:
-            for s in dict.fromkeys(x for x in setup if x is not None):
+        if f.setup is not None:
+            for s in dict.fromkeys(x for x in f.setup if x is not None):
                 target.setdefault(s, default or allowed[0])
-    del kinds, frames
-    L = data["L"] if "L" in data else np.full(n, machine.tool_length)
-    resolution = {"poses": pose_quantum, "L": quantum(L) if "L" in data else np.zeros(n),
-                  "u": None if u is None else np.column_stack([quantum(data[c]) for c in DIRECTION])}
 
-    def cols3(names):
-        return np.column_stack([data[c] if c in data else np.full(n, np.nan) for c in names])
-    return Measurements(path=path, variables=variables, poses=poses, L=np.ascontiguousarray(L), d=cols3(DEVIATIONS),
-                        t=data.get("t"), sigma=data.get("sigma"),
-                        dv=cols3(AXIS_DEVIATIONS) if any(c in data for c in AXIS_DEVIATIONS) else None,
-                        has_L="L" in data, warnings=warnings, du=data.get(LINE), u=u,
-                        sigma_axis=data.get("sigma_axis"), setup=setup, setup_kind=skind, setup_frame=sframe,
-                        dirs=dirs, rows=np.asarray(keep) + 1, frame=frame, quantum=resolution)
+
+#: The rules, in the order a file is checked (the first broken one is the error).
+RULES = (_rule_frame, _rule_one_kind_per_row, _rule_directions, _rule_sigmas, _rule_enough, _rule_poses,
+         _rule_setups)
 
 
 def in_frame(meas: Measurements, machine, target: str) -> Measurements:

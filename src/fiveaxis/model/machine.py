@@ -14,6 +14,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from . import effect_ids, expressions
+from .columns import DIRECTION_PREFIX, RESERVED
 from ..exceptions import InputError
 from importlib.resources import files
 import numpy as np
@@ -62,9 +63,9 @@ _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9]*$")
 #: identifiers that start with a letter, no `__` (it joins machine and convention), no Python keyword.
 _MODULE_NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
 #: Axis names that a measurement file uses as columns of its own (an axis of that name would be read twice).
-RESERVED_COLUMNS = ("L", "t", "dx", "dy", "dz", "di", "dj", "dk", "du", "ux", "uy", "uz", "sigma", "sigma_axis",
-                    "setup", "setup_kind", "setup_frame", "frame")
-RESERVED_PREFIXES = ("dir_", "c_")
+#: Names an axis may not have: the columns of measurement files (`fiveaxis.model.columns`), and their prefixes.
+RESERVED_COLUMNS = RESERVED
+RESERVED_PREFIXES = (DIRECTION_PREFIX, "c_")
 #: Longest name of a machine, convention, axis, error or effect (they become file, module and variable names).
 MAX_NAME = 64
 #: Smallest norm of a direction vector before it is normalised: below it the file most likely holds a typo.
