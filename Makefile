@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 MACHINE ?= li2018
 
-.PHONY: install system-deps run test test-linuxcnc derive bench lint clean
+.PHONY: install system-deps warm run test test-fast test-linuxcnc derive bench lint clean
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -34,8 +34,21 @@ run: install system-deps
 	$(BIN)/fiveaxis table2 --machine li2018 --convention printed --reconcile
 	@scripts/run-main.sh $(BIN)
 
-test: install system-deps
-	$(BIN)/python -m pytest -q
+## the kernels of every shipped machine compiled into numba's cache once, in one process, before the tests run on
+## both cores (pytest-xdist; a file's tests stay on one worker)
+PYTEST := $(BIN)/python -m pytest -q -n 2 --dist loadfile
+
+warm: install
+	@$(BIN)/python scripts/warm-kernels.py
+
+## everything, as CI runs it (the slow tests too: large sets, Dask clusters, the wheel, the browser, full grids)
+test: install system-deps warm
+	$(PYTEST)
+	$(BIN)/lint-imports
+
+## the loop of a developer: everything but the tests marked slow
+test-fast: install warm
+	$(PYTEST) -m "not slow"
 	$(BIN)/lint-imports
 
 ## against the real LinuxCNC 2.9 (Debian linuxcnc-uspace, installed when missing; skipped with a one-line

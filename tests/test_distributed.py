@@ -3,10 +3,11 @@ import numpy as np
 import pytest
 
 import fiveaxis
-from fiveaxis import parallel as distributed
+from fiveaxis import parallel
+from fiveaxis.sensitivity import distributed
 from fiveaxis.exceptions import InputError
 from fiveaxis.sensitivity.grid import Grid, GridAxis, PoseList
-from fiveaxis.sensitivity.indices import gsil
+from fiveaxis.sensitivity.indices import gsil, reduce_grid
 
 
 @pytest.fixture(scope="module")
@@ -29,18 +30,19 @@ def _kernel_mean(model, grid):
 
 def test_reduce_grid_drops_axes_absent_from_J_exactly(model):
     grid = _grid(nx=5)
-    small, factor = distributed.reduce_grid(model, grid)
+    small, factor = reduce_grid(model, grid)
     assert factor == 5 and small.axis("X").count == 1 and small.size * 5 == grid.size
     assert "X" not in model.kernels.JK_VARIABLES
     np.testing.assert_allclose(_kernel_mean(model, small), _kernel_mean(model, grid), rtol=1e-12)
     poses = PoseList(grid.poses(0, 10))          # an explicit list has no axes to reduce
-    assert distributed.reduce_grid(model, poses) == (poses, 1)
+    assert reduce_grid(model, poses) == (poses, 1)
 
 
+@pytest.mark.slow
 def test_local_cluster_equals_single_process(model):
     grid = _grid()
     single = gsil(model, grid, order="exact", check=False, progress=False)
-    cluster, client = distributed.local_cluster(workers=2, threads_per_worker=1)
+    cluster, client = parallel.local_cluster(workers=2, threads_per_worker=1)
     try:
         res = distributed.gsil(model, grid, client, chunk=500, reduce=False, progress=False)
         assert res.settings["dask"]["tasks"] == -(-grid.size // 500) and res.settings["dask"]["workers"] == 2
@@ -65,6 +67,7 @@ def test_bad_options_are_one_line_errors(model):
     assert to_command_line(str(exc.value)).startswith("--worker-kernel: expected")
 
 
+@pytest.mark.slow
 def test_cli_on_local_workers_matches_gsa(model, capsys):
     """`fiveaxis dask` (2 local worker processes) prints the same indices as `fiveaxis gsa --order exact`."""
     import json

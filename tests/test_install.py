@@ -78,6 +78,7 @@ def installed():
         shutil.rmtree(base, ignore_errors=True)
 
 
+@pytest.mark.slow
 def test_wheel_holds_the_data_packages(installed):
     _, _, site, wheel = installed
     for rel in ("fiveaxis_machines/li2018.toml", "fiveaxis_machines/ac_trunnion.toml",
@@ -87,6 +88,7 @@ def test_wheel_holds_the_data_packages(installed):
     assert wheel.name.startswith("fiveaxis-0.1.0-")
 
 
+@pytest.mark.slow
 def test_installed_package_diagnoses_the_example_read_only(installed):
     base, venv, site, _ = installed
     work = base / "work"

@@ -58,6 +58,7 @@ def _n_parameters(page: Path) -> int:
     return int(m.group(1))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, n_params", [("example", 43), ("ac_trunnion", 51)])
 def test_report_in_headless_chromium(reports, chromium, name, n_params):
     sync_api = pytest.importorskip("playwright.sync_api", reason="playwright-python is not installed")
@@ -92,6 +93,7 @@ def test_report_in_headless_chromium(reports, chromium, name, n_params):
     print(f"screenshot: {shot}")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["example", "ac_trunnion"])
 def test_report_pdf(reports, name):
     pdf = reports[name].with_suffix(".pdf")
@@ -102,6 +104,7 @@ def test_report_pdf(reports, name):
     assert pdf.stat().st_mode & 0o044 == 0o044
 
 
+@pytest.mark.slow
 def test_record_of_the_trunnion_names_its_axes_by_iso(reports, capsys, tmp_path):
     sim = reports["ac_trunnion"].parent / "ac_trunnion_rtest.csv"
     assert main(["report", str(sim), "--machine", "ac_trunnion", "-o", str(tmp_path / "r.html"), "--json",

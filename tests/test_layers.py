@@ -1,0 +1,54 @@
+"""The map is enforced: one import-linter `layers` contract over the runtime's packages. It holds on the code, and it
+bites: a probe module placed in a lower package that imports a higher one makes `lint-imports` fail (on a copy of
+the source tree, so that the checkout is never touched)."""
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+LINT = Path(sys.executable).with_name("lint-imports")
+
+
+def _copy(tmp_path: Path) -> Path:
+    """The runtime, the derivation and the generated kernels under their import names, and the contracts."""
+    pkgs = tmp_path / "pkgs"
+    shutil.copytree(ROOT / "src" / "fiveaxis", pkgs / "fiveaxis", ignore=shutil.ignore_patterns("__pycache__"))
+    for name, folder in (("fiveaxis_derive", "derive"), ("fiveaxis_generated", "generated")):
+        shutil.copytree(ROOT / folder, pkgs / name, ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(ROOT / "pyproject.toml", tmp_path / "pyproject.toml")
+    return pkgs
+
+
+def _lint(tmp_path: Path, pkgs: Path):
+    env = {"PYTHONPATH": str(pkgs), "PATH": "/usr/bin:/bin"}
+    return subprocess.run([str(LINT), "--config", str(tmp_path / "pyproject.toml")], cwd=tmp_path, env=env,
+                          capture_output=True, text=True)
+
+
+@pytest.fixture()
+def tree(tmp_path):
+    if not LINT.exists():
+        pytest.skip(f"lint-imports is not installed beside {sys.executable}")
+    return tmp_path, _copy(tmp_path)
+
+
+def test_the_layers_hold_on_the_code(tree):
+    tmp_path, pkgs = tree
+    r = _lint(tmp_path, pkgs)
+    assert r.returncode == 0, r.stdout[-3000:]
+    assert "The runtime in layers" in r.stdout and "KEPT" in r.stdout
+
+
+@pytest.mark.parametrize("lower, higher", [("model", "fiveaxis.diagnosis.diagnose"),
+                                           ("estimation", "fiveaxis.report.text"),
+                                           ("measurement", "fiveaxis.sensitivity.indices")])
+def test_a_probe_importing_upwards_breaks_the_contract(tree, lower, higher):
+    """A new module is covered without editing a list: the probe is a module nobody named."""
+    tmp_path, pkgs = tree
+    (pkgs / "fiveaxis" / lower / "probe_upwards.py").write_text(f'"""A probe."""\nimport {higher}  # noqa: F401\n')
+    r = _lint(tmp_path, pkgs)
+    assert r.returncode != 0
+    assert f"fiveaxis.{lower}.probe_upwards -> {higher}" in r.stdout, r.stdout[-3000:]
