@@ -104,13 +104,21 @@ def test_groups_say_why_and_what_would_separate_them(example):
 
 
 def test_page_is_self_contained_with_one_row_per_parameter(example):
+    """Issue 21.9: the page leads with what the data determine (one row per determined parameter, one per physical
+    quantity), the parameters not determined alone are in the table of what the data cannot separate, each once."""
     page = html.render(example)
     t = _Tables()
     t.feed(page)
     assert t.scripts == 0 and t.refs == [], t.refs
     assert not re.search(r"https?://", page)
     assert len(t.imgs) == len(example.figures) == 4 and all(s.startswith("data:image/png;base64,") for s in t.imgs)
-    assert t.rows["parameters"] == example.record["fit"]["n_parameters"]
+    fit = example.record["fit"]
+    determined = [p for p in fit["parameters"] if p["determined"]]
+    assert t.rows["parameters"] == len(determined) and 0 < len(determined) < fit["n_parameters"]
+    assert t.rows["quantities"] == len(fit["quantities"]) > 0
+    grouped = [n for g in fit["groups"] for n in g["members"]]
+    assert len(grouped) == len(set(grouped))
+    assert sorted(grouped) == sorted(p["name"] for p in fit["parameters"] if not p["determined"])
     assert t.rows["gsil"] == 10 and "E_C(0X)Y" in page and "&mu;" not in page and "\u00b5m" in page
     for section in ("verdict", "terms", "data", "fit", "residuals", "rounds", "sensitivity", "compensation"):
         assert f'id="{section}"' in page

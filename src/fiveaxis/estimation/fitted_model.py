@@ -44,7 +44,7 @@ import numpy as np
 from ..effects import families as fx
 from ..exceptions import InputError
 from ..outputs import write_text
-from ..model.error_model import load
+from ..model import error_model
 from ..model.machine import MACHINES_DIR
 from ..effects.custom import load_custom
 
@@ -195,7 +195,7 @@ def load_model(fm: FittedModel, where: str = "model file"):
             raise InputError(f"{where}: machine.file: {path} not found (the model was fitted for that machine "
                              f"file; give it as machine=...)")
         path = shipped
-    model = load(str(path), fm.convention)
+    model = error_model.load(str(path), fm.convention)
     check_model(fm, model, where)
     return model
 

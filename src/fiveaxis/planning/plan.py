@@ -55,7 +55,8 @@ from ..effects import families as fx
 from ..estimation import design as dsg
 from ..estimation import solver as sv
 from ..estimation.fit import predicted
-from ..estimation.problem import Problem, build, machine_effects, resolve_effects
+from ..estimation import problem as pr
+from ..estimation.problem import Problem, build, machine_effects
 from ..units import human
 from ..model import frames
 from ..measurement import instruments as ins
@@ -926,7 +927,7 @@ def parse_lengths(lengths) -> list | None:
 
 def resolve_effects(model, ids, where: str = "effects") -> list:
     """Effects to plan for: the machine file's own and those named; time and direction effects cannot be planned."""
-    effects = resolve_effects(model, list(machine_effects(model)) + list(ids), where=where)
+    effects = pr.resolve_effects(model, list(machine_effects(model)) + list(ids), where=where)
     for e in effects:
         if getattr(e, "kind", "poly") in ("thermal", "reversal") or getattr(e, "var", None) == "t":
             what = "time" if getattr(e, "var", None) == "t" else "approach-direction (reversal)"
