@@ -45,6 +45,29 @@ def unavailable() -> str | None:
     return None
 
 
+def halcompile_unavailable() -> str | None:
+    """Why a kinematics module cannot be built and installed here (one line), or None: halcompile (Debian
+    linuxcnc-uspace-dev, installed with apt-get when missing, as make test-linuxcnc does) and root (--install writes
+    into LinuxCNC's module folder)."""
+    if not shutil.which("halcompile"):
+        if os.geteuid() == 0 and shutil.which("apt-get"):
+            subprocess.run(["apt-get", "install", "-y", "linuxcnc-uspace-dev"], capture_output=True,
+                           env=dict(os.environ, DEBIAN_FRONTEND="noninteractive"))
+        if not shutil.which("halcompile"):
+            return "halcompile is not installed (Debian linuxcnc-uspace-dev; make test-linuxcnc installs it)"
+    if os.geteuid() != 0:
+        return "halcompile --install writes into LinuxCNC's module folder: needs root"
+    return None
+
+
+def install_module(comp: Path) -> str:
+    """`halcompile --install` a .comp file (in its folder); its output. RuntimeError with the output if it fails."""
+    r = subprocess.run(["halcompile", "--install", comp.name], cwd=comp.parent, capture_output=True, text=True)
+    if r.returncode:
+        raise RuntimeError(f"halcompile --install {comp.name} failed:\n{r.stdout}{r.stderr}")
+    return r.stdout + r.stderr
+
+
 def new_folder() -> Path:
     """A fresh configuration folder the LinuxCNC user can reach (pytest's own temporary folders are private to
     root); remove it with shutil.rmtree when done."""
