@@ -58,6 +58,8 @@ def test_model_file_round_trip_and_no_overwrite(fitted, tmp_path):
     assert set(data["errors_mm_rad"]) == set(model.errors)            # the full vector, for gsa --errors
     assert MF.sensitivity_errors(back) == fm.errors
     assert set(data["undetermined"]) | set(data["std_mm_rad"]) == set(res.names)
+    assert back.parameter_names == fm.parameter_names and np.array_equal(back.covariance, fm.covariance)
+    assert np.array_equal(back.undetermined_basis, fm.undetermined_basis)
     with pytest.raises(InputError, match="exists"):
         MF.save(fm, path)
     MF.save(fm, path, force=True)

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..effects.families import TIME
 from ..linuxcnc import kinematics as K
-from .table import DAMPING, actual_tool, stats
+from .table import DAMPING, actual_tool
 
 REASONS = {
     "reversal": "a reversal depends on the direction of motion, which kinematics do not see (LinuxCNC's comp "
@@ -89,13 +89,13 @@ def joints_for(fm, model, values: K.ModuleValues, poses, L=None):
 
 
 def predicted(fm, model, values: K.ModuleValues, errors_fn, q, dirs, L=None) -> dict:
-    """Tool-tip (mm) and tool-axis (rad) error stats of the machine errors_fn describes when the module, with the
-    values of the fitted model fm, commands nominal poses q (n, nvar): {"tip_error_mm", "axis_error_rad",
-    "converged", "max_iterations"}."""
+    """What the machine errors_fn describes does when the module, with the values of the fitted model fm, commands
+    nominal poses q (n, nvar): {"tip_mm": (n, 3) tool-tip error, "axis_rad": (n, 3) tool-axis error, "converged",
+    "max_iterations"}."""
     inv = joints_for(fm, model, values, q, L)
     Ls = model.tool_lengths(values.tool_length if L is None else L, len(q))
     E, dL = errors_fn(inv.joints, dirs)
     P, V = actual_tool(model, inv.joints, E, dL, Ls)
     P0, V0 = model.ideal_tool(q, Ls)
-    return {"tip_error_mm": stats(P - P0), "axis_error_rad": stats(V - V0),
-            "converged": bool(np.all(inv.converged)), "max_iterations": int(np.max(inv.iterations))}
+    return {"tip_mm": P - P0, "axis_rad": V - V0, "converged": bool(np.all(inv.converged)),
+            "max_iterations": int(np.max(inv.iterations))}

@@ -38,6 +38,8 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError
+from ..linuxcnc.kinematics import axis_jacobian
+from . import prediction
 
 #: Penalty on rotary corrections where the rotary joints hardly move the tool axis (dimensionless, see above).
 DAMPING = 0.2
@@ -113,14 +115,7 @@ def _penalty(model, q, L, mu) -> np.ndarray:
     n = len(q)
     if mu <= 0 or not len(rot):
         return np.zeros((n, len(rot), len(rot)))
-    h = 1e-6
-    Ls = model.tool_lengths(L, n)
-    cols = []
-    for j in rot:
-        d = np.zeros(q.shape[1])
-        d[j] = h
-        cols.append((model.ideal_tool(q + d, Ls)[1] - model.ideal_tool(q - d, Ls)[1]) / (2 * h))
-    Jo = np.stack(cols, axis=-1)                                     # (n, 3, nr)
+    Jo = axis_jacobian(model, q, L)                                  # (n, 3, nr)
     w, U = np.linalg.eigh(np.einsum("nki,nkj->nij", Jo, Jo))
     s = np.sqrt(np.clip(w, 1e-18, None))
     return np.einsum("nij,nj,nkj->nik", U, mu ** 2 / s, U)
@@ -420,7 +415,7 @@ def stats(e: np.ndarray) -> dict:
 
 
 def account(model, errors_fn, table: Table | None, lc=None, n: int = ACCOUNT_POSES, seed: int = 0, L=None,
-            damping: float = DAMPING, module=None) -> dict:
+            damping: float = DAMPING, module=None, band=None) -> dict:
     """Predicted tool-tip error (mm) over n random poses within the strokes: before, after LinuxCNC (lc: a
     linuxcnc.LinuxCNCCompensation), after the volumetric table, and after the exact correction. Approach
     directions are random (+1/-1 per joint and pose) for the errors that depend on them. Also the tool-axis
@@ -429,29 +424,32 @@ def account(model, errors_fn, table: Table | None, lc=None, n: int = ACCOUNT_POS
     With a table that has a tool-length dimension, also `by_tool_length`: the same figures (before, after the
     table, after the exact correction; mm and rad) at each of the table's lengths and at the midpoints between
     them, over n // 2 (at least 200) random poses each (seed + 1 + i), and `warnings` when L lies outside the
-    table's lengths. module: None, or module(q, dirs, errors_fn) -> the stats of the LinuxCNC kinematics module
-    (compensation.kinematics.predicted): the stage `after_kinematics_module`."""
+    table's lengths. module: None, or module(q, dirs, errors_fn) -> {"tip_mm", "axis_rad" (per pose), "converged",
+    "max_iterations"} of the LinuxCNC kinematics module (compensation.kinematics.predicted): the stage
+    `after_kinematics_module`. band: None, or band(q, dirs, L, tip stages, axis stages) -> the prediction's
+    uncertainty (compensation.prediction.band), under `uncertainty`."""
     from ..linuxcnc.configuration import linuxcnc_commands
     q, dirs, Ls, P0, V0, at = _random_poses(model, errors_fn, n, seed, L)
     P, V = at(q)
-    out = {"poses": int(n), "seed": int(seed),
-           "tip_error_mm": {"before": stats(P - P0)}, "axis_error_rad": {"before": stats(V - V0)}}
+    tips, axes = {"before": P - P0}, {"before": V - V0}
+    out = {"poses": int(n), "seed": int(seed)}
     if lc is not None:
-        Pl, _ = at(linuxcnc_commands(lc, model, q, dirs, L))
-        out["tip_error_mm"]["after_linuxcnc"] = stats(Pl - P0)
-    if table is not None:
-        Pt, Vt = at(compensated_commands(table, q, Ls))
-        out["tip_error_mm"]["after_table"] = stats(Pt - P0)
-        out["axis_error_rad"]["after_table"] = stats(Vt - V0)
+        Pl, Vl = at(linuxcnc_commands(lc, model, q, dirs, L))
+        tips["after_linuxcnc"], axes["after_linuxcnc"] = Pl - P0, Vl - V0
     if module is not None:
         mod = module(q, dirs, errors_fn)
-        out["tip_error_mm"]["after_kinematics_module"] = mod["tip_error_mm"]
-        out["axis_error_rad"]["after_kinematics_module"] = mod["axis_error_rad"]
+        tips["after_kinematics_module"], axes["after_kinematics_module"] = mod["tip_mm"], mod["axis_rad"]
         out["kinematics_module"] = {k: mod[k] for k in ("converged", "max_iterations")}
+    if table is not None:
+        Pt, Vt = at(compensated_commands(table, q, Ls))
+        tips["after_table"], axes["after_table"] = Pt - P0, Vt - V0
     ex = solve(model, errors_fn, q, L, damping)        # direction-independent, as the table
     Pe, Ve = at(q + ex.c)
-    out["tip_error_mm"]["after_exact_correction"] = stats(Pe - P0)
-    out["axis_error_rad"]["after_exact_correction"] = stats(Ve - V0)
+    tips["after_exact_correction"], axes["after_exact_correction"] = Pe - P0, Ve - V0
+    out["tip_error_mm"] = {k: stats(v) for k, v in tips.items()}
+    out["axis_error_rad"] = {k: stats(v) for k, v in axes.items() if k != "after_linuxcnc"}
+    if band is not None:
+        out["uncertainty"] = band(q, dirs, Ls, tips, axes)
     if table is not None and table.tool_lengths is not None:
         warn = length_warning(table, Ls[:1])
         out["warnings"] = [] if warn is None else [f"account at tool length {Ls[0]:g} mm: {warn}"]
@@ -551,7 +549,9 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     if not note:
         values, text = ck.module_values(fm, model, damping), lk.source(model)
     module = None if values is None else (lambda q, dirs, fn: ck.predicted(fm, model, values, fn, q, dirs))
-    acc = account(model, errors_fn, table, lc, poses, seed, damping=damping, module=module)
+    band = (lambda q, dirs, Ls, tips, axes: prediction.band(fm, model, q, dirs, Ls, tips, axes,
+                                                            fm.fit.get("noise_mm")))
+    acc = account(model, errors_fn, table, lc, poses, seed, damping=damping, module=module, band=band)
     return Compensation(fm, model, table, nodes, lc, acc, float(damping), float(model.machine.tool_length),
                         values, text, note)
 
@@ -592,6 +592,10 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
                       "sampling": "uniform within the strokes; approach directions random per joint"},
         "predicted_tip_error_mm": tip,
         "predicted_axis_error_rad": axis,
+        "predicted_axis_error_note": "model estimates: the tool axis is known only as far as the data had tool-axis "
+                                     "readings or several tool lengths (prediction_uncertainty.axis_error_rad)",
+        "prediction_uncertainty": comp.account.get("uncertainty", {}),
+        "prediction_warnings": prediction.warnings(comp.account.get("uncertainty", {})),
         "linuxcnc": dict(lx.describe(comp.lc), folder="linuxcnc"),
         "kinematics_module": module_summary(comp),
         "not_compensated": {
@@ -750,8 +754,9 @@ def report(comp: Compensation, folder="") -> str:
             continue
         s = tip[key]
         lines.append(f"    {label:56s} {1e3 * s['max']:8.3f} {1e3 * s['rms']:8.3f} {1e3 * s['p95']:8.3f}")
-    lines.append(f"  tool-axis error RMS (urad): before {1e6 * ax['before']['rms']:.3g}, after the table "
-                 f"{1e6 * ax['after_table']['rms']:.3g} (damping {comp.damping:g} near singular poses)")
+    lines.append(f"  tool-axis error RMS (urad, model estimates): before {1e6 * ax['before']['rms']:.3g}, after the "
+                 f"table {1e6 * ax['after_table']['rms']:.3g} (damping {comp.damping:g} near singular poses)")
+    lines += prediction.text_lines(comp.account.get("uncertainty", {}))
     if tab.tool_lengths is not None:
         lines.append(f"  tool lengths (mm) {', '.join(f'{x:g}' for x in tab.tool_lengths)} (first grid dimension); "
                      f"predicted tool-tip error by tool length (um):")
