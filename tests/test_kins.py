@@ -8,44 +8,16 @@ import os
 import numpy as np
 import pytest
 
-from kins_library import Library, gcc_missing
+from kins_library import EFFECTS, Library, fitted_like, gcc_missing
 from conftest import ROOT, SHIPPED
 from fiveaxis.compensation import kinematics as CK
 from fiveaxis.compensation.table import actual_tool
-from fiveaxis.effects import families as fx
 from fiveaxis.estimation import fitted_model as MF
 from fiveaxis.exceptions import InputError
 from fiveaxis.linuxcnc import kinematics as K
 from fiveaxis.linuxcnc import volumetric as VOL
 from fiveaxis.model.error_model import load
 from fiveaxis.outputs import write_folder
-
-#: Position-dependent effects of the test models (value at u = 1 or amplitude, mm or rad): a polynomial on a linear
-#: axis, one on each rotary axis (a full-turn one is evaluated wrapped), a periodic effect, one on the tool length.
-EFFECTS = {"ac_trunnion": [("dx_x:x2", 0.01), ("ex_x:x1", 2e-5), ("dx_C:C1", 0.008), ("ey_A:A3", 3e-5),
-                           ("dy_y:yp50", (0.003, -0.002)), ("L:z1", 0.004)],
-           "li2018": [("dx_x:x2", 0.01), ("ez_y:y1", 2e-5), ("dx_A:A2", 0.005), ("ex_B:Bp30", (1e-5, 2e-5)),
-                      ("L:x1", 0.003)],
-           "tilting_head": [("dz_z:z3", 0.01), ("ex_x:x1", 2e-5), ("dy_C:C1", 0.006), ("ez_B:B2", 2e-5),
-                            ("dx_C:Cp90", (0.002, 0.001))]}
-
-
-def fitted_like(model, seed=0) -> MF.FittedModel:
-    """A fitted model as a fit writes it: random base errors (tens of um, tens of urad) and the effects above."""
-    machine = model.machine
-    rng = np.random.default_rng(seed)
-    errors = {n: float(rng.normal(0, 3e-5 if machine.is_angular(n) else 0.02)) for n in model.errors}
-    records = []
-    for ident, value in EFFECTS[machine.name]:
-        e = fx.parse(ident, machine, model.errors)
-        values = value if isinstance(value, tuple) else (value,)
-        kind = {"poly": "polynomial", "periodic": "periodic"}[e.kind]
-        records.append(MF.EffectRecord(e.id, kind, e.param, e.var, e.deg if kind == "polynomial" else None, e.names,
-                                       values, (), None if kind == "polynomial" else float(e.arg)))
-    return MF.FittedModel(machine.name, str(machine.path), MF.sha256(machine.path), model.convention, errors,
-                          {n: "rad" if machine.is_angular(n) else "mm" for n in model.errors}, (), {},
-                          tuple(records), fx.scales(machine))
-
 
 @pytest.fixture(scope="module", params=SHIPPED)
 def machine_case(request, tmp_path_factory):

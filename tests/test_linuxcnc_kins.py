@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 import linuxcnc_harness as H
+from kins_library import fitted_like
 from truth import truth_model
 from fiveaxis.compensation import kinematics as CK
 from fiveaxis.compensation import table as C
@@ -24,6 +25,7 @@ from fiveaxis.estimation import fit as F
 from fiveaxis.estimation import fitted_model as MF
 from fiveaxis.linuxcnc import configuration as LX
 from fiveaxis.linuxcnc import kinematics as K
+from fiveaxis.linuxcnc import volumetric as VOL
 from fiveaxis.measurement.simulate import simulate
 from fiveaxis.model import htm
 from fiveaxis.model.error_model import load
@@ -184,3 +186,60 @@ def test_second_tool_through_g43(run):
     err = true_tip(truth, model, got, L[N_POSES:]) - P0[N_POSES:]
     print(f"true tool-tip error RMS with the second tool (G43 H2): {1e3 * rms(err):.3f} um")
     assert rms(err) <= 2e-3
+
+
+#: The other shipped machines, in LinuxCNC briefly: their modules (5 joints, as LinuxCNC needs a kinematics of the
+#: configuration's joint count) built, loaded in the configuration written for them, a few poses commanded.
+#: Closest LinuxCNC sample configurations: li2018 (B and A on the spindle head) sim/axis/vismach/5axis/bridgemill
+#: (5axiskins: B and C on the head); tilting_head (B head, C table) sim/axis/vismach/5axis/max5 (maxkins).
+OTHERS = ["li2018", "tilting_head"]
+N_OTHER = 6
+
+
+@pytest.fixture(scope="module", params=OTHERS)
+def other(request):
+    reason = H.unavailable() or H.halcompile_unavailable()
+    if reason:
+        pytest.skip(reason)
+    model = load(request.param)
+    fm = fitted_like(model, 7)
+    values = CK.module_values(fm, model)
+    folder = H.new_folder()
+    try:
+        for name, text in VOL.files(model, values, K.source(model)).items():
+            (folder / name).write_text(text)
+        H.install_module(folder / "fiveaxis_kins.comp")
+        (folder / "sim.ini").write_text(H.merge_ini((folder / "fiveaxis.ini").read_text(),
+                                                    "[DISPLAY]\nDISPLAY = ./ui.py\n"))
+        q = model.machine.random_poses(N_OTHER, np.random.default_rng(8))
+        w = K.nominal_world(model, q, values.tool_length)
+        rot = [v for v in model.variables if model.machine.axis(v).type == "rotary"]
+        moves = [[f"G0 X{x[0]:.9f} Y{x[1]:.9f} Z{x[2]:.9f} {rot[0]}{math.degrees(x[3]):.9f} "
+                  f"{rot[1]}{math.degrees(x[4]):.9f}"] for x in w]
+        result = H.run(folder, {"joints": 5, "setup": [], "moves": moves})
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    return model, fm, values, q, result
+
+
+def test_other_machines_in_linuxcnc(other):
+    """Their joints in LinuxCNC are the NumPy reference's (1e-6 mm, 1e-7 rad); the fitted machine's tip is on the
+    target at them; LinuxCNC's forward kinematics of them is the commanded position."""
+    model, fm, values, q, result = other
+    assert result["errors"] == [], result["errors"]
+    moves = result["moves"]
+    got = np.array([m["output"] for m in moves], dtype=float)
+    rot = K.rotary_indices(model)
+    got[:, rot] = np.radians(got[:, rot])
+    ref = CK.joints_for(fm, model, values, q)
+    err = np.abs(got - ref.joints)
+    P, _ = CK.tool_function(fm, model)(got, np.full(len(q), values.tool_length))
+    P0, _ = model.ideal_tool(q, values.tool_length)
+    cmd = np.array([m["position"][:6] for m in moves])
+    act = np.array([m["actual_position"][:6] for m in moves])
+    print(f"{model.machine.name}: LinuxCNC joints - reference {np.max(err[:, :3]):.1e} mm, "
+          f"{np.max(err[:, 3:]):.1e} rad; fitted tip off target {np.max(np.abs(P - P0)):.1e} mm; round trip "
+          f"{np.max(np.abs(act - cmd)):.1e}")
+    assert np.max(err[:, :3]) < 1e-6 and np.max(err[:, 3:]) < 1e-7
+    assert np.max(np.abs(P - P0)) < 1e-6
+    assert np.max(np.abs(act - cmd)) < 1e-6
