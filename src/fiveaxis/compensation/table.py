@@ -39,6 +39,7 @@ import numpy as np
 
 from ..exceptions import InputError
 from ..linuxcnc.kinematics import axis_jacobian
+from ..model.inverse import iterate
 from . import prediction
 
 #: Penalty on rotary corrections where the rotary joints hardly move the tool axis (dimensionless, see above).
@@ -152,9 +153,8 @@ def _solve_chunk(model, errors_fn, q, L, mu, max_iter) -> Corrections:
         return np.concatenate([W_TIP * (P - P0[idx]), Ls[idx, None] * (V - V0[idx]), pen], axis=1)
 
     c = np.zeros_like(q)
-    active = np.arange(n)
-    it = 0
-    for it in range(1, max_iter + 1):
+
+    def step_of(active):
         m = len(active)
         qa, ca = q[active], c[active]
         # residual at c and at c +- h e_j, in one batch for the kernels
@@ -172,12 +172,9 @@ def _solve_chunk(model, errors_fn, q, L, mu, max_iter) -> Corrections:
         inv = np.where(S > 1e-13 * S[:, :1], 1.0 / np.where(S > 0, S, 1.0), 0.0)
         step = -np.einsum("mji,mj->mi", Vt, inv * np.einsum("mkj,mk->mj", U, r0)) / norms
         c[active] = ca + step
-        done = np.all(np.abs(step) <= tol, axis=1)
-        active = active[~done]
-        if not len(active):
-            break
-    converged = np.ones(n, bool)
-    converged[active] = False
+        return step
+
+    it, _, converged = iterate(n, tol, max_iter, step_of)
     E, dL = errors_fn(q + c, None)
     P, V = actual_tool(model, q + c, E, dL, Ls)
     return Corrections(c, np.linalg.norm(P - P0, axis=1), np.linalg.norm(V - V0, axis=1), it, converged)

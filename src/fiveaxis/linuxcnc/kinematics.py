@@ -36,6 +36,7 @@ import numpy as np
 
 from ..exceptions import InputError
 from ..model import provenance
+from ..model.inverse import iterate, linear_for_tip
 from ..model.machine import data_dir, module_name
 from .configuration import _tip_jacobian
 
@@ -226,7 +227,6 @@ def inverse(model, tool_fn, world, L, damping: float = 0.2, max_iter: int = MAX_
     (rotary joints at the world angles, linear joints placing the nominal tip at the world tip), Newton steps with
     the nominal Jacobian (tip rows: the nominal chain's; rotary rows: the identity) until a step is below TOL_MM and
     TOL_RAD, at most max_iter steps."""
-    from ..model.inverse import linear_for_tip
     w = np.atleast_2d(np.asarray(world, dtype=float))
     n, nv = len(w), len(model.variables)
     rot = rotary_indices(model)
@@ -235,9 +235,8 @@ def inverse(model, tool_fn, world, L, damping: float = 0.2, max_iter: int = MAX_
     q[:, rot] = w[:, 3:]
     q = linear_for_tip(model, q, w[:, :3], Ls)
     tol = np.where(np.isin(np.arange(nv), rot), TOL_RAD, TOL_MM)
-    iterations = np.zeros(n, dtype=int)
-    active = np.arange(n)
-    for it in range(1, max_iter + 1):
+
+    def step_of(active):
         qa = q[active]
         f = forward(model, tool_fn, qa, Ls[active], damping)
         J = np.zeros((len(active), 5, nv))
@@ -246,12 +245,7 @@ def inverse(model, tool_fn, world, L, damping: float = 0.2, max_iter: int = MAX_
         J[:, 4, rot[1]] = 1.0
         step = np.linalg.solve(J, (w[active] - f)[..., None])[..., 0]
         q[active] += step
-        iterations[active] = it
-        done = np.all(np.abs(step) <= tol, axis=1)
-        active = active[~done]
-        if not len(active):
-            break
-    converged = np.ones(n, bool)
-    converged[active] = False
-    return Inverse(q, iterations, converged)
+        return step
 
+    _, iterations, converged = iterate(n, tol, max_iter, step_of)
+    return Inverse(q, iterations, converged)
