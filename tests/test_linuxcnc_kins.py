@@ -172,8 +172,12 @@ def test_true_tip_error_falls_to_the_tables_level(run):
           f"LinuxCNC {1e3 * rms(module):.3f}; predicted over {comp.account['poses']} poses: table "
           f"{1e3 * tip['after_table']['rms']:.3f}, exact correction {1e3 * tip['after_exact_correction']['rms']:.3f}, "
           f"module {1e3 * tip['after_kinematics_module']['rms']:.3f}")
+    band = comp.account["uncertainty"]["tip_error_mm"]["after_kinematics_module"]["range_k2"]
+    print(f"predicted for the module with what the fit cannot know (k = 2): {1e3 * band[0]:.3f} to "
+          f"{1e3 * band[1]:.3f} um")
     assert rms(module) <= 2e-3
     assert abs(rms(module) - tip["after_exact_correction"]["rms"]) <= 0.5e-3
+    assert band[0] <= rms(module) <= band[1]
     assert rms(module) <= rms(table) + 0.5e-3
     assert rms(module) < 0.1 * rms(stock) and rms(stock) < rms(before)
 
