@@ -123,6 +123,9 @@ def test_module_built_loaded_and_ran_cleanly(run):
     for pin, value, _ in values.pins():
         assert pins[pin] == pytest.approx(float(value), abs=1e-12), pin
     assert all(m["pins"]["fiveaxis_kins.failures"] == 0 for m in res["moves"])
+    span = res["moves"][-1]["t"] - res["moves"][0]["t"]
+    print(f"LinuxCNC moved through the {len(res['moves'])} poses in {span:.1f} s")
+    assert span < 60.0                           # the configuration's speeds: a 40-pose test in a minute
     its = [m["pins"]["fiveaxis_kins.iterations"] for m in res["moves"]]
     print(f"Newton iterations of the module's inverse at the targets: {min(its)} to {max(its)}")
     assert 1 <= max(its) <= K.MAX_ITER
