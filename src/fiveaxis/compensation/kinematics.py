@@ -4,7 +4,7 @@ module cannot hold, and what it is predicted to leave.
 The module holds the base error values and the effects that depend on the joint positions (polynomial and
 periodic in an axis; profiles when they come). It refuses, with a one-line reason each (`ModuleValues.left_out`,
 printed by `compensate`, in summary.json): reversal effects (a kinematics module does not see the direction of
-motion: LinuxCNC's comp files carry them with forward and reverse trims), time effects (no time in kinematics;
+motion; forward and reverse trims for the module's configuration are not written yet), time effects (no time in kinematics;
 taken at t = 0 as in the table) and custom effects of the machine file (not in the module yet). The prediction
 (`predicted`) uses exactly what the module holds: the fitted model restricted to those effects, evaluated where
 the module evaluates them (full-turn rotary axes wrapped), through the module's NumPy reference.
@@ -21,8 +21,9 @@ from ..linuxcnc import kinematics as K
 from .table import DAMPING, actual_tool
 
 REASONS = {
-    "reversal": "a reversal depends on the direction of motion, which kinematics do not see (LinuxCNC's comp "
-                "files carry it: forward and reverse trims)",
+    "reversal": "a reversal depends on the direction of motion, which kinematics do not see; not compensated "
+                "with the module (../joint*.comp carry it with forward and reverse trims, but they belong to the "
+                "stock kinematics; reversal trims for the module's configuration are not written yet)",
     "thermal": "a time effect: kinematics hold no time (taken at t = 0, as in the table)",
     "time": "a time effect: kinematics hold no time (taken at t = 0, as in the table)",
     "custom": "custom effects of the machine file are not in the module yet",
