@@ -4,10 +4,10 @@ module cannot hold, and what it is predicted to leave.
 The module holds the base error values and the effects that depend on the joint positions (polynomial and
 periodic in an axis; profiles when they come). It refuses, with a one-line reason each (`ModuleValues.left_out`,
 printed by `compensate`, in summary.json): reversal effects (a kinematics module does not see the direction of
-motion; forward and reverse trims for the module's configuration are not written yet), time effects (no time in kinematics;
-taken at t = 0 as in the table) and custom effects of the machine file (not in the module yet). The prediction
-(`predicted`) uses exactly what the module holds: the fitted model restricted to those effects, evaluated where
-the module evaluates them (full-turn rotary axes wrapped), through the module's NumPy reference.
+motion; forward and reverse trims for the module's configuration are not written yet), time effects (no time in
+kinematics; taken at t = 0 as in the table) and custom effects of the machine file (not in the module yet). The
+prediction (`predicted`) uses exactly what the module holds: the fitted model restricted to those effects,
+evaluated where the module evaluates them (full-turn rotary axes wrapped), through the module's NumPy reference.
 Units: mm and rad.
 """
 from __future__ import annotations

@@ -15,8 +15,9 @@ compensations move the axes by far less than J changes over). D has two parts:
   minimum norm).
 `band` gives per stage a range for the true RMS (k = 2: triangle inequality around the prior's best value, see
 band), its expected value, and the parts' shares; tool-axis figures the same (model estimates: the axis was
-measured only if the data had axis readings or several tool lengths). `determining` says which measurement would determine the undetermined part that matters:
-tip readings over the whole workspace at the model's tool, with a second tool length, or with the tool axis read.
+measured only if the data had axis readings or several tool lengths). `determining` says which measurement would
+determine the undetermined part that matters: tip readings over the whole workspace at the model's tool, with a
+second tool length, or with the tool axis read.
 Units: mm and rad.
 """
 from __future__ import annotations

@@ -12,8 +12,8 @@ rotary angles; axis limits that admit the tip over the whole workspace (WORLD_MA
 coordinate of random poses within the strokes, and the tool length on z); the simulated joints' limits wider
 than the strokes (`joint_limits`: a straight tool-tip path in workpiece coordinates while the rotary axes turn
 moves the linear joints along curves that leave the strokes between two poses inside them; the real machine's
-limits are its strokes, and its programs must keep the joints inside); fast axes (LINEAR_VELOCITY, ROTARY_VELOCITY) so that a
-test of tens of poses takes a minute; immediate homing at 0.
+limits are its strokes, and its programs must keep the joints inside); fast axes (LINEAR_VELOCITY,
+ROTARY_VELOCITY) so that a test of tens of poses takes a minute; immediate homing at 0.
 """
 from __future__ import annotations
 
@@ -67,8 +67,9 @@ def ini_text(model, values: ModuleValues, source: str = "") -> str:
     coords = "X Y Z " + " ".join(rot)
     lines = [f"# fiveaxis compensate: a simulated LinuxCNC 2.9 configuration with the volumetric kinematics of machine "
              f"{machine.name}" + (f" ({source})" if source else ""),
-             "# (the module fiveaxis_kins: build and install it first, see README.txt). World coordinates: the tool tip",
-             "# in the workpiece frame of the model (mm; no G54 or touch-off needed) and the rotary angles (degrees).",
+             "# (the module fiveaxis_kins: build and install it first, see README.txt). World coordinates: the tool",
+             "# tip in the workpiece frame of the model (mm; no G54 or touch-off needed) and the rotary angles",
+             "# (degrees).",
              f"# Joints in the machine's order: {' '.join(variables)}. For the real machine, keep [KINS], the joints' "
              f"order and",
              "# fiveaxis.hal's kinematics lines; replace the simulated joint loops by the machine's drives and limits.",

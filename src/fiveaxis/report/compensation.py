@@ -3,11 +3,11 @@
 
 The report reads from summary.json: the machine (`machine.name`, must match the report's), the predicted tool-tip
 error over the workspace (`predicted_tip_error_mm`: `before`, `after_linuxcnc`, `after_kinematics_module`,
-`after_table`, each
-{max, rms, p95} in mm: the largest, root-mean-square and 95th-percentile length over the evaluation poses), for a
-table over tool lengths the same per tool length (`predicted_by_tool_length`) and its `warnings`, what the
-prediction cannot know (`prediction_uncertainty`: per stage the k = 2 range of the true RMS, the parts, the
-measurement that would determine the undetermined part; `prediction_warnings`), what is not compensated, and the files for the controller (the table, `linuxcnc/`). Any problem is an InputError naming the
+`after_table`, each {max, rms, p95} in mm: the largest, root-mean-square and 95th-percentile length over the
+evaluation poses), for a table over tool lengths the same per tool length (`predicted_by_tool_length`) and its
+`warnings`, what the prediction cannot know (`prediction_uncertainty`: per stage the k = 2 range of the true RMS,
+the parts, the measurement that would determine the undetermined part; `prediction_warnings`), what is not
+compensated, and the files for the controller (the table, `linuxcnc/`). Any problem is an InputError naming the
 file and the key.
 """
 from __future__ import annotations
