@@ -506,14 +506,14 @@ def test_full_turn_trims_are_periodic_and_cover_several_turns(fitted):
     below the sampling noise of the unpenalised least squares: with SMOOTHING = 0, 3.9 um RMS on X and 11 urad on
     A, measured; the bounds here: 0.5 um and 2 urad)."""
     model, sim, res, fm = fitted
+    if model.machine.name != "ac_trunnion":
+        pytest.skip("the trunnion has the full-turn axis; one machine is enough for the smoothness (30 s)")
     lc = LX.fit(C.tip_error_function(model, C.fitted_errors(fm, model)), model)
     for comp in lc.comps:
         f = comp.forward[:LX.COMP_POINTS] * (1e3 if comp.unit == "mm" else 1e6 * math.pi / 180)
         d2 = f[:-2] - 2 * f[1:-1] + f[2:]
         assert math.sqrt(np.mean(d2 ** 2)) < (0.5 if comp.unit == "mm" else 2.0), (comp.variable, d2)
-    if model.machine.name != "ac_trunnion":
-        assert all(len(c.nominal) == LX.COMP_POINTS for c in lc.comps)
-        return
+    assert all(len(c.nominal) == LX.COMP_POINTS for c in lc.comps[:4])
     c = lc.comps[4]
     assert c.variable == "C" and len(c.nominal) <= LX.MAX_COMP_POINTS
     assert c.nominal[0] <= -180 - 2 * 360 and c.nominal[-1] >= 180 + 2 * 360
