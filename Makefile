@@ -55,7 +55,7 @@ test-fast: install warm
 ## message where the package manager is not available)
 test-linuxcnc: install
 	@scripts/linuxcnc-deps.sh; rc=$$?; if [ $$rc -eq 77 ]; then exit 0; elif [ $$rc -ne 0 ]; then exit $$rc; fi; \
-	$(BIN)/python -m pytest -q --linuxcnc tests/test_linuxcnc.py
+	$(BIN)/python -m pytest -q --linuxcnc tests/test_linuxcnc.py tests/test_linuxcnc_kins.py
 
 ## regenerate the kernels in generated/ from machines/ and print Table 2 (time is printed per machine)
 derive: install

@@ -79,8 +79,21 @@ def _matmul(A, B, canon):
     return (A * B).applyfunc(canon)
 
 
+#: Models derived in this process, by the machine record's content and the convention: `fiveaxis derive` renders
+#: the kernels and the LinuxCNC kinematics module of a machine from one derivation.
+_DERIVED: dict = {}
+
+
 def derive_model(machine: Machine, convention: str = "equations") -> Model:
-    """Derive J_i, K_i of all errors and the ideal tool tip and axis for a machine (first order, exact in L)."""
+    """Derive J_i, K_i of all errors and the ideal tool tip and axis for a machine (first order, exact in L);
+    a machine record derived before in this process (same content, same convention) is not derived again."""
+    key = (repr(machine), convention or "equations")
+    if key not in _DERIVED:
+        _DERIVED[key] = _derive(machine, convention)
+    return _DERIVED[key]
+
+
+def _derive(machine: Machine, convention: str) -> Model:
     chain = build_chain(machine.with_convention(convention))
     canon = _canonicalizer(chain)
     d = chain.tool_direction

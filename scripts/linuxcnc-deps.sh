@@ -18,6 +18,13 @@ if ! command -v linuxcnc >/dev/null 2>&1 || ! /usr/bin/python3 -c "import linuxc
         exit 77
     fi
 fi
+# halcompile (linuxcnc-uspace-dev) builds the kinematics module compensate writes (linuxcnc/volumetric/)
+if ! command -v halcompile >/dev/null 2>&1 && command -v apt-get >/dev/null 2>&1 && [ "$(id -u)" -eq 0 ]; then
+    echo "test-linuxcnc: installing linuxcnc-uspace-dev (halcompile; log: /tmp/fiveaxis-linuxcnc-apt.log)"
+    { DEBIAN_FRONTEND=noninteractive apt-get install -y linuxcnc-uspace-dev || \
+      { apt-get update && DEBIAN_FRONTEND=noninteractive apt-get install -y linuxcnc-uspace-dev; }; } \
+        >> /tmp/fiveaxis-linuxcnc-apt.log 2>&1 || echo "test-linuxcnc: linuxcnc-uspace-dev not installed (its tests skip)"
+fi
 if [ "$(id -u)" -eq 0 ] && ! id "$USER_NAME" >/dev/null 2>&1; then
     useradd -m "$USER_NAME"
 fi

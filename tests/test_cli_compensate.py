@@ -53,6 +53,13 @@ def test_simulated_machine_error_falls_by_90_percent(loop, capsys):
     assert after < 0.1 * before
     assert after0 < 0.05 * before
     assert after > math.sqrt(3) * 0.001 * 0.9                  # the noise is still in the measurement
+    # the prediction brackets what the re-measurement read (its own poses, the same distribution as the account's)
+    band = summary["prediction_uncertainty"]["tip_error_mm"]["after_table"]
+    print(f"{machine}: predicted after the table {1e3 * band['range_k2'][0]:.3f} to {1e3 * band['range_k2'][1]:.3f} "
+          f"um, re-measured with the noise {1e3 * band['remeasured_range_k2'][0]:.3f} to "
+          f"{1e3 * band['remeasured_range_k2'][1]:.3f} um")
+    assert band["remeasured_range_k2"][0] <= after <= band["remeasured_range_k2"][1]
+    assert band["range_k2"][0] <= after0 <= band["range_k2"][1]
 
 
 def test_compensate_outputs(loop):
@@ -88,6 +95,15 @@ def test_compensate_outputs(loop):
         assert rows.shape[1] == 3 and rows.shape[0] <= 256 and np.all(np.diff(rows[:, 0]) > 0)
     ini = (lc / "fiveaxis.ini").read_text()
     assert ini.count("COMP_FILE_TYPE = 1") == 5
+    vol = lc / "volumetric"
+    assert sorted(p.name for p in vol.iterdir()) == ["README.txt", "fiveaxis.hal", "fiveaxis.ini", "fiveaxis.tbl",
+                                                     "fiveaxis_kins.comp"]
+    assert (vol / "fiveaxis_kins.comp").read_text().splitlines()[5].startswith("component fiveaxis_kins ")
+    vini = (vol / "fiveaxis.ini").read_text()
+    assert "KINEMATICS = fiveaxis_kins\n" in vini and f"COORDINATES = X Y Z {' '.join(variables[3:])}\n" in vini
+    assert "$ sudo halcompile --install fiveaxis_kins.comp" in (vol / "README.txt").read_text()
+    assert s["kinematics_module"]["folder"] == "linuxcnc/volumetric" and s["kinematics_module"]["left_out"] == []
+    assert tip["after_kinematics_module"]["max"] < 1e-6
     if machine == "ac_trunnion":
         assert "KINEMATICS = xyzac-trt-kins" in ini and (lc / "fiveaxis-trt.hal").is_file()
         assert "setp xyzac-trt-kins.y-offset" in (lc / "fiveaxis-trt.hal").read_text()

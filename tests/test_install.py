@@ -83,7 +83,8 @@ def test_wheel_holds_the_data_packages(installed):
     _, _, site, wheel = installed
     for rel in ("fiveaxis_machines/li2018.toml", "fiveaxis_machines/ac_trunnion.toml",
                 "fiveaxis_templates/model.py.j2", "fiveaxis_templates/effects/effect.py.j2",
-                "fiveaxis_derive/table2_printed.json", "fiveaxis_generated/li2018.py"):
+                "fiveaxis_derive/table2_printed.json", "fiveaxis_generated/li2018.py",
+                "fiveaxis_templates/linuxcnc/fiveaxis_kins.comp.j2", "fiveaxis_generated/ac_trunnion_kins.comp"):
         assert (site / rel).is_file(), rel
     assert wheel.name.startswith("fiveaxis-0.1.0-")
 

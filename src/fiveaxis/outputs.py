@@ -120,3 +120,47 @@ def write_bytes(path, data: bytes, force: bool = False, only_if_changed: bool = 
 def write_text(path, text: str, force: bool = False, only_if_changed: bool = False, encoding: str = "utf-8") -> bool:
     """Write text atomically (UTF-8); returns True if the file changed. See write_bytes."""
     return write_bytes(path, text.encode(encoding), force, only_if_changed)
+
+
+def write_folder(folder, files: dict, force: bool = False) -> Path:
+    """Write a folder of files (name -> str or bytes) as a unit: into a hidden temporary folder beside it, then
+    renamed into place, so that the folder appears whole or not at all. An existing folder is replaced only with
+    force (moved aside, the new one renamed in, the old one removed); an interrupted write leaves the old folder."""
+    import shutil
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{folder}: is a file, not a folder")
+    if folder.exists() and not force:
+        raise InputError(f"{folder}: exists; not overwriting it (force=True replaces it)")
+    parent = check_folder(folder.parent)
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", suffix=".tmp", dir=str(parent)))
+    except OSError as exc:
+        raise InputError(f"{folder}: cannot write ({exc.strerror or exc})") from None
+    old = None
+    try:
+        mode = file_mode()
+        for name, data in files.items():
+            path = tmp / name
+            with open(path, "wb") as fh:
+                fh.write(data.encode("utf-8") if isinstance(data, str) else data)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.chmod(path, mode)
+        os.chmod(tmp, mode | ((mode & 0o444) >> 2))          # folders: searchable where readable
+        if folder.exists():
+            old = parent / f".{folder.name}.{os.getpid()}.old"
+            os.replace(folder, old)
+        os.replace(tmp, folder)
+    except OSError as exc:
+        raise InputError(f"{folder}: cannot write ({exc.strerror or exc})") from None
+    finally:
+        if old is not None and old.exists():
+            if folder.exists():
+                shutil.rmtree(old, ignore_errors=True)
+            else:                                    # interrupted between the two renames: the old one back
+                os.replace(old, folder)
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+    return folder

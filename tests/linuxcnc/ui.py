@@ -3,9 +3,10 @@
 
 Run by `linuxcnc` itself ([DISPLAY] DISPLAY = ./ui.py) under the system Python, which has LinuxCNC's `linuxcnc`
 and `hal` modules (as LinuxCNC's own tests do). Reads FIVEAXIS_LCNC_IN (JSON: "setup" MDI lines, "moves": list of
-lists of MDI lines, "joints") and writes FIVEAXIS_LCNC_OUT (JSON): per move the joint positions LinuxCNC's
-kinematics computed (stat.joint[i]["output"]), the HAL pins joint.N.motor-pos-cmd and joint.N.backlash-corr,
-stat.actual_position; the kinematics pins; errors. Exits when done: LinuxCNC then shuts down.
+lists of MDI lines, "joints", optional "pins" to read after each step) and writes FIVEAXIS_LCNC_OUT (JSON): per
+move the joint positions LinuxCNC's kinematics computed (stat.joint[i]["output"]), the HAL pins joint.N.motor-pos-cmd
+and joint.N.backlash-corr, stat.position (commanded) and stat.actual_position (the forward kinematics of the joints'
+feedback), those pins; the kinematics pins; errors. Exits when done: LinuxCNC then shuts down.
 """
 import json
 import os
@@ -93,7 +94,7 @@ def main():
     c.rapidrate(1.0)
     c.wait_complete()
     pins = [p["NAME"] for p in hal.get_info_pins()]
-    result["kinematics_pins"] = {p: hal.get_value(p) for p in pins if "-kins." in p}
+    result["kinematics_pins"] = {p: hal.get_value(p) for p in pins if "-kins." in p or p.startswith("fiveaxis_kins.")}
     for line in job["setup"]:
         c.mdi(line)
         c.wait_complete()
@@ -116,6 +117,8 @@ def main():
                 "backlash_filt": [hal.get_value(f"joint.{j}.backlash-filt") for j in range(njoints)],
                 "actual_position": list(s.actual_position)[:9],
                 "kinematics_type": s.kinematics_type,
+                "position": list(s.position)[:9],
+                "pins": {p: hal.get_value(p) for p in job.get("pins", [])},
             })
         result["moves"].append(dict(steps[-1], steps=steps[:-1]))
     result["g5x_offset"] = list(s.g5x_offset)[:3]

@@ -14,7 +14,8 @@ from ..exceptions import InputError
 def register_compensate(p):
     p.add_argument("model", type=Path, help="fitted model file (JSON, written by `fiveaxis fit ... -o`)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="DIR",
-                   help="output folder (created if its parent exists): table.csv/.parquet, summary.json, linuxcnc/")
+                   help="output folder (created if its parent exists): table.csv/.parquet, summary.json, linuxcnc/ "
+                        "(with volumetric/: the LinuxCNC kinematics module and a simulated configuration)")
     p.add_argument("--machine", default=None,
                    help="machine name or file (default: the one the model was fitted for; must be that file)")
     p.add_argument("--nodes", action="append", default=[], metavar="AXIS=COUNT",
@@ -111,7 +112,7 @@ def run_compensate(args) -> int:
     if args.comp_points is not None and not 2 <= args.comp_points <= 256:
         raise InputError(f"--comp-points: expected 2 to 256 (LinuxCNC reads at most 256 lines), got "
                          f"{args.comp_points}")
-    for p in C.outputs(out, args.plot):
+    for p in C.outputs(out, args.plot) + [C.volumetric_folder(out)]:
         if p.exists() and not args.force:
             raise InputError(f"{p}: exists; not overwriting it (use --force to replace it)")
     comp = C.compensate(fm, model, counts, limit, C.DAMPING if args.damping is None else args.damping,

@@ -34,6 +34,7 @@ def register_table2(p):
 def run_derive(args) -> int:
     import tempfile
 
+    from fiveaxis_derive import kins
     from fiveaxis_derive.codegen import GENERATED, generate
 
     from ..outputs import check_folder
@@ -46,12 +47,12 @@ def run_derive(args) -> int:
         t0 = time.perf_counter()
         if args.check:
             with tempfile.TemporaryDirectory() as tmp:
-                for path, _ in generate(machine, Path(tmp)):
+                for path, _ in generate(machine, Path(tmp)) + kins.generate(machine, Path(tmp)):
                     committed = (args.out or GENERATED) / path.name
                     if not committed.exists() or committed.read_bytes() != path.read_bytes():
                         stale.append(committed)
             continue
-        for path, changed in generate(machine, args.out):
+        for path, changed in generate(machine, args.out) + kins.generate(machine, args.out):
             print(f"{'wrote' if changed else 'unchanged'} {path} ({time.perf_counter() - t0:.2f} s)")
     if stale:
         for path in stale:

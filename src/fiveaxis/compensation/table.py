@@ -38,6 +38,9 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError
+from ..linuxcnc.kinematics import axis_jacobian
+from ..model.inverse import iterate
+from . import prediction
 
 #: Penalty on rotary corrections where the rotary joints hardly move the tool axis (dimensionless, see above).
 DAMPING = 0.2
@@ -113,14 +116,7 @@ def _penalty(model, q, L, mu) -> np.ndarray:
     n = len(q)
     if mu <= 0 or not len(rot):
         return np.zeros((n, len(rot), len(rot)))
-    h = 1e-6
-    Ls = model.tool_lengths(L, n)
-    cols = []
-    for j in rot:
-        d = np.zeros(q.shape[1])
-        d[j] = h
-        cols.append((model.ideal_tool(q + d, Ls)[1] - model.ideal_tool(q - d, Ls)[1]) / (2 * h))
-    Jo = np.stack(cols, axis=-1)                                     # (n, 3, nr)
+    Jo = axis_jacobian(model, q, L)                                  # (n, 3, nr)
     w, U = np.linalg.eigh(np.einsum("nki,nkj->nij", Jo, Jo))
     s = np.sqrt(np.clip(w, 1e-18, None))
     return np.einsum("nij,nj,nkj->nik", U, mu ** 2 / s, U)
@@ -157,9 +153,8 @@ def _solve_chunk(model, errors_fn, q, L, mu, max_iter) -> Corrections:
         return np.concatenate([W_TIP * (P - P0[idx]), Ls[idx, None] * (V - V0[idx]), pen], axis=1)
 
     c = np.zeros_like(q)
-    active = np.arange(n)
-    it = 0
-    for it in range(1, max_iter + 1):
+
+    def step_of(active):
         m = len(active)
         qa, ca = q[active], c[active]
         # residual at c and at c +- h e_j, in one batch for the kernels
@@ -177,12 +172,9 @@ def _solve_chunk(model, errors_fn, q, L, mu, max_iter) -> Corrections:
         inv = np.where(S > 1e-13 * S[:, :1], 1.0 / np.where(S > 0, S, 1.0), 0.0)
         step = -np.einsum("mji,mj->mi", Vt, inv * np.einsum("mkj,mk->mj", U, r0)) / norms
         c[active] = ca + step
-        done = np.all(np.abs(step) <= tol, axis=1)
-        active = active[~done]
-        if not len(active):
-            break
-    converged = np.ones(n, bool)
-    converged[active] = False
+        return step
+
+    it, _, converged = iterate(n, tol, max_iter, step_of)
     E, dL = errors_fn(q + c, None)
     P, V = actual_tool(model, q + c, E, dL, Ls)
     return Corrections(c, np.linalg.norm(P - P0, axis=1), np.linalg.norm(V - V0, axis=1), it, converged)
@@ -420,7 +412,7 @@ def stats(e: np.ndarray) -> dict:
 
 
 def account(model, errors_fn, table: Table | None, lc=None, n: int = ACCOUNT_POSES, seed: int = 0, L=None,
-            damping: float = DAMPING) -> dict:
+            damping: float = DAMPING, module=None, band=None) -> dict:
     """Predicted tool-tip error (mm) over n random poses within the strokes: before, after LinuxCNC (lc: a
     linuxcnc.LinuxCNCCompensation), after the volumetric table, and after the exact correction. Approach
     directions are random (+1/-1 per joint and pose) for the errors that depend on them. Also the tool-axis
@@ -429,23 +421,32 @@ def account(model, errors_fn, table: Table | None, lc=None, n: int = ACCOUNT_POS
     With a table that has a tool-length dimension, also `by_tool_length`: the same figures (before, after the
     table, after the exact correction; mm and rad) at each of the table's lengths and at the midpoints between
     them, over n // 2 (at least 200) random poses each (seed + 1 + i), and `warnings` when L lies outside the
-    table's lengths."""
+    table's lengths. module: None, or module(q, dirs, errors_fn) -> {"tip_mm", "axis_rad" (per pose), "converged",
+    "max_iterations"} of the LinuxCNC kinematics module (compensation.kinematics.predicted): the stage
+    `after_kinematics_module`. band: None, or band(q, dirs, L, tip stages, axis stages) -> the prediction's
+    uncertainty (compensation.prediction.band), under `uncertainty`."""
     from ..linuxcnc.configuration import linuxcnc_commands
     q, dirs, Ls, P0, V0, at = _random_poses(model, errors_fn, n, seed, L)
     P, V = at(q)
-    out = {"poses": int(n), "seed": int(seed),
-           "tip_error_mm": {"before": stats(P - P0)}, "axis_error_rad": {"before": stats(V - V0)}}
+    tips, axes = {"before": P - P0}, {"before": V - V0}
+    out = {"poses": int(n), "seed": int(seed)}
     if lc is not None:
-        Pl, _ = at(linuxcnc_commands(lc, model, q, dirs, L))
-        out["tip_error_mm"]["after_linuxcnc"] = stats(Pl - P0)
+        Pl, Vl = at(linuxcnc_commands(lc, model, q, dirs, L))
+        tips["after_linuxcnc"], axes["after_linuxcnc"] = Pl - P0, Vl - V0
+    if module is not None:
+        mod = module(q, dirs, errors_fn)
+        tips["after_kinematics_module"], axes["after_kinematics_module"] = mod["tip_mm"], mod["axis_rad"]
+        out["kinematics_module"] = {k: mod[k] for k in ("converged", "max_iterations")}
     if table is not None:
         Pt, Vt = at(compensated_commands(table, q, Ls))
-        out["tip_error_mm"]["after_table"] = stats(Pt - P0)
-        out["axis_error_rad"]["after_table"] = stats(Vt - V0)
+        tips["after_table"], axes["after_table"] = Pt - P0, Vt - V0
     ex = solve(model, errors_fn, q, L, damping)        # direction-independent, as the table
     Pe, Ve = at(q + ex.c)
-    out["tip_error_mm"]["after_exact_correction"] = stats(Pe - P0)
-    out["axis_error_rad"]["after_exact_correction"] = stats(Ve - V0)
+    tips["after_exact_correction"], axes["after_exact_correction"] = Pe - P0, Ve - V0
+    out["tip_error_mm"] = {k: stats(v) for k, v in tips.items()}
+    out["axis_error_rad"] = {k: stats(v) for k, v in axes.items() if k != "after_linuxcnc"}
+    if band is not None:
+        out["uncertainty"] = band(q, dirs, Ls, tips, axes)
     if table is not None and table.tool_lengths is not None:
         warn = length_warning(table, Ls[:1])
         out["warnings"] = [] if warn is None else [f"account at tool length {Ls[0]:g} mm: {warn}"]
@@ -516,6 +517,9 @@ class Compensation:
     account: dict
     damping: float
     tool_length: float
+    module: object = None      # linuxcnc.kinematics.ModuleValues, or None when the module cannot describe the machine
+    module_source: str = ""    # the module's halcompile source (fiveaxis_kins.comp)
+    module_note: str = ""      # why there is no module (one line), or ""
 
 
 def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, damping: float = DAMPING,
@@ -536,8 +540,17 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     table, nodes = build_table(model, errors_fn, counts, max_nodes, None, damping, lengths)
     reversal = [v for v in model.variables if _token(model, v) in fm.reversal_variables()]
     lc = lx.fit(tip_error_function(model, errors_fn), model, comp_points or lx.COMP_POINTS, reversal=reversal)
-    acc = account(model, errors_fn, table, lc, poses, seed, damping=damping)
-    return Compensation(fm, model, table, nodes, lc, acc, float(damping), float(model.machine.tool_length))
+    from ..linuxcnc import kinematics as lk
+    from . import kinematics as ck          # below this module's functions: imported here (it imports them)
+    values, text, note = None, "", lk.unsupported(model.machine) or ""
+    if not note:
+        values, text = ck.module_values(fm, model, damping), lk.source(model)
+    module = None if values is None else (lambda q, dirs, fn: ck.predicted(fm, model, values, fn, q, dirs))
+    band = (lambda q, dirs, Ls, tips, axes: prediction.band(fm, model, q, dirs, Ls, tips, axes,
+                                                            fm.fit.get("noise_mm")))
+    acc = account(model, errors_fn, table, lc, poses, seed, damping=damping, module=module, band=band)
+    return Compensation(fm, model, table, nodes, lc, acc, float(damping), float(model.machine.tool_length),
+                        values, text, note)
 
 
 def _token(model, variable):
@@ -576,7 +589,12 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
                       "sampling": "uniform within the strokes; approach directions random per joint"},
         "predicted_tip_error_mm": tip,
         "predicted_axis_error_rad": axis,
+        "predicted_axis_error_note": "model estimates: the tool axis is known only as far as the data had tool-axis "
+                                     "readings or several tool lengths (prediction_uncertainty.axis_error_rad)",
+        "prediction_uncertainty": comp.account.get("uncertainty", {}),
+        "prediction_warnings": prediction.warnings(comp.account.get("uncertainty", {})),
         "linuxcnc": dict(lx.describe(comp.lc), folder="linuxcnc"),
+        "kinematics_module": module_summary(comp),
         "not_compensated": {
             "time_effects": time_effects,
             "time_effects_note": "the table and LinuxCNC's files are static: time effects are taken at t = 0",
@@ -586,7 +604,8 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
             "undetermined_note": "their minimum-norm values are used; the tip error at the measured tool lengths "
                                  "does not depend on them, the tool axis and other tool lengths may",
             "tool_axis_note": "where the rotary axes hardly turn the tool axis (a trunnion near A = 0) its error "
-                              "is corrected only partly (damping); the tip is corrected everywhere"},
+                              "is corrected only partly (damping); the tip is corrected everywhere",
+            "kinematics_module": list(comp.module.left_out) if comp.module is not None else [comp.module_note]},
     }
     if tab.tool_lengths is None:
         out["not_compensated"]["tool_length_note"] = (
@@ -604,6 +623,35 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
     return out
 
 
+def module_summary(comp: Compensation) -> dict:
+    """summary.json's `kinematics_module`: the LinuxCNC kinematics module written to linuxcnc/volumetric/."""
+    from ..linuxcnc import kinematics as lk
+    from ..linuxcnc.volumetric import files as volumetric_files
+    if comp.module is None:
+        return {"folder": None, "note": comp.module_note}
+    v, acc = comp.module, comp.account.get("kinematics_module", {})
+    return {"folder": f"linuxcnc/{VOLUMETRIC}", "component": lk.COMPONENT,
+            "files": sorted(volumetric_files(comp.model, v, "").keys()),
+            "joints": list(comp.model.variables),
+            "world_coordinates": "the tool tip in the workpiece frame (mm; plus the G43 tool offset on z) and the "
+                                 "rotary angles (degrees), as xyzac-trt-kins; no G54",
+            "error_values": len(v.errors), "effects": [s.id for s in v.slots], "left_out": list(v.left_out),
+            "tool_length_mm": v.tool_length, "damping": v.damping,
+            "inverse": {"method": "Newton with the nominal Jacobian from the nominal inverse",
+                        "max_iterations": lk.MAX_ITER, "step_tolerance_mm": lk.TOL_MM,
+                        "step_tolerance_rad": lk.TOL_RAD,
+                        "account_converged": bool(acc.get("converged", False)),
+                        "account_max_iterations": int(acc.get("max_iterations", 0))}}
+
+
+#: The folder of the kinematics module and its simulated configuration, under DIR/linuxcnc/.
+VOLUMETRIC = "volumetric"
+
+
+def volumetric_folder(folder) -> Path:
+    return Path(folder) / "linuxcnc" / VOLUMETRIC
+
+
 README = """fiveaxis compensate: the files in this folder
 
 table.csv, table.parquet  the volumetric compensation table. One row per node of a full grid over the strokes
@@ -615,7 +663,12 @@ summary.json  machine, table grid, predicted tool-tip error over the workspace (
     the table, after the exact correction), tool-axis error (rad), what LinuxCNC was given, what is not compensated.
 linuxcnc/  for LinuxCNC 2.9: joint<N>-<axis>.comp (COMP_FILE_TYPE = 1: nominal, forward trim, reverse trim per
     line, machine units), fiveaxis.ini (lines to merge into the machine's INI), fiveaxis-trt.hal (trunnions: the
-    kinematics parameters). LinuxCNC takes only part of the model: see summary.json, predicted_tip_error_mm.
+    kinematics parameters). LinuxCNC's stock kinematics and comp files take only part of the model: see
+    summary.json, predicted_tip_error_mm (after_linuxcnc).
+linuxcnc/volumetric/  the whole model in LinuxCNC: the kinematics module fiveaxis_kins (source, build with
+    halcompile) and a complete simulated configuration around it; its own README.txt has the commands.
+    Predicted: summary.json, predicted_tip_error_mm (after_kinematics_module). Use it instead of the files above,
+    not with them.
 error_map.png  (with --plot) the predicted tool-tip error over the rotary axes.
 """
 
@@ -648,12 +701,21 @@ def write(comp: Compensation, folder, force: bool = False, figure=None, model_pa
     paths = outputs(folder, figure is not None) + [lcdir / n for n in lfiles]
     for p in paths:
         target(p, force)
+    vol = volumetric_folder(folder)
+    if comp.module is not None and vol.exists() and not force:
+        raise InputError(f"{vol}: exists; not overwriting it (force=True replaces it)")
     lcdir.mkdir(exist_ok=True)
     frame = table_frame(comp.table)
     written = [write_frame(frame, folder / "table.csv", force=force),
                write_frame(frame, folder / "table.parquet", force=force)]
     for name, text in lfiles.items():
         written.append(_written(lcdir / name, text, force=force))
+    if comp.module is not None:
+        from ..linuxcnc.volumetric import files as volumetric_files
+        from ..outputs import write_folder
+        source = f"fitted model {model_path}" if model_path else ""
+        written.append(write_folder(vol, volumetric_files(comp.model, comp.module, comp.module_source, source),
+                                    force=force))
     has_L = comp.table.tool_lengths is not None
     lcol = ("L (the tool length, mm; the slowest-varying: each tool length is a contiguous block), " if has_L
             else "")
@@ -680,13 +742,17 @@ def report(comp: Compensation, folder="") -> str:
     what = lc.trt.component + " + " if lc.trt is not None else ""
     rows = [("before", "before"),
             (f"after LinuxCNC ({what}{len(lc.comps)} comp files)", "after_linuxcnc"),
+            ("after LinuxCNC with the kinematics module fiveaxis_kins", "after_kinematics_module"),
             ("after the volumetric table (multilinear)", "after_table"),
             ("after the exact correction (Newton)", "after_exact_correction")]
     for label, key in rows:
+        if key not in tip:
+            continue
         s = tip[key]
         lines.append(f"    {label:56s} {1e3 * s['max']:8.3f} {1e3 * s['rms']:8.3f} {1e3 * s['p95']:8.3f}")
-    lines.append(f"  tool-axis error RMS (urad): before {1e6 * ax['before']['rms']:.3g}, after the table "
-                 f"{1e6 * ax['after_table']['rms']:.3g} (damping {comp.damping:g} near singular poses)")
+    lines.append(f"  tool-axis error RMS (urad, model estimates): before {1e6 * ax['before']['rms']:.3g}, after the "
+                 f"table {1e6 * ax['after_table']['rms']:.3g} (damping {comp.damping:g} near singular poses)")
+    lines += prediction.text_lines(comp.account.get("uncertainty", {}))
     if tab.tool_lengths is not None:
         lines.append(f"  tool lengths (mm) {', '.join(f'{x:g}' for x in tab.tool_lengths)} (first grid dimension); "
                      f"predicted tool-tip error by tool length (um):")
@@ -703,8 +769,15 @@ def report(comp: Compensation, folder="") -> str:
         pins = ", ".join(f"{k} {v:+.4f}" for k, v in lc.trt.pins().items())
         o = lc.trt.origin
         lines.append(f"  LinuxCNC {lc.trt.component} (mm): {pins}; G54 X{o[0]:+.4f} Y{o[1]:+.4f} Z{o[2]:+.4f}")
+    if comp.module is not None:
+        for line in comp.module.left_out:
+            lines.append(f"  kinematics module: {line}")
+    else:
+        lines.append(f"  no kinematics module: {comp.module_note}")
     if folder:
-        lines.append(f"  wrote {folder}/table.csv, table.parquet, summary.json, linuxcnc/")
+        vol = f", linuxcnc/{VOLUMETRIC}/ (the kinematics module and a simulated configuration)" \
+            if comp.module is not None else ""
+        lines.append(f"  wrote {folder}/table.csv, table.parquet, summary.json, linuxcnc/{vol}")
     return "\n".join(lines)
 
 

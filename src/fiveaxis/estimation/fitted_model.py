@@ -19,8 +19,14 @@ The file is JSON, mm and rad, with the unit in every key that holds a number:
      "effects": [{"id", "kind", "param", "variable", "degree", "coefficients_mm_rad": {name: value},
                   "std_mm_rad": {name: value}}],
      "scales": {token: {"variable", "centre_<unit>", "half_range_<unit>"}},
-     "fit": {"n_poses", "rms_mm", "noise_mm", "rank", "n_parameters", "measured_tool_lengths_mm": [min, max]}}
-`errors_mm_rad` is also what `gsa --errors model.json` reads.
+     "fit": {"n_poses", "rms_mm", "noise_mm", "rank", "n_parameters", "measured_tool_lengths_mm": [min, max]},
+     "covariance_mm_rad": {"names": [...], "matrix": [[...]]},
+     "undetermined_directions_mm_rad": {"names": [...], "basis": [[...], ...]}}
+`errors_mm_rad` is also what `gsa --errors model.json` reads. `covariance_mm_rad` is the fit's covariance of the
+machine's parameters (errors, then effect coefficients; zero along what the data does not determine);
+`undetermined_directions_mm_rad` spans the changes of those parameters the data cannot see (the fit's null space,
+setup placements taken out): what a compensation's prediction cannot know (compensation.prediction). Both are
+optional (model files written before them have neither).
 
 Effects (`fiveaxis.effects.families`: one interface for all kinds; each record is rebuilt from its id and evaluated through
 it). A polynomial effect `<param>:<var><deg>` adds c * u^deg to param, u = (var - centre) / half_range (model units:
@@ -88,6 +94,9 @@ class FittedModel:
     combinations: tuple = ()        # {"formula", "terms", "value_mm_rad", "std_mm_rad"}
     fit: dict = field(default_factory=dict)            # n_poses, rms_mm, noise_mm, rank, ...
     policy: str = POLICY
+    parameter_names: tuple = ()     # the machine's parameters of the two arrays below: errors, effect coefficients
+    covariance: np.ndarray | None = None    # (p, p) mm, rad: the fit's covariance (0 along undetermined directions)
+    undetermined_basis: np.ndarray | None = None   # (k, p): orthonormal rows spanning the undetermined changes
 
     @property
     def effect_ids(self) -> tuple[str, ...]:
@@ -161,12 +170,37 @@ def from_fit(res) -> FittedModel:
     noise = res.noise(0)
     if noise is not None:
         fit["noise_mm"] = float(noise)
+    cov = np.asarray(res.cov, dtype=float)[:n_machine, :n_machine]
     return FittedModel(machine.name, str(Path(machine.path).resolve()), sha256(machine.path), model.convention,
                        errors, units,
                        tuple(n for i, n in enumerate(names[:n_machine]) if not determined[i]),
                        {n: float(std[i]) for i, n in enumerate(names[:n_machine])
                         if determined[i] and math.isfinite(std[i])},
-                       tuple(effects), dict(prob.scales), combos, fit)
+                       tuple(effects), dict(prob.scales), combos, fit, POLICY, tuple(names[:n_machine]),
+                       np.where(np.isfinite(cov), cov, 0.0), undetermined_directions(res, n_machine))
+
+
+#: A direction of the machine's parameters whose length (relative to the largest) is below this is not one.
+DIRECTION_RTOL = 1e-9
+
+
+def undetermined_directions(res, n_machine: int) -> np.ndarray:
+    """Orthonormal rows (k, n_machine) spanning the changes of the machine's parameters (mm, rad; the first
+    n_machine of the fit's parameters) that the data cannot see: the fit's null space in parameter units (a
+    direction that moves a setup placement too counts: the placement takes up what the machine changes)."""
+    idf = res.idf
+    free = [i for i, n in enumerate(res.names) if n in set(res.free_names)]
+    if idf.null.size == 0:
+        return np.zeros((0, n_machine))
+    safe = np.where(idf.norms > 0, idf.norms, 1.0)
+    phys = np.zeros((len(res.names), idf.null.shape[1]))
+    phys[free] = idf.null / safe[:, None]           # unit-norm coordinates -> mm, rad
+    M = phys[:n_machine]
+    if not M.size:
+        return np.zeros((0, n_machine))
+    U, s, _ = np.linalg.svd(M, full_matrices=False)
+    keep = s > DIRECTION_RTOL * s[0] if s.size and s[0] > 0 else np.zeros(0, bool)
+    return U[:, keep].T
 
 
 # -- checks against a loaded model -------------------------------------------------------------------------------
@@ -301,6 +335,12 @@ def to_json(fm: FittedModel) -> dict:
            "std_mm_rad": dict(fm.std), "undetermined": list(fm.undetermined), "policy": fm.policy,
            "combinations": [dict(c) for c in fm.combinations],
            "effects": effects, "scales": scales, "fit": {k: v for k, v in fm.fit.items() if v is not None}}
+    if fm.covariance is not None:
+        out["covariance_mm_rad"] = {"names": list(fm.parameter_names),
+                                    "matrix": [[float(x) for x in row] for row in fm.covariance]}
+    if fm.undetermined_basis is not None:
+        out["undetermined_directions_mm_rad"] = {"names": list(fm.parameter_names),
+                                                 "basis": [[float(x) for x in row] for row in fm.undetermined_basis]}
     return _clean(out)
 
 
@@ -388,5 +428,40 @@ def load(path) -> FittedModel:
         effects.append(EffectRecord(ident, kind, param, var, deg, names, values, stds, arg))
     combos = tuple(c for c in data.get("combinations", []) if isinstance(c, dict))
     fit = data.get("fit", {}) if isinstance(data.get("fit", {}), dict) else {}
+    names, cov, basis = _uncertainty(data, w)
     return FittedModel(name, mfile, sha, conv, errors, units, undetermined, std, tuple(effects), scales, combos,
-                       fit, str(data.get("policy", POLICY)))
+                       fit, str(data.get("policy", POLICY)), names, cov, basis)
+
+
+def _matrix(block, key, rows, cols, where) -> np.ndarray:
+    """A matrix of finite numbers (rows x cols; rows None: any) from a list of lists; InputError naming the key."""
+    m = block.get(key)
+    try:
+        a = np.array(m, dtype=float)
+    except (TypeError, ValueError):
+        a = None
+    if a is None or a.ndim != 2 and not (a.ndim == 1 and a.size == 0) or not np.all(np.isfinite(a)):
+        raise InputError(f"{where}: key '{key}': expected a list of rows of finite numbers")
+    a = a.reshape(-1, cols) if a.size == 0 else a
+    if a.shape[1] != cols or (rows is not None and a.shape[0] != rows):
+        raise InputError(f"{where}: key '{key}': expected {rows if rows is not None else 'k'} rows of {cols} "
+                         f"numbers (one per name), got {a.shape[0]} x {a.shape[1]}")
+    return a
+
+
+def _uncertainty(data: dict, w: str):
+    """(parameter names, covariance, undetermined basis) of a model file; () / None where the keys are absent."""
+    names, cov, basis = (), None, None
+    for key in ("covariance_mm_rad", "undetermined_directions_mm_rad"):
+        if key not in data:
+            continue
+        block = _get(data, key, "dict", w)
+        these = tuple(str(x) for x in _get(block, "names", "list", f"{w}: {key}"))
+        if names and these != names:
+            raise InputError(f"{w}: {key}: names differ from covariance_mm_rad's")
+        names = these
+        if key == "covariance_mm_rad":
+            cov = _matrix(block, "matrix", len(names), len(names), f"{w}: {key}")
+        else:
+            basis = _matrix(block, "basis", None, len(names), f"{w}: {key}")
+    return names, cov, basis

@@ -35,6 +35,9 @@ from ..exceptions import InputError
 #: LinuxCNC reads at most this many lines of a compensation file (EMCMOT_COMP_SIZE).
 MAX_COMP_POINTS = 256
 COMP_POINTS = 33
+#: Weight of the trim curves' second differences in the least squares (relative to a node's design column): the
+#: curves follow what the model says over the whole workspace, not the sampling noise of the random poses.
+SMOOTHING = 3.0
 TRT_KINDS = {"xyzac": ((1.0, 0.0, 0.0), "y"), "xyzbc": ((0.0, 1.0, 0.0), "x")}
 #: Order of the trunnion unknowns in the least-squares problem: rotation point, offset, workpiece origin (mm).
 TRT_NAMES = ("x_rot_point", "y_rot_point", "z_rot_point", "offset", "origin_x", "origin_y", "origin_z")
@@ -274,6 +277,45 @@ def comp_nodes(machine, variable: str, points: int) -> np.ndarray:
     return np.linspace(float(lo), float(hi), int(points))
 
 
+def full_turn(machine, variable: str) -> bool:
+    """A rotary axis whose stroke is a full turn (360 degrees or more): its trims are periodic."""
+    ax = machine.axis(variable)
+    return ax.type == "rotary" and ax.stroke[1] - ax.stroke[0] >= 360.0 - 1e-9
+
+
+def periodic_extension(nodes, *curves, max_lines: int = MAX_COMP_POINTS):
+    """A full turn's nominals (degrees, first and last a turn apart) and curves (equal at both ends) repeated over
+    as many whole turns as a comp file holds, centred on the stroke: (nominal, *curves)."""
+    period = float(nodes[-1] - nodes[0])
+    extra = max(((max_lines - 1) // (len(nodes) - 1) - 1) // 2, 0)
+    turns = range(-extra, extra + 1)
+    nominal = np.concatenate([nodes[:-1] + k * period for k in turns] + [nodes[-1:] + extra * period])
+    out = [np.concatenate([np.asarray(c)[:-1]] * len(turns) + [np.asarray(c)[-1:]]) for c in curves]
+    return (nominal, *out)
+
+
+def _roughness(blocks, points: int, n_trt: int, n_par: int, norms, periodic) -> np.ndarray:
+    """Rows of SMOOTHING x (second differences of every trim curve), each scaled by its block's typical design
+    column norm; a full-turn joint's curve wraps around (its last node is its first)."""
+    rows = []
+    k = n_trt
+    for what, j, keep in blocks:
+        col = np.full(points, -1)
+        col[keep] = np.arange(k, k + keep.sum())
+        k += int(keep.sum())
+        if periodic[j]:
+            col[-1] = col[0]
+        scale = SMOOTHING * float(np.median(norms[col[keep]]))
+        centres = range(0 if periodic[j] else 1, points - 1)
+        for i in centres:
+            row = np.zeros(n_par)
+            for c, o in zip((1.0, -2.0, 1.0), (i - 1 if i > 0 else points - 2, i, i + 1)):
+                if col[o] >= 0:
+                    row[col[o]] += c * scale
+            rows.append(row)
+    return np.array(rows).reshape(-1, n_par)
+
+
 def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None, seed: int = 0,
         reversal=(), L=None) -> LinuxCNCCompensation:
     """LinuxCNC's parameters that leave the least predicted tool-tip error over the workspace.
@@ -282,7 +324,10 @@ def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None,
     `positions` (n, nvar; mm, rad), arrived in directions `dirs` (+1/-1), relative to the nominal tool tip of the
     `commanded` poses (see compensation.tip_error_function). reversal: variables whose forward and reverse trims
     may differ. Least squares over `samples` random poses (seeded), linearised with the
-    nominal Jacobian, then two refinement steps on the exact tip errors."""
+    nominal Jacobian, then two refinement steps on the exact tip errors; the trim curves' second differences are
+    penalised (SMOOTHING), so that they follow the model, not the sampling of the poses. A full-turn rotary axis
+    (C of a trunnion) gets a periodic curve (equal at -180 and 180 degrees), written over as many turns as a comp
+    file holds (periodic_extension): LinuxCNC holds the end values beyond the file's nominals."""
     if not 2 <= points <= MAX_COMP_POINTS:
         raise InputError(f"compensation points: expected 2 to {MAX_COMP_POINTS} per joint (LinuxCNC reads at most "
                          f"{MAX_COMP_POINTS} lines), got {points}")
@@ -295,13 +340,16 @@ def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None,
     # unknowns: trunnion pins, then per joint the mean trim curve and (reversal joints) the half difference
     blocks = []
     centre_pin = kind is not None
+    periodic = tuple(full_turn(machine, v) for v in variables)
     for j, v in enumerate(variables):
         keep = np.ones(points, bool)
         if centre_pin and not rotary[j]:
             keep[int(np.argmin(np.abs(nodes[j] - 0.5 * (nodes[j][0] + nodes[j][-1]))))] = False
+        if periodic[j]:
+            keep[-1] = False                               # the last node is the first, a turn on
         blocks.append(("mean", j, keep))
         if v in reversal:
-            blocks.append(("half", j, np.ones(points, bool)))
+            blocks.append(("half", j, keep.copy() if periodic[j] else np.ones(points, bool)))
     n_trt = len(TRT_NAMES) if kind else 0
     n_par = n_trt + sum(int(b[2].sum()) for b in blocks)
     samples = samples or max(4000, 12 * n_par)
@@ -318,9 +366,13 @@ def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None,
             vals = np.zeros(points)
             vals[keep] = theta[k:k + keep.sum()]
             k += keep.sum()
+            if periodic[j]:
+                vals[-1] = vals[0]
             fwd[j] = fwd[j] + vals if what == "mean" else fwd[j] + vals
             rev[j] = rev[j] + vals if what == "mean" else rev[j] - vals
-        comps = tuple(JointComp(j, v, "deg" if rotary[j] else "mm", nodes[j], fwd[j], rev[j])
+        comps = tuple(JointComp(j, v, "deg" if rotary[j] else "mm",
+                                *(periodic_extension(nodes[j], fwd[j], rev[j]) if periodic[j]
+                                  else (nodes[j], fwd[j], rev[j])))
                       for j, v in enumerate(variables))
         return LinuxCNCCompensation(machine.name, variables, rotary, L0, comps, trt)
 
@@ -338,24 +390,29 @@ def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None,
             cols.append(np.einsum("nkj,nj->nk", G, dJ))
         del base
     for what, j, keep in blocks:
-        B = _hat(np.degrees(q[:, j]) if rotary[j] else q[:, j], nodes[j])[:, keep]
+        B = _hat(np.degrees(q[:, j]) if rotary[j] else q[:, j], nodes[j])
+        if periodic[j]:
+            B[:, 0] += B[:, -1]
+        B = B[:, keep]
         unit = math.pi / 180.0 if rotary[j] else 1.0
         sign = np.ones(samples) if what == "mean" else dirs[:, j]
         cols.append(G[:, :, j][:, :, None] * (B * (sign * unit)[:, None])[:, None, :])
     D = np.concatenate([c if c.ndim == 3 else c[:, :, None] for c in cols], axis=2).reshape(3 * samples, n_par)
     norms = np.linalg.norm(D, axis=0)
     norms[norms == 0] = 1.0
-    U, S, Vt = np.linalg.svd(D / norms, full_matrices=False)
+    R = _roughness(blocks, points, n_trt, n_par, norms, periodic)
+    U, S, Vt = np.linalg.svd(np.vstack([D, R]) / norms, full_matrices=False)
     keep = S > 1e-10 * S[0]
     U, S, Vt = U[:, keep], S[keep], Vt[keep]
     theta = np.zeros(n_par)
     for _ in range(3):           # least squares on the linearised model, then refined on the exact tip errors
         lc = build(theta)
         r = tip_error(linuxcnc_commands(lc, model, q, dirs, L), dirs, q).ravel()
-        theta = theta - (Vt.T @ ((U.T @ r) / S)) / norms
+        theta = theta - (Vt.T @ ((U.T @ np.concatenate([r, R @ theta])) / S)) / norms
     lc = build(theta)
     lc.info = {"samples": int(samples), "seed": int(seed), "points_per_joint": int(points),
-               "parameters": int(n_par), "reversal_joints": [v for v in variables if v in reversal]}
+               "parameters": int(n_par), "reversal_joints": [v for v in variables if v in reversal],
+               "smoothing": SMOOTHING, "periodic_joints": [v for v, p in zip(variables, periodic) if p]}
     return lc
 
 
@@ -377,23 +434,49 @@ def comp_file_name(comp: JointComp) -> str:
     return f"joint{comp.joint}-{comp.variable}.comp"
 
 
+def startup_code(lc: LinuxCNCCompensation) -> str | None:
+    """The G-code the trunnion parameters need at every start: G54 at the model's workpiece origin in LinuxCNC's
+    table coordinates (mm), selected. None without trunnion kinematics."""
+    if lc.trt is None:
+        return None
+    o = lc.trt.origin
+    return f"G10 L2 P1 X{o[0]:.9f} Y{o[1]:.9f} Z{o[2]:.9f} G54"
+
+
 def ini_text(lc: LinuxCNCCompensation, source: str = "") -> str:
-    """The INI lines: kinematics and the compensation files per joint (append to the machine's INI)."""
+    """The INI lines: kinematics, the workpiece origin, the compensation files per joint (merge into the machine's
+    INI; the comments say what an integrator must know)."""
     lines = [f"# fiveaxis compensate: LinuxCNC 2.9 settings for machine {lc.machine}" + (f" ({source})" if source
                                                                                          else ""),
-             "# Joints in the order " + " ".join(lc.variables) + "; files in machine units (mm, degrees)."]
+             "# Joints in the order " + " ".join(lc.variables) + "; files in machine units (mm, degrees).",
+             "# Where the files go: this folder's files next to the machine's INI (COMP_FILE and HALFILE paths are",
+             "# relative to the INI's folder). The pins, G54 and the comp files were fitted together: never use the",
+             "# comp files without the pins and G54 (alone they can leave more error than no compensation).",
+             "# For the whole model use volumetric/ (the kinematics module) instead of these files, not with them."]
     if lc.trt is not None:
         lines += ["", "[KINS]", f"KINEMATICS = {lc.trt.component}",
                   "# (not 'sparm=identityfirst': type 0 is then the trunnion kinematics; with it, switch with M428)",
                   f"JOINTS = {len(lc.variables)}", "", "[HAL]",
-                  "# after the machine's own HAL files:", "HALFILE = fiveaxis-trt.hal"]
-        o = lc.trt.origin
-        lines += ["", "# The model's workpiece origin in LinuxCNC's table coordinates: set G54 to it",
-                  f"#   G10 L2 P1 X{o[0]:.6f} Y{o[1]:.6f} Z{o[2]:.6f}",
-                  "# and measure tool lengths into the tool table: G43 gives the kinematics the tool offset."]
+                  "# after the machine's own HAL files:", "HALFILE = fiveaxis-trt.hal",
+                  f"# Nothing may set the {lc.trt.component} pins after this file: HALCMD lines run after every "
+                  f"HALFILE. A",
+                  "# configuration built on LinuxCNC's sample xyzac-trt.ini / xyzbc-trt.ini must delete the sample's",
+                  "# HALCMD lines 'sets :y-offset', 'sets :z-offset' (xyzbc: ':x-offset'), 'setp ...-rot-point 0'",
+                  f"# and the nets of :y-offset, :z-offset and :tool-offset to {lc.trt.component}: they reset the "
+                  f"pins set here.",
+                  "", "[RS274NGC]",
+                  "# The model's workpiece origin in LinuxCNC's table coordinates (G54), set and selected at every",
+                  "# start: the trunnion pins are right only with it. If the INI has its own RS274NGC_STARTUP_CODE,",
+                  "# append these words to it. (LinuxCNC 2.9 moves with it at once; its display shows the G54 offset",
+                  "# only after the next G54-G59.3 selection.) Tool lengths go into the tool table: G43 gives the",
+                  "# kinematics the tool offset.",
+                  f"RS274NGC_STARTUP_CODE = {startup_code(lc)}"]
     for comp in lc.comps:
         lines += ["", f"[JOINT_{comp.joint}]", f"COMP_FILE = {comp_file_name(comp)}", "COMP_FILE_TYPE = 1",
                   "# (a COMP_FILE disables BACKLASH)"]
+        if comp.unit == "deg" and len(comp.nominal) and comp.nominal[-1] - comp.nominal[0] > 360.0 + 1e-6:
+            lines.append(f"# periodic trims over {comp.nominal[0]:g} to {comp.nominal[-1]:g} degrees; beyond, "
+                         f"LinuxCNC holds the end values: keep the joint within (MIN_LIMIT / MAX_LIMIT)")
     return "\n".join(lines) + "\n"
 
 

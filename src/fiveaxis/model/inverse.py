@@ -46,6 +46,24 @@ def linear_for_tip(model, poses, target, L, tol: float = 1e-9, max_iter: int = 2
     return q
 
 
+def iterate(n: int, tol, max_iter: int, step) -> tuple[int, np.ndarray, np.ndarray]:
+    """Newton-type iterations of n independent problems: step(active) takes one step for the rows `active`
+    (indices) and returns it ((len(active), k), in the unknowns' units); a row is done when every |step| <= tol
+    (scalar or (k,)). Returns (the last iteration, iterations per row (n,), converged (n,) bool)."""
+    active = np.arange(n)
+    its = np.zeros(n, dtype=int)
+    it = 0
+    for it in range(1, max_iter + 1):
+        s = step(active)
+        its[active] = it
+        active = active[~np.all(np.abs(s) <= tol, axis=1)]
+        if not len(active):
+            break
+    converged = np.ones(n, bool)
+    converged[active] = False
+    return it, its, converged
+
+
 def within_strokes(machine, poses, margin: float = 0.0) -> np.ndarray:
     """(n,) bool: every axis of the pose (mm, rad) within its stroke (shrunk by margin, a fraction of it)."""
     ok = np.ones(len(poses), bool)

@@ -38,3 +38,16 @@ def model_hash(source: bytes, convention: str, sympy: str | None = None, templat
         return None
     return hashlib.sha256(b"\0".join([source, convention.encode(), GENERATOR_VERSION.encode(), sympy.encode()]
                                      + [p.read_bytes() for p in parts])).hexdigest()
+
+
+def kins_hash(source: bytes, convention: str, sympy: str | None = None, templates: Path | None = None) -> str | None:
+    """sha256 of what a LinuxCNC kinematics module source is made from: as model_hash, with the module's templates
+    (`linuxcnc/*.j2`) instead of the kernels' (a change to one leaves the other fresh). None when they are not
+    available here."""
+    sympy = sympy or sympy_version()
+    folder = (TEMPLATES if templates is None else Path(templates)) / "linuxcnc"
+    parts = sorted(folder.glob("*.j2"))
+    if sympy is None or not parts:
+        return None
+    return hashlib.sha256(b"\0".join([b"linuxcnc kinematics", source, convention.encode(), GENERATOR_VERSION.encode(),
+                                      sympy.encode()] + [p.read_bytes() for p in parts])).hexdigest()

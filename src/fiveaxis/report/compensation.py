@@ -2,10 +2,12 @@
 `fiveaxis.compensation.table.summary`, and the map PNG beside it.
 
 The report reads from summary.json: the machine (`machine.name`, must match the report's), the predicted tool-tip
-error over the workspace (`predicted_tip_error_mm`: `before`, `after_linuxcnc`, `after_table`, each
-{max, rms, p95} in mm: the largest, root-mean-square and 95th-percentile length over the evaluation poses), for a
-table over tool lengths the same per tool length (`predicted_by_tool_length`) and its `warnings`, what is
-not compensated, and the files for the controller (the table, `linuxcnc/`). Any problem is an InputError naming the
+error over the workspace (`predicted_tip_error_mm`: `before`, `after_linuxcnc`, `after_kinematics_module`,
+`after_table`, each {max, rms, p95} in mm: the largest, root-mean-square and 95th-percentile length over the
+evaluation poses), for a table over tool lengths the same per tool length (`predicted_by_tool_length`) and its
+`warnings`, what the prediction cannot know (`prediction_uncertainty`: per stage the k = 2 range of the true RMS,
+the parts, the measurement that would determine the undetermined part; `prediction_warnings`), what is not
+compensated, and the files for the controller (the table, `linuxcnc/`). Any problem is an InputError naming the
 file and the key.
 """
 from __future__ import annotations
@@ -51,9 +53,36 @@ def _by_tool_length(path, data) -> list:
     return rows
 
 
+def _range(path, unc: dict, key: str):
+    """[lo, hi] mm: the k = 2 range of the true RMS tool-tip error of a stage (prediction_uncertainty), or None."""
+    r = ((unc.get("tip_error_mm") or {}).get(key) or {}).get("range_k2")
+    if r is None:
+        return None
+    if not (isinstance(r, list) and len(r) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                        and math.isfinite(x) and x >= 0 for x in r)):
+        raise InputError(f"{path}: prediction_uncertainty.tip_error_mm.{key}.range_k2: expected [low, high] in mm")
+    return [float(x) for x in r]
+
+
+def _uncertainty(unc: dict) -> dict:
+    """What the report says of the prediction's uncertainty: the parts (mm), the prior, the measurement that
+    determines the undetermined part, the note on the tool axis; {} without it."""
+    if not unc:
+        return {}
+    best = (unc.get("determining") or {}).get("best") or {}
+    parts = unc.get("tip_parts_rms_mm") or {}
+    return {"fit_mm": float(parts.get("fit", 0.0)),
+            "undetermined_mm": float(math.hypot(parts.get("undetermined", 0.0),
+                                                parts.get("undetermined_best_value", 0.0))),
+            "directions": int(unc.get("undetermined_directions", 0)),
+            "prior": dict(unc.get("prior") or {}), "measurement": str(best.get("measurement", "")),
+            "command": str(best.get("command", "")), "axis_note": str(unc.get("axis_note", ""))}
+
+
 #: The stages of summary.json's predicted_tip_error_mm the report shows, in order, with their labels.
 STAGES = (("before", "before compensation"), ("after_linuxcnc", "after what LinuxCNC takes (comp files, trunnion "
                                                                  "kinematics)"),
+          ("after_kinematics_module", "after LinuxCNC with the kinematics module fiveaxis_kins"),
           ("after_table", "after the volumetric table"))
 MAP = ("error_map.png", "predicted tool-tip error over the workspace before and after the table (um)")
 
@@ -80,10 +109,12 @@ def read(folder, machine_name: str | None = None) -> dict:
     if machine_name is not None and name is not None and name != machine_name:
         raise InputError(f"{path}: machine.name: the compensation is for '{name}', the report for '{machine_name}'")
     tip = data["predicted_tip_error_mm"]
+    unc = data.get("prediction_uncertainty") or {}
     stages = []
     for key, label in STAGES:
         if key in tip:
-            stages.append(dict(_stats(path, tip, key), key=key, label=label))
+            stages.append(dict(_stats(path, tip, key), key=key, label=label,
+                               range_k2=_range(path, unc, key)))
     if not stages or stages[0]["key"] != "before":
         raise InputError(f"{path}: predicted_tip_error_mm.before: missing")
     files = [str(f) for f in (data.get("table") or {}).get("files", [])]
@@ -91,7 +122,10 @@ def read(folder, machine_name: str | None = None) -> dict:
     if lc.is_dir():
         files += [f"linuxcnc/{p.name}" for p in sorted(lc.iterdir())]
     out = {"folder": str(folder), "stages": stages, "files": files, "maps": [],
-           "by_tool_length": _by_tool_length(path, data), "warnings": [str(w) for w in data.get("warnings", [])],
+           "by_tool_length": _by_tool_length(path, data),
+           "warnings": [str(w) for w in data.get("warnings", [])] + [str(w) for w in
+                                                                      data.get("prediction_warnings", [])],
+           "uncertainty": _uncertainty(unc),
            "not_compensated": data.get("not_compensated", {}),
            "method": "volumetric table solved on the exact model" + (" and LinuxCNC files" if lc.is_dir() else "")}
     f = folder / MAP[0]

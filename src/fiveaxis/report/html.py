@@ -323,12 +323,32 @@ def _compensation(rec: dict, figs: dict) -> str:
                 '<span class="code">--compensation DIR</span> (a folder holding summary.json with the predicted '
                 "tool-tip error before and after compensation, and its maps) this section shows what the "
                 "compensation achieves.</p></section>")
+    ranged = any(st.get("range_k2") for st in c["stages"])
     rows = [[_e(st["label"]), _num(st["max"] * 1e3, 3), _num(st["rms"] * 1e3, 3), _num(st["p95"] * 1e3, 3)]
+            + ([f"{_num(st['range_k2'][0] * 1e3, 3)} to {_num(st['range_k2'][1] * 1e3, 3)}"
+                if st.get("range_k2") else "\u2013"] if ranged else [])
             for st in c["stages"]]
+    head_row = ["", "largest (\u00b5m)", "RMS (\u00b5m)", "95th percentile (\u00b5m)"]
+    if ranged:
+        head_row.append("true RMS, k = 2 range (\u00b5m)")
     out = [head, f"<p>Predicted tool-tip error over the compensation's evaluation poses (from "
                  f"<span class=\"code\">{_e(c['folder'])}</span>)" + (f": {_e(c['method'])}" if c["method"] else "")
-           + ".</p>", _table(["", "largest (\u00b5m)", "RMS (\u00b5m)", "95th percentile (\u00b5m)"], rows,
-                             "compensation-summary", numeric=(1, 2, 3))]
+           + ".</p>", _table(head_row, rows, "compensation-summary", numeric=(1, 2, 3))]
+    u = c.get("uncertainty") or {}
+    if u:
+        prior = u.get("prior") or {}
+        text = (f"<p>What the prediction cannot know: the fit's uncertainty moves the tool tip by "
+                f"{_num(u['fit_mm'] * 1e3, 3)} \u00b5m RMS, the {u['directions']} directions the data did not "
+                f"determine by {_num(u['undetermined_mm'] * 1e3, 3)} \u00b5m (their size taken as that of the "
+                f"determined errors: {_num(prior.get('linear_mm', 0.0) * 1e3, 3)} \u00b5m, "
+                f"{_num(prior.get('angular_rad', 0.0) * 1e6, 3)} \u00b5rad). The last column is the range of the "
+                f"true RMS error.")
+        if u.get("measurement"):
+            text += (f" The measurement that would determine the undetermined part: {_e(u['measurement'])} "
+                     f"(<span class=\"code\">{_e(u['command'])}</span>).")
+        if u.get("axis_note"):
+            text += f" {_e(u['axis_note'][0].upper() + u['axis_note'][1:])}."
+        out.append(text + "</p>")
     by = c.get("by_tool_length") or []
     if by:
         rows = [[_num(r["tool_length_mm"], 4) + (" (table)" if r["table_node"] else " (between)"),

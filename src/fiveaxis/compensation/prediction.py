@@ -1,0 +1,305 @@
+"""What a compensation's prediction cannot know: the fit's uncertainty and the directions the data did not determine.
+
+The account (compensation.table.account) predicts the tool-tip error left after each stage (LinuxCNC's files, the
+kinematics module, the table) on the fitted model, whose undetermined parameters carry the minimum-norm solution.
+The true machine differs by D = theta_true - theta_fit: to first order the error left at a pose q becomes
+e(q) + J(q) D, J the tip's derivative by the machine's parameters (errors, effect coefficients) at q (the
+compensations move the axes by far less than J changes over). D has two parts:
+- the fit's uncertainty: N(0, C), C the fit's covariance (model file: covariance_mm_rad);
+- what the data cannot see: D_u in the span of the undetermined directions B (undetermined_directions_mm_rad).
+  Its size is not in the data; it is taken from the data's own scale: the undetermined parameters are assumed as
+  large as the determined ones of their kind (`prior_scales`: RMS of the determined errors and of the determined
+  combinations of one kind, per unit of their coefficients; the machine file's [errors] where there is none).
+  With that prior, S = diag(s^2), and what the data determines known, D_u ~ N(m, B^T (B S^-1 B^T)^-1 B),
+  m = -B^T (B S^-1 B^T)^-1 B S^-1 theta_fit (the prior's best value of the undetermined part, against the fit's
+  minimum norm).
+`band` gives per stage a range for the true RMS (k = 2: triangle inequality around the prior's best value, see
+band), its expected value, and the parts' shares; tool-axis figures the same (model estimates: the axis was
+measured only if the data had axis readings or several tool lengths). `determining` says which measurement would
+determine the undetermined part that matters: tip readings over the whole workspace at the model's tool, with a
+second tool length, or with the tool axis read.
+Units: mm and rad.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..effects import families as fx
+
+#: Poses of the account the band is computed on (its first ones).
+MAX_POSES = 1000
+#: A second tool length for the measurement that determines the tool axis: this much longer (mm).
+SECOND_TOOL_MM = 100.0
+#: Readings of a candidate measurement (random poses within the strokes, seeded).
+CANDIDATE_POSES = 300
+
+
+def _units(fm, names) -> list[str]:
+    """mm | rad per parameter: errors by their unit, effect coefficients by their parameter's (L: mm)."""
+    param = {n: e.param for e in fm.effects for n in e.names}
+    out = []
+    for n in names:
+        p = param.get(n, n)
+        out.append(fm.error_units.get(p, "mm"))
+    return out
+
+
+def prior_scales(fm, model) -> dict:
+    """{"mm": s, "rad": s, "from": text}: the RMS size of the determined errors and of the determined combinations of
+    one kind (value^2 / sum of squared coefficients, less their variance); the machine file's [errors] values for a
+    kind the data determines nothing of."""
+    units = fm.error_units
+    samples = {"mm": [], "rad": []}
+    for name, sd in fm.std.items():
+        if name in units and name in fm.errors:
+            samples[units[name]].append((fm.errors[name] ** 2 - sd ** 2, 1.0))
+    for c in fm.combinations:
+        terms = c.get("terms", {})
+        kinds = {units.get(n) for n in terms}
+        if len(kinds) != 1 or None in kinds:
+            continue                      # mixed units (a length times an angle) or effect coefficients
+        w = sum(float(t) ** 2 for t in terms.values())
+        samples[kinds.pop()].append((float(c["value_mm_rad"]) ** 2 - float(c.get("std_mm_rad", 0.0)) ** 2, w))
+    out, used = {}, []
+    fallback = {"mm": float(model.machine.linear_error), "rad": float(model.machine.angular_error)}
+    for kind, rows in samples.items():
+        if rows:
+            out[kind] = math.sqrt(max(np.mean([v / w for v, w in rows]), 0.0)) or fallback[kind]
+            used.append(f"{len(rows)} determined {'lengths' if kind == 'mm' else 'angles'}")
+        else:
+            out[kind] = fallback[kind]
+            used.append(f"the machine file's [errors] {'linear' if kind == 'mm' else 'angular'} value")
+    out["from"] = "; ".join(used)
+    return out
+
+
+def parameter_jacobians(fm, model, q, L, dirs=None):
+    """J (n, 3, p) of the tool tip and K (n, 3, p) of the tool axis by the machine's parameters (fm.parameter_names:
+    errors, then effect coefficients; first order) at poses q (mm, rad), tool lengths L (mm). Time effects at
+    t = 0 contribute nothing (as compensation evaluates them); reversal effects need dirs (else nothing)."""
+    from ..estimation.fitted_model import effect_of
+    names = list(fm.parameter_names)
+    Jm, Km = model.jk(q, L)                                   # (n, ne, 3)
+    index = {n: i for i, n in enumerate(model.errors)}
+    n = len(q)
+    J = np.zeros((n, 3, len(names)))
+    K = np.zeros((n, 3, len(names)))
+    col = {name: k for k, name in enumerate(names)}
+    for name, i in index.items():
+        if name in col:
+            J[:, :, col[name]] = Jm[:, i, :]
+            K[:, :, col[name]] = Km[:, i, :]
+    V0 = model.ideal_tool(q, L)[1]
+    ctx = fx.context(model.machine, q, None, fm_dirs(model, dirs, n), sc=fm.scales)
+    for rec in fm.effects:
+        if rec.var == fx.TIME or (rec.kind == "reversal" and dirs is None):
+            continue
+        basis = effect_of(rec, model).basis(ctx)              # (n, k)
+        for k, cname in enumerate(rec.names):
+            if cname not in col:
+                continue
+            if rec.param == fx.TOOL:
+                J[:, :, col[cname]] = V0 * basis[:, k:k + 1]
+            else:
+                J[:, :, col[cname]] = Jm[:, index[rec.param], :] * basis[:, k:k + 1]
+                K[:, :, col[cname]] = Km[:, index[rec.param], :] * basis[:, k:k + 1]
+    return J, K
+
+
+def fm_dirs(model, dirs, n) -> dict:
+    if dirs is None:
+        return {}
+    d = np.broadcast_to(np.asarray(dirs, float), (n, len(model.variables)))
+    return {v: d[:, j] for j, v in enumerate(model.variables)}
+
+
+def _undetermined_covariance(fm, S):
+    """(m, Sigma_u): mean and covariance of the undetermined part (see the module docstring)."""
+    B = fm.undetermined_basis
+    p = len(fm.parameter_names)
+    if B is None or not len(B):
+        return np.zeros(p), np.zeros((p, p))
+    Sinv = 1.0 / S
+    G = np.linalg.inv((B * Sinv) @ B.T)
+    theta = np.array([_value(fm, n) for n in fm.parameter_names])
+    m = -B.T @ (G @ (B @ (Sinv * theta)))
+    return m, B.T @ G @ B
+
+
+def _value(fm, name) -> float:
+    if name in fm.errors:
+        return float(fm.errors[name])
+    for e in fm.effects:
+        if name in e.names:
+            return float(e.values[e.names.index(name)])
+    return 0.0
+
+
+def _rms_rows(e) -> float:
+    """RMS over poses of |e| for e (n, 3)."""
+    return float(np.sqrt(np.mean(np.sum(np.asarray(e) ** 2, axis=-1))))
+
+
+def _gram(D) -> np.ndarray:
+    """mean over poses of D^T D (p, p) for D (n, 3, p)."""
+    return np.einsum("nkp,nkr->pr", D, D) / len(D)
+
+
+def _spread(G, M) -> float:
+    """RMS over poses of the error D d when d ~ N(0, M), G = _gram(D): sqrt(mean trace(D M D^T))."""
+    return math.sqrt(max(float(np.sum(G * M)), 0.0))
+
+
+def band(fm, model, q, dirs, L, tip_stages: dict, axis_stages: dict, noise: float | None = None) -> dict:
+    """The prediction's uncertainty (see the module docstring) for stages {name: (n, 3) error at poses q} of the
+    tool tip (mm) and of the tool axis (rad); {} when the model file carries no covariance (written before it).
+
+    Per stage: `predicted_rms` (the fitted model, as the account), `centre_rms` (the undetermined part at the
+    prior's best value m), `uncertainty_rms` u (the RMS error of D - m: the fit's uncertainty and the undetermined
+    part's spread), `range_k2` = [centre - 2u, centre + 2u] (clipped at 0): the true RMS lies there whenever the
+    RMS of J (D - m) is at most 2u (triangle inequality; 95 % or more for one dominant direction, more for many),
+    `expected_rms` = sqrt(centre^2 + u^2). With noise (mm, one reading), the tip stages also get
+    `remeasured_range_k2`: what a tip measurement over the workspace with that noise per component would read."""
+    if fm.covariance is None or not len(fm.parameter_names):
+        return {}
+    q = np.asarray(q, float)[:MAX_POSES]
+    n = len(q)
+    Ls = model.tool_lengths(L if L is None or np.ndim(L) == 0 else np.asarray(L, float)[:n], n)
+    dirs = None if dirs is None else np.asarray(dirs, float)[:n]
+    J, K = parameter_jacobians(fm, model, q, Ls, dirs)
+    scales = prior_scales(fm, model)
+    S = np.array([scales[u] ** 2 for u in _units(fm, fm.parameter_names)])
+    m, Su = _undetermined_covariance(fm, S)
+    C = np.asarray(fm.covariance, float)
+
+    def one(stages, D, with_noise):
+        out = {}
+        G = _gram(D)
+        u = _spread(G, Su + C)
+        for name, e in stages.items():
+            e = np.asarray(e, float)[:n]
+            centre = _rms_rows(e + np.einsum("nkp,p->nk", D, m))
+            lo, hi = max(centre - 2 * u, 0.0), centre + 2 * u
+            out[name] = {"predicted_rms": _rms_rows(e), "centre_rms": centre, "uncertainty_rms": u,
+                         "range_k2": [lo, hi], "expected_rms": math.sqrt(centre ** 2 + u ** 2)}
+            if with_noise and noise:
+                out[name]["remeasured_range_k2"] = [math.sqrt(x ** 2 + 3 * noise ** 2) for x in (lo, hi)]
+        parts = {"fit": _spread(G, C), "undetermined": _spread(G, Su),
+                 "undetermined_best_value": _rms_rows(np.einsum("nkp,p->nk", D, m))}
+        return out, parts
+
+    tip, tip_parts = one(tip_stages, J, True)
+    axis, axis_parts = one(axis_stages, K, False)
+    return {"poses": int(n), "coverage": "k = 2 (see range_k2)",
+            "prior": {"linear_mm": scales["mm"], "angular_rad": scales["rad"], "from": scales["from"]},
+            "undetermined_directions": 0 if fm.undetermined_basis is None else int(len(fm.undetermined_basis)),
+            "noise_mm": noise, "tip_error_mm": tip, "tip_parts_rms_mm": tip_parts,
+            "axis_error_rad": axis, "axis_parts_rms_rad": axis_parts,
+            "axis_note": "tool-axis figures are model estimates: the axis is determined only as far as the data "
+                         "had tool-axis readings or several tool lengths (see axis_parts_rms_rad)",
+            "determining": determining(fm, model, J, Su, m, float(Ls[0]))}
+
+
+def _candidates(fm, model, L0, seed):
+    """Readings (rows, p) of the candidate measurements, over random poses in the strokes."""
+    qc = model.machine.random_poses(CANDIDATE_POSES, np.random.default_rng(seed + 1))
+    J0, K0 = parameter_jacobians(fm, model, qc, np.full(len(qc), L0))
+    J1, _ = parameter_jacobians(fm, model, qc, np.full(len(qc), L0 + SECOND_TOOL_MM))
+    rows = (lambda A: A.reshape(-1, A.shape[-1]))
+    name = model.machine.name
+    return [("tip readings over the whole workspace with the model's tool",
+             f"fiveaxis plan --machine {name} --instrument tip --n 40 -o plan.csv", rows(J0)),
+            (f"tip readings with a second tool ({L0:g} and {L0 + SECOND_TOOL_MM:g} mm) over the workspace",
+             f"fiveaxis plan --machine {name} --instrument tip --n 40 --tool-lengths {L0:g},{L0 + SECOND_TOOL_MM:g} "
+             f"-o plan.csv", np.vstack([rows(J0), rows(J1)])),
+            ("tip and tool-axis readings over the workspace",
+             f"fiveaxis simulate --machine {name} --with-axis (what to read: di, dj, dk beside dx, dy, dz)",
+             np.vstack([rows(J0), rows(K0)]))]
+
+
+def determining(fm, model, J, Su, m, L0, seed: int = 0) -> dict:
+    """Which measurement would determine the undetermined part of the tip error (J: (n, 3, p) at the account's
+    poses; the part: spread Su around m): per candidate, the share of its mean square (spread and m) that
+    noise-free readings of the candidate would determine, and the simplest candidate within 1 % of the best."""
+    B = fm.undetermined_basis
+    G = _gram(J)
+    total = _spread(G, Su) ** 2 + _rms_rows(np.einsum("nkp,p->nk", J, m)) ** 2
+    out = {"tip_rms_mm": math.sqrt(total), "candidates": [], "best": None}
+    if total <= 1e-24 or B is None or not len(B):
+        return out
+    M = Su + np.outer(m, m)
+    for what, command, R in _candidates(fm, model, L0, seed):
+        RB = R @ B.T                                     # what the candidate sees of the undetermined directions
+        w, V = np.linalg.eigh(RB.T @ RB)
+        seen = V[:, w > 1e-18 * max(float(w.max()), 1e-300)].T
+        P = B.T @ (np.eye(len(B)) - seen.T @ seen) @ B   # the undetermined directions it does not see
+        rest = _spread(G, P @ M @ P.T) ** 2
+        out["candidates"].append({"measurement": what, "command": command,
+                                  "determines_share": float(min(max(1.0 - rest / total, 0.0), 1.0))})
+    top = max(c["determines_share"] for c in out["candidates"])
+    out["best"] = next(c for c in out["candidates"] if c["determines_share"] >= top - 0.01)
+    return out
+
+
+STAGE_LABELS = {"before": "before", "after_linuxcnc": "after LinuxCNC (stock kinematics + comp files)",
+                "after_kinematics_module": "after the kinematics module", "after_table": "after the table",
+                "after_exact_correction": "after the exact correction"}
+#: The undetermined part is said to dominate when its RMS at the tip is above this share of the fit's.
+DOMINATES = 2.0
+
+
+def warnings(unc: dict) -> list[str]:
+    """One line per thing the user must know before trusting the prediction (none when all is well)."""
+    if not unc:
+        return []
+    out = []
+    tip = unc["tip_error_mm"]
+    parts = unc["tip_parts_rms_mm"]
+    undet = math.hypot(parts["undetermined"], parts["undetermined_best_value"])
+    best = (unc.get("determining") or {}).get("best")
+    todo = f"; measure: {best['measurement']} ({best['command']})" if best else ""
+    if undet > DOMINATES * parts["fit"] and undet > 1e-4:
+        out.append(f"what the data does not determine moves the tool tip by {1e3 * undet:.3g} um RMS over the "
+                   f"workspace (the fit's uncertainty: {1e3 * parts['fit']:.3g} um): the predicted errors are not "
+                   f"what the machine will show{todo}")
+    before = tip.get("before", {}).get("range_k2")
+    for key in ("after_table", "after_kinematics_module", "after_linuxcnc"):
+        after = tip.get(key, {}).get("range_k2")
+        if before and after and after[1] > before[0] and after[0] > 0.5 * before[0]:
+            out.append(f"{STAGE_LABELS[key]} the machine may be no better than before ({1e3 * after[0]:.3g} to "
+                       f"{1e3 * after[1]:.3g} um against {1e3 * before[0]:.3g} to {1e3 * before[1]:.3g} um RMS): do "
+                       f"not compensate with this model{todo}")
+            break
+    return out
+
+
+def text_lines(unc: dict) -> list[str]:
+    """The prediction's uncertainty as report lines (um, urad)."""
+    if not unc:
+        return ["  the prediction's uncertainty: unknown (the model file has no covariance: fit it again with this "
+                "version)"]
+    p, parts = unc["prior"], unc["tip_parts_rms_mm"]
+    lines = [f"  what the prediction cannot know (true RMS tool-tip error, k = 2 range, um): the fit's uncertainty "
+             f"{1e3 * parts['fit']:.3g} um, the {unc['undetermined_directions']} undetermined directions "
+             f"{1e3 * math.hypot(parts['undetermined'], parts['undetermined_best_value']):.3g} um (their size taken "
+             f"as the determined ones': {1e3 * p['linear_mm']:.3g} um, {1e6 * p['angular_rad']:.3g} urad)"]
+    noise = unc.get("noise_mm")
+    for key, s in unc["tip_error_mm"].items():
+        lo, hi = s["range_k2"]
+        re = s.get("remeasured_range_k2")
+        more = (f"; a tip measurement with {1e3 * noise:.2g} um noise would read {1e3 * re[0]:.3g} to "
+                f"{1e3 * re[1]:.3g}") if re and noise else ""
+        lines.append(f"    {STAGE_LABELS.get(key, key):56s} {1e3 * lo:8.3f} to {1e3 * hi:.3f}{more}")
+    ax = unc["axis_error_rad"]
+    if "after_table" in ax:
+        lo, hi = ax["after_table"]["range_k2"]
+        lines.append(f"  tool-axis error after the table (model estimate): {1e6 * lo:.3g} to {1e6 * hi:.3g} urad RMS "
+                     f"(k = 2)")
+    best = (unc.get("determining") or {}).get("best")
+    if best:
+        lines.append(f"  to determine the undetermined part ({100 * best['determines_share']:.0f} % of it): "
+                     f"{best['measurement']}: {best['command']}")
+    lines += [f"  WARNING: {w}" for w in warnings(unc)]
+    return lines
