@@ -20,6 +20,8 @@ import time
 import numpy as np
 
 import fiveaxis
+from fiveaxis.diagnosis import candidates as cd
+from fiveaxis.diagnosis import decision as dc
 from fiveaxis.diagnosis import diagnose as D
 from fiveaxis.diagnosis import searches as es
 from fiveaxis.estimation import fit as F
@@ -52,14 +54,15 @@ def main(n: int = 1500, subset_first: int = 60, subset_exact: int = 6, subset_pe
     prob = res.problem
     vocab = fiveaxis.effects.families.vocabulary(model.machine, model.errors, True) + \
         fiveaxis.effects.families.reversals(model.machine, model.errors, meas.dirs)
-    G = D.candidate_matrix(prob, vocab)
-    Aw = prob.A * prob.w[:, None]
+    block = res.design.block
+    G = cd.candidate_matrix(block, prob.w, vocab)
+    Aw = block.A * prob.w[:, None]
     dw = prob.d * prob.w
     with F.one_blas_thread():
-        Q = res.idf.U
+        Q, _ = dc.basis_map(res.idf, Aw[:, prob.free])
         rw = res.residual * prob.w
         rw = rw - Q @ (Q.T @ rw)
-        params, P = D.param_columns(prob)
+        params, P = cd.param_columns(block, prob.w)
         t_sums, sums = _best(lambda: es.row_sums(params, P, rw, Q, prob.obs.row, prob.meas.n))
         bands = [b for b in (es.band(tok, prob.ctx.raw(tok) * s.to_unit, sums.live) for tok, s in prob.scales.items())
                  if b is not None]
@@ -113,15 +116,15 @@ def main(n: int = 1500, subset_first: int = 60, subset_exact: int = 6, subset_pe
     print(f"  with 0.5% gross outliers (50 um; {out['outliers_listed']} rows listed): {t_dirty:.2f} s")
     print(f"  of which, once on the whole data: per-pose sums {t_sums:.3f} s, period search {t_per:.3f} s "
           f"({n_freq} (parameter, variable, frequency) trials on the grid), time-constant search {t_th:.3f} s; "
-          f"the period and time-constant searches run again in each of the {D.K_FOLDS} CV folds on the "
-          f"{D.CV_SEARCH_PAIRS} best pairs")
+          f"the period and time-constant searches run again in each of the {dc.K_FOLDS} CV folds on the "
+          f"{cd.CV_SEARCH_PAIRS} best pairs")
     print(f"  baseline refit per candidate, first order: {t_first_all:.1f} s ({subset_first} of {len(vocab)} "
           f"fixed-form candidates timed, extrapolated) -> diagnose is {out['speedup_vs_first_order_refit']:.0f}x faster")
     print(f"  baseline refit per candidate, fit --add (exact): {t_exact_all:.1f} s ({subset_exact} timed, "
           f"extrapolated) -> diagnose is {out['speedup_vs_exact_refit']:.0f}x faster")
     print(f"  baseline refit per trial period, first order: {t_period_all:.0f} s ({subset_period} timed, extrapolated "
           f"to the grid) -> the period search is {out['speedup_search_vs_refit_per_period']:.0f}x faster")
-    print(f"  (diagnose also runs {D.K_FOLDS}-fold nested cross-validation, the forward selection, the structure "
+    print(f"  (diagnose also runs {dc.K_FOLDS}-fold nested cross-validation, the forward selection, the structure "
           f"tests and the alias search in that time)")
     return out
 

@@ -55,7 +55,7 @@ def part_d(quick: bool):
         # theorem): a second, larger pool from another seed, its rows in the same reference coordinates.
         fresh = P.design(model, P.pool(model, instrument, 20000, 20000, np.random.default_rng(99)), [],
                          model.machine.fixed)
-        Xf = (fresh.problem.A[:, P._theta_columns(fresh.problem)] * fresh.problem.w[:, None]
+        Xf = (P._block(fresh.problem).A[:, P._theta_columns(fresh.problem)] * fresh.problem.w[:, None]
               / dsg.ref.scale) @ dsg.ref.basis
         Xf = Xf[np.argsort(fresh.pool.unit[fresh.problem.obs.row], kind="stable")].reshape(fresh.C, fresh.k, -1)
         Xf = Xf.reshape(-1, res.r)

@@ -19,6 +19,7 @@ import pytest
 import linuxcnc_harness as H
 from kins_library import fitted_like
 from truth import truth_model
+from fiveaxis.estimation.problem import resolve_effects
 from fiveaxis.compensation import kinematics as CK
 from fiveaxis.compensation import table as C
 from fiveaxis.estimation import fit as F
@@ -77,7 +78,7 @@ def run(tmp_path_factory):
     sim = simulate(model, EFFECTS, n=1500, noise=1e-3, seed=23, duration=None, errors=issue_errors(model, rng),
                    tool_lengths=(100.0, 200.0))
     ids = [e.split("=")[0] for e in EFFECTS]
-    fm = MF.from_fit(F.fit(model, sim.meas, F.resolve_effects(model, ids)))
+    fm = MF.from_fit(F.fit(model, sim.meas, resolve_effects(model, ids)))
     truth = truth_model(sim, model)
     out = tmp_path_factory.mktemp("compensate")
     path = tmp_path_factory.mktemp("model") / "model.json"

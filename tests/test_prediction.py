@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from truth import truth_model
+from fiveaxis.estimation.problem import resolve_effects
 from fiveaxis.compensation import kinematics as CK
 from fiveaxis.compensation import prediction as PR
 from fiveaxis.compensation import table as C
@@ -28,7 +29,7 @@ def case(request):
     poses."""
     model = load("ac_trunnion")
     sim = simulate(model, EFFECTS, n=1000, noise=1e-3, seed=4, instrument=request.param)
-    res = F.fit(model, sim.meas, F.resolve_effects(model, EFFECTS))
+    res = F.fit(model, sim.meas, resolve_effects(model, EFFECTS))
     fm = MF.from_fit(res)
     comp = C.compensate(fm, model, {"X": 3, "Y": 3, "Z": 3}, poses=1000)
     truth = truth_model(sim, model)
