@@ -44,6 +44,7 @@ from ..estimation import fit as F
 from ..measurement import observations as ob
 from ..measurement import setups as su
 from . import residual_tests as st
+from .profiles import profile_candidates
 from ..measurement.files import concat
 from ..units import human
 
@@ -274,6 +275,7 @@ def build_pool(prob: F.Problem, Q: np.ndarray, rw: np.ndarray, present: set, cus
     """Every candidate of a diagnosis of problem prob (residual rw, basis Q), effects already present left out;
     periodic: search periods (the costly search)."""
     machine, model = prob.model.machine, prob.model
+    customs = list(customs) + profile_candidates(prob, present)     # per-position profiles, scored as custom blocks
     poly = [e for e in fx.vocabulary(machine, model.errors, prob.meas.t is not None) if e.id not in present]
     rev = [e for e in fx.reversals(machine, model.errors, prob.meas.dirs) if e.id not in present]
     params, P = param_columns(prob)
