@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..effects.families import hat_basis
 from ..exceptions import InputError
 
 #: LinuxCNC reads at most this many lines of a compensation file (EMCMOT_COMP_SIZE).
@@ -257,32 +258,33 @@ def linuxcnc_commands(lc: LinuxCNCCompensation, model, poses, dirs=1.0, L=None) 
 
 
 # -- choosing LinuxCNC's parameters ---------------------------------------------------------------------------------
-def _hat(x, nodes):
-    """Piecewise-linear basis (n, len(nodes)) on ascending nodes, constant beyond the ends (as LinuxCNC)."""
-    x = np.clip(x, nodes[0], nodes[-1])
-    k = np.clip(np.searchsorted(nodes, x, side="right") - 1, 0, len(nodes) - 2)
-    t = (x - nodes[k]) / (nodes[k + 1] - nodes[k])
-    B = np.zeros((len(x), len(nodes)))
-    B[np.arange(len(x)), k] = 1 - t
-    B[np.arange(len(x)), k + 1] += t
-    return B
-
-
 def comp_nodes(machine, variable: str, points: int) -> np.ndarray:
     """Evenly spaced nominal positions over the axis stroke, machine units (mm or degrees)."""
     lo, hi = machine.axis(variable).stroke
     return np.linspace(float(lo), float(hi), int(points))
 
 
+def check_nodes(values, variable: str) -> np.ndarray:
+    """Nominal positions of a compensation file (machine units) as an array; InputError unless 2 to
+    MAX_COMP_POINTS finite, strictly ascending values (LinuxCNC: "compensation values must increase")."""
+    a = np.asarray(values, dtype=float).ravel()
+    if not 2 <= len(a) <= MAX_COMP_POINTS or not np.all(np.isfinite(a)) or np.any(np.diff(a) <= 0):
+        raise InputError(f"compensation nodes of {variable}: expected 2 to {MAX_COMP_POINTS} finite, strictly "
+                         f"ascending positions, got {len(a)}")
+    return a
+
+
 def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None, seed: int = 0,
-        reversal=(), L=None) -> LinuxCNCCompensation:
+        reversal=(), L=None, nodes: dict | None = None) -> LinuxCNCCompensation:
     """LinuxCNC's parameters that leave the least predicted tool-tip error over the workspace.
 
     tip_error(positions, dirs, commanded) -> (n, 3) mm: the tool-tip error a model predicts when the axes are at
     `positions` (n, nvar; mm, rad), arrived in directions `dirs` (+1/-1), relative to the nominal tool tip of the
     `commanded` poses (see compensation.tip_error_function). reversal: variables whose forward and reverse trims
-    may differ. Least squares over `samples` random poses (seeded), linearised with the
-    nominal Jacobian, then two refinement steps on the exact tip errors."""
+    may differ. nodes: {variable: ascending nominal positions (machine units: mm, degrees)} for joints whose trims
+    belong at given positions (the knots of a per-position profile), instead of `points` evenly spaced ones.
+    Least squares over `samples` random poses (seeded), linearised with the nominal Jacobian, then two refinement
+    steps on the exact tip errors."""
     if not 2 <= points <= MAX_COMP_POINTS:
         raise InputError(f"compensation points: expected 2 to {MAX_COMP_POINTS} per joint (LinuxCNC reads at most "
                          f"{MAX_COMP_POINTS} lines), got {points}")
@@ -291,17 +293,18 @@ def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None,
     rotary = tuple(machine.axis(v).type == "rotary" for v in variables)
     kind = trt_kind(machine)
     L0 = float(machine.tool_length) if L is None else float(L)
-    nodes = [comp_nodes(machine, v, points) for v in variables]
+    given = dict(nodes or {})
+    nodes = [check_nodes(given[v], v) if v in given else comp_nodes(machine, v, points) for v in variables]
     # unknowns: trunnion pins, then per joint the mean trim curve and (reversal joints) the half difference
     blocks = []
     centre_pin = kind is not None
     for j, v in enumerate(variables):
-        keep = np.ones(points, bool)
+        keep = np.ones(len(nodes[j]), bool)
         if centre_pin and not rotary[j]:
             keep[int(np.argmin(np.abs(nodes[j] - 0.5 * (nodes[j][0] + nodes[j][-1]))))] = False
         blocks.append(("mean", j, keep))
         if v in reversal:
-            blocks.append(("half", j, np.ones(points, bool)))
+            blocks.append(("half", j, np.ones(len(nodes[j]), bool)))
     n_trt = len(TRT_NAMES) if kind else 0
     n_par = n_trt + sum(int(b[2].sum()) for b in blocks)
     samples = samples or max(4000, 12 * n_par)
@@ -311,11 +314,11 @@ def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None,
 
     def build(theta):
         trt = TrtParameters.from_vector(kind, theta[:n_trt]) if kind else None
-        fwd = [np.zeros(points) for _ in variables]
-        rev = [np.zeros(points) for _ in variables]
+        fwd = [np.zeros(len(a)) for a in nodes]
+        rev = [np.zeros(len(a)) for a in nodes]
         k = n_trt
         for what, j, keep in blocks:
-            vals = np.zeros(points)
+            vals = np.zeros(len(nodes[j]))
             vals[keep] = theta[k:k + keep.sum()]
             k += keep.sum()
             fwd[j] = fwd[j] + vals if what == "mean" else fwd[j] + vals
@@ -338,7 +341,7 @@ def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None,
             cols.append(np.einsum("nkj,nj->nk", G, dJ))
         del base
     for what, j, keep in blocks:
-        B = _hat(np.degrees(q[:, j]) if rotary[j] else q[:, j], nodes[j])[:, keep]
+        B = hat_basis(np.degrees(q[:, j]) if rotary[j] else q[:, j], nodes[j])[:, keep]
         unit = math.pi / 180.0 if rotary[j] else 1.0
         sign = np.ones(samples) if what == "mean" else dirs[:, j]
         cols.append(G[:, :, j][:, :, None] * (B * (sign * unit)[:, None])[:, None, :])
@@ -355,6 +358,7 @@ def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None,
         theta = theta - (Vt.T @ ((U.T @ r) / S)) / norms
     lc = build(theta)
     lc.info = {"samples": int(samples), "seed": int(seed), "points_per_joint": int(points),
+               "profile_knots": {v: [float(x) for x in nodes[j]] for j, v in enumerate(variables) if v in given},
                "parameters": int(n_par), "reversal_joints": [v for v in variables if v in reversal]}
     return lc
 
@@ -375,6 +379,38 @@ def _tip_jacobian(model, q, L, h_lin=1e-3, h_rot=1e-6):
 # -- files ---------------------------------------------------------------------------------------------------------
 def comp_file_name(comp: JointComp) -> str:
     return f"joint{comp.joint}-{comp.variable}.comp"
+
+
+def read_comp_file(path) -> tuple:
+    """A compensation file as LinuxCNC 2.9 reads it: `nominal forward reverse` per line (machine units); reading
+    stops at the first line that is not three numbers (as LinuxCNC does). Returns (nominal, forward, reverse)
+    arrays; InputError naming the file and line when fewer than 2 lines are read or the nominals do not increase
+    ("compensation values must increase")."""
+    from pathlib import Path
+    path = Path(path)
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except FileNotFoundError:
+        raise InputError(f"{path}: compensation file not found") from None
+    rows = []
+    for line in lines:
+        parts = line.split()
+        try:
+            vals = [float(x) for x in parts]
+        except ValueError:
+            break
+        if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
+            break
+        rows.append(vals)
+    if len(rows) < 2:
+        raise InputError(f"{path}: line {len(rows) + 1}: expected 'nominal forward reverse' (three numbers per line, "
+                         f"at least 2 lines; LinuxCNC stops reading at the first other line)")
+    a = np.array(rows[:MAX_COMP_POINTS])
+    bad = np.flatnonzero(np.diff(a[:, 0]) <= 0)
+    if len(bad):
+        raise InputError(f"{path}: line {bad[0] + 2}: nominal {a[bad[0] + 1, 0]:g} does not increase (LinuxCNC: "
+                         f"compensation values must increase)")
+    return a[:, 0], a[:, 1], a[:, 2]
 
 
 def ini_text(lc: LinuxCNCCompensation, source: str = "") -> str:
