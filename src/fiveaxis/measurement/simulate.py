@@ -114,12 +114,13 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
 
     instrument: a plan of `fiveaxis.measurement.instruments` (n: about how many poses), or `plan` given; tool_lengths: None
     (the machine's L0, no L column) or (min, max) mm for a random L per pose (tip plans); duration: s over which the
-    poses are measured in order (t column), None for no t column; setup_scale: size of the random setup placements
+    poses are measured in order (t column: sorted random times, or the plan's cadence scaled to it), None for no
+    t column; setup_scale: size of the random setup placements
     relative to SETUP_OFFSET_MM and SETUP_ROTATION_RAD; errors: {name: value} (mm, rad) set instead of drawn;
     setup_kind: the kind of every setup of the plan (point, rigid, planar) instead of the instrument's;
     placements: {setup id: {"c_mm": [3], "l_mm": x, "w_rad": [3]}} set instead of drawn (any key may be left out);
-    commands: None, or a function of the poses (n, nvar; mm, rad) and their tool lengths (n,; mm) giving the
-    positions the axes are actually sent to (a compensation); the readings are then those of the machine there
+    commands: None, or a function of the poses (n, nvar; mm, rad), their tool lengths (n,; mm) and approach
+    directions ({axis: (n,) +1/-1}) giving the positions the axes are actually sent to (a compensation); the readings are then those of the machine there
     against the nominal tool of the poses."""
     _check(n, noise, noise_axis, duration, tool_lengths)
     rng = np.random.default_rng(seed)
@@ -135,6 +136,8 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
     m = plan.n
     t = None if duration is None else np.sort(rng.uniform(0, duration, m))
     if t is not None:
+        if plan.t is not None:    # the plan's own cadence (drawn above all the same: the random stream is kept)
+            t = np.asarray(plan.t, float) * (duration / float(plan.t[-1]))
         t[-1] = duration          # the last pose ends the run: u = t / duration
     sd = np.array([BASE_ANGULAR_RAD if machine.is_angular(e) else BASE_LINEAR_MM for e in model.errors])
     base = rng.normal(0.0, 1.0, len(sd)) * sd * base_scale
@@ -142,7 +145,7 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
         if name not in model.errors:
             raise InputError(f"error '{name}': unknown error name (expected one of {', '.join(model.errors[:3])} ...)")
         base[list(model.errors).index(name)] = float(value)
-    at = plan.poses if commands is None else commands(plan.poses, plan.L)    # where the axes go
+    at = plan.poses if commands is None else commands(plan.poses, plan.L, plan.dirs)    # where the axes go
     ctx = fx.context(machine, at, t, plan.dirs)
     E = np.tile(base, (m, 1))
     dL = np.zeros(m)
