@@ -30,6 +30,10 @@ COMMANDS = {
                                                    "fitted model"),
     "plan": ("fiveaxis.commands.plan", "the measurement poses that determine the most, before measuring; CSV + G-code"),
     "dask": ("fiveaxis.commands.dask", "GSIL of a workspace grid on Dask: local worker processes or --scheduler"),
+    "iso230-2": ("fiveaxis.commands.iso230", "ISO 230-2 positioning figures of a linear axis (E, M, B, R, A per "
+                                             "target and axis) with ISO 230-9's uncertainty"),
+    "iso230-4": ("fiveaxis.commands.iso230", "ISO 230-4 circular test figures (G, F, H) of ballbar circles and the "
+                                             "ballbar's diagnostic list"),
 }
 
 
@@ -47,7 +51,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     for name, (module, helptext) in COMMANDS.items():
         p = sub.add_parser(name, help=helptext, description=helptext)
         if only is None or name == only:
-            getattr(importlib.import_module(module), f"register_{name}")(p)
+            getattr(importlib.import_module(module), f"register_{name.replace('-', '_')}")(p)
     return parser
 
 
