@@ -87,7 +87,7 @@ def split(ident: str, tokens) -> EffectId | None:
                 return EffectId(param, tok, "periodic", value)
             if suffix[0] == "k" and tok != TIME:
                 return EffectId(param, tok, "profile", value)
-            if tok == TIME:
+            if suffix[0] == "e" and tok == TIME:
                 return EffectId(param, tok, "thermal", value)
     return None
 
