@@ -43,8 +43,9 @@ PLANES = {"XY": (0, 1), "YZ": (1, 2), "ZX": (2, 0)}
 PLANE_TOL = 0.1
 #: Largest distance (mm) of a nominal tool tip from the fitted circle of the poses (positions at 0.001 mm).
 NOMINAL_TOL_MM = 0.01
-#: Readings of a run at least.
+#: Readings of a run at least, and the least arc it covers (degrees).
 MIN_POINTS = 12
+MIN_ARC_DEG = 45.0
 #: A time step above this many median steps starts a new run.
 RUN_GAP = 3.0
 #: Circles of different setups closer than this (mm, centre and radius) are the same circle.
@@ -211,8 +212,13 @@ def _circle(meas, model, setup, idx, feed) -> Circle:
     for k in range(3):
         A[k::3, k] = 1.0
         A[k::3, 3] = u[:, k]
-    sol = np.linalg.lstsq(A, tip.ravel(), rcond=None)[0]
+    sol, _, rank, _ = np.linalg.lstsq(A, tip.ravel(), rcond=None)
     centre, R = sol[:3], float(sol[3])
+    spread = np.ptp(np.unwrap(np.arctan2(u[:, b], u[:, a]))) * 180 / math.pi
+    if rank < 4 or spread < MIN_ARC_DEG:
+        raise InputError(f"{label} (data rows {_rows_text(meas, idx)}): the directions ux,uy,uz do not go around a "
+                         f"circle (they turn by {spread:.3g} degrees; ISO 230-4: readings along the bar around the "
+                         f"circle, at least {MIN_ARC_DEG:g} degrees)")
     miss = np.linalg.norm(tip - (centre + R * u), axis=1)
     if R <= 0 or miss.max() > NOMINAL_TOL_MM:
         worst = idx[int(np.argmax(miss))]
@@ -387,9 +393,13 @@ def diagnostics(model, meas, circles: list, max_rounds: int = 4) -> dict:
     def item(term, effect, value=None, std=None, unit="um", note=""):
         parts = effect.split(" - ")
         names = [iso.name(model, p) for p in parts]
-        out.append({"term": term, "effect": effect, "iso": " - ".join(names) if all(names) else None,
-                    "size": value, "std": std, "unit": unit, "found": any(p in present for p in parts),
-                    "note": note})
+        rec = {"term": term, "effect": effect, "unit": unit, "found": any(p in present for p in parts),
+               "note": note}
+        if all(names):
+            rec["iso"] = " - ".join(names)
+        if value is not None:
+            rec.update(size=value, std=std)
+        out.append(rec)
     for a in axes:
         if ("backlash", a) in vocab:
             eid = vocab[("backlash", a)]
@@ -439,8 +449,8 @@ def diagnostics(model, meas, circles: list, max_rounds: int = 4) -> dict:
         amp, sd = (amp * 1e3, sd * 1e3) if unit == "urad" else (amp, sd)
         item("cyclic error", e.id, amp, sd, unit, note=f"period {e.arg:g}")
     if not periodic:
-        out.append({"term": "cyclic error", "effect": "-", "iso": None, "size": None, "std": None, "unit": "um",
-                    "found": False, "note": "none found by the diagnosis (no periodic effect passed its decision)"})
+        out.append({"term": "cyclic error", "effect": "-", "unit": "um", "found": False,
+                    "note": "none found by the diagnosis (no periodic effect passed its decision)"})
     warnings = []
     if res.idf.condition > ILL_CONDITIONED:
         warnings.append(f"the fit behind these sizes is ill-conditioned on this data (condition number "
@@ -457,7 +467,8 @@ def to_json(circles: list, diagnostics: dict | None = None) -> dict:
     """{"circles": [{setup, plane, axes, radius_mm, centre_mm, feed_mm_per_min, runs: [{direction, points, arc_deg,
     G_um, G_mz_um, F_max_um, F_min_um, centre_offset_um, centre_mz_offset_um, path: {theta_deg, deviation_um}}],
     H_um, H_pair, notes}],
-    "diagnostics": the record of diagnostics() or null} (um, mm as the keys say)."""
+    "diagnostics": the record of diagnostics(), if given} (um, mm as the keys say; a number that is not
+    available is left out, with a note)."""
     out = []
     for c in circles:
         runs = [{"direction": r.direction, "points": int(len(r.index)), "arc_deg": r.arc_deg,
@@ -466,18 +477,27 @@ def to_json(circles: list, diagnostics: dict | None = None) -> dict:
                  "centre_mz_offset_um": [float(1e3 * v) for v in r.centre_mz],
                  "path": {"theta_deg": [float(v) for v in np.degrees(r.theta)],
                           "deviation_um": [float(v) for v in 1e3 * r.deviation]}} for r in c.runs]
-        out.append({"setup": c.setup, "plane": c.plane, "axes": list(c.axes), "radius_mm": c.radius,
-                    "centre_mm": [float(v) for v in c.centre], "feed_mm_per_min": c.feed, "runs": runs,
-                    "H_um": None if c.H is None or not math.isfinite(c.H) else 1e3 * c.H,
-                    "H_pair": list(c.H_pair), "notes": list(c.notes)})
-    return {"standard": "ISO 230-4", "circles": out, "diagnostics": diagnostics}
+        rec = {"setup": c.setup, "plane": c.plane, "axes": list(c.axes), "radius_mm": c.radius,
+               "centre_mm": [float(v) for v in c.centre], "runs": runs, "notes": list(c.notes)}
+        if c.feed is not None:
+            rec["feed_mm_per_min"] = c.feed
+        if c.H is not None and math.isfinite(c.H):
+            rec.update(H_um=1e3 * c.H, H_pair=list(c.H_pair))
+        else:
+            rec["notes"].append("H: no pair of runs in opposite directions (one direction only, or no angles in "
+                                "common)")
+        out.append(rec)
+    rec = {"standard": "ISO 230-4", "circles": out}
+    if diagnostics is not None:
+        rec["diagnostics"] = diagnostics
+    return rec
 
 
 def report(record: dict) -> str:
     """The evaluation (a to_json record) as text, um."""
     lines = []
     for c in record["circles"]:
-        feed = f", feed {c['feed_mm_per_min']:g} mm/min" if c.get("feed_mm_per_min") else ""
+        feed = f", feed {c['feed_mm_per_min']:g} mm/min" if "feed_mm_per_min" in c else ""
         lines.append(f"ISO 230-4 circle {c['plane']} ({'+'.join(c['axes'])})" + (f", setup {c['setup']}" if c["setup"]
                                                                                else "")
                      + f": radius {c['radius_mm']:.3f} mm, pivot {np.round(c['centre_mm'], 3).tolist()} mm{feed}")
@@ -487,10 +507,8 @@ def report(record: dict) -> str:
             lines.append(f"  {r['direction']:10s} {r['points']:6d} {r['arc_deg']:5.0f}d {r['G_um']:9.2f} "
                          f"{r['G_mz_um']:9.2f} {r['F_max_um']:9.2f} {r['F_min_um']:9.2f}   "
                          f"{r['centre_offset_um'][0]:+.2f}, {r['centre_offset_um'][1]:+.2f}")
-        if c["H_um"] is not None:
+        if "H_um" in c:
             lines.append(f"  circular hysteresis H ({' / '.join(c['H_pair'])}): {c['H_um']:.2f} um")
-        else:
-            lines.append("  circular hysteresis H: - (one direction only)")
         for n in c["notes"]:
             lines.append(f"  note: {n}")
     diag = record.get("diagnostics")
@@ -500,7 +518,7 @@ def report(record: dict) -> str:
         for w in diag["warnings"]:
             lines.append(f"  warning: {w}")
         for d in diag["items"]:
-            size = "-" if d.get("size") is None else f"{d['size']:.3g} +- {d['std']:.2g} {d['unit']}"
+            size = "-" if "size" not in d else f"{d['size']:.3g} +- {d['std']:.2g} {d['unit']}"
             star = "*" if d.get("found") else " "
             lines.append(f"  {star} {d['term']:28s} {size:24s} {d['effect']}"
                          + (f" ({d['iso']})" if d.get("iso") else "") + (f": {d['note']}" if d.get("note") else ""))

@@ -66,7 +66,7 @@ def check(st: Statement) -> Statement:
 
 def budget(st: Statement, length_mm: float) -> dict | None:
     """The budget for a measured length (mm): standard uncertainties per contributor (um), U (k = 2) of E, M, B
-    (um; None for B when nothing stated enters it), and the statement in words; None if nothing was stated."""
+    (um; B left out when nothing stated enters it), and the statement in words; None if nothing was stated."""
     check(st)
     if st.empty:
         return None
@@ -86,7 +86,8 @@ def budget(st: Statement, length_mm: float) -> dict | None:
     text = (f"U (k = 2) after ISO 230-9's simplified budget over {L:g} mm: E and M {ue:.2f} um, B "
             + (f"{ub:.2f} um" if ub is not None else "none stated (the stated contributors cancel in a reversal; "
                "state the drift)") + f"; standard uncertainties (um): {parts}; R and A: no budget")
-    return {"U_um": {"E": ue, "M": ue, "B": ub}, "u_um": u, "k": 2, "length_mm": L,
+    U = {"E": ue, "M": ue, **({"B": ub} if ub is not None else {})}
+    return {"U_um": U, "u_um": u, "k": 2, "length_mm": L,
             "inputs": {k: v for k, v in st.__dict__.items() if v is not None}, "statement": text}
 
 
