@@ -160,7 +160,7 @@ def test_cli_json_and_polar_plots(model, circles_file, tmp_path, capsys):
     assert not _nulls(rec)
     assert {"G_um", "G_mz_um", "F_max_um", "F_min_um", "direction"} <= set(c["runs"][0])
     for plane in ("XY", "YZ", "ZX"):
-        assert (tmp_path / "plots" / f"iso230-4_{plane}_{plane}.png").stat().st_size > 10_000
+        assert (tmp_path / "plots" / f"iso230-4_{plane}.png").stat().st_size > 10_000
     rc, out, _ = run_cli(capsys, "iso230-4", path, "--no-diagnosis")
     assert rc == 0 and "circular hysteresis H (ccw / cw)" in out and "G (MZ)" in out
 
@@ -206,3 +206,23 @@ def test_bad_input_one_line_errors(model, circles_file, tmp_path):
     line = xy.copy()                                           # a laser line read as a ballbar: not a circle
     line["Y"], line["ux"], line["uy"] = 0.0, 1.0, 0.0
     _bad(model, tmp_path, line, r"the directions ux,uy,uz do not go around a circle \(they turn by 0 degrees")
+
+
+def test_report_has_both_sections_for_mixed_instruments(model, tmp_path):
+    """One file with a laser run of X and the ballbar circles (mixed instruments): the HTML report shows the ISO
+    230-2 table of X and the ISO 230-4 table of the three circles, with their plots."""
+    import pandas as pd
+    from fiveaxis.report import html, record
+    laser = simulate(model, ["dx_x:xr=0.003"], n=100, noise=NOISE, seed=8, instrument="interferometer",
+                     options={"axes": ["X"], "targets": 7})
+    balls = simulate(model, ["dx_x:xr=0.003"], n=300, noise=NOISE, seed=8, instrument="ballbar")
+    path = tmp_path / "mixed.csv"
+    pd.concat([to_frame(laser, model), to_frame(balls, model)], ignore_index=True).to_csv(path, index=False)
+    rep = record.build(path, "li2018", max_rounds=1, sensitivity=False)
+    iso = rep.record["iso230"]
+    assert [r["axis"] for r in iso["positioning"]] == ["X"] and len(iso["circles"]["circles"]) == 3
+    assert not iso["skipped"]
+    page = html.render(rep)
+    assert page.count('<section id="iso230-2">') == 1 and page.count('<section id="iso230-4">') == 1
+    assert 'href="#iso230-2"' in page and "fig-iso230_4_2" in page
+    assert f"{iso['positioning'][0]['E_um']:.3g}" in page

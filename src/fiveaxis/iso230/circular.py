@@ -498,8 +498,8 @@ def report(record: dict) -> str:
     lines = []
     for c in record["circles"]:
         feed = f", feed {c['feed_mm_per_min']:g} mm/min" if "feed_mm_per_min" in c else ""
-        lines.append(f"ISO 230-4 circle {c['plane']} ({'+'.join(c['axes'])})" + (f", setup {c['setup']}" if c["setup"]
-                                                                               else "")
+        lines.append(f"ISO 230-4 circle {c['plane']} ({'+'.join(c['axes'])})"
+                     + (f", setup {c['setup']}" if c["setup"] not in (None, c["plane"]) else "")
                      + f": radius {c['radius_mm']:.3f} mm, pivot {np.round(c['centre_mm'], 3).tolist()} mm{feed}")
         lines.append(f"  {'direction':10s} {'points':>6s} {'arc':>6s} {'G (LSQ)':>9s} {'G (MZ)':>9s} {'F max':>9s} "
                      f"{'F min':>9s}   centre offset (um)")

@@ -70,7 +70,8 @@ def circle_figure(circle: dict):
     ax.set_xticks(np.radians([0, 90, 180, 270]))
     ax.set_xticklabels([f"+{a}", f"+{b}", f"-{a}", f"-{b}"])
     H = f", H {circle['H_um']:.2f} um" if circle.get("H_um") is not None else ""
-    ax.set_title(f"ISO 230-4 circle {circle['plane']}" + (f" ({circle['setup']})" if circle.get("setup") else "")
+    setup = circle.get("setup")
+    ax.set_title(f"ISO 230-4 circle {circle['plane']}" + (f" ({setup})" if setup not in (None, circle["plane"]) else "")
                  + f", radius {circle['radius_mm']:g} mm{H}\nradial deviation from the least-squares circle, "
                  f"{div:.3g} um per division", fontsize=10)
     ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.06))
@@ -91,7 +92,8 @@ def write_positioning(rec: dict, folder) -> Path:
 
 def write_circle(circle: dict, folder) -> Path:
     """iso230-4_<plane>[_<setup>].png in folder."""
-    name = f"iso230-4_{circle['plane']}" + (f"_{_safe(circle['setup'])}" if circle.get("setup") else "") + ".png"
+    setup = circle.get("setup")
+    name = f"iso230-4_{circle['plane']}" + (f"_{_safe(setup)}" if setup not in (None, circle["plane"]) else "") + ".png"
     return _save(circle_figure(circle), Path(folder) / name)
 
 

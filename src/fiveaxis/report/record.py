@@ -303,7 +303,7 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
     from ..measurement.files import read
     from ..plots.residuals import residual_figure, series_of
     from . import compensation as C
-    from . import figures
+    from . import figures, iso230
     if max_rounds < 1:
         raise InputError(f"rounds: expected at least 1, got {max_rounds}")
     model = load(machine, convention)
@@ -340,6 +340,8 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
         model, meas, series, "Fit residual (measured minus modelled reading, um; urad for "
                                                     "the tool axis) against each axis "
                              "position and time" + (", before and after the effects found" if len(diags) > 1 else "")))
+    record["iso230"], iso_figs = iso230.sections(model, meas)
+    figs.update(iso_figs)
     if sensitivity:
         record["sensitivity"], top = _sensitivity(model)
         figs["sensitivity"] = figures.sensitivity(top)
