@@ -77,7 +77,15 @@ TRANSLATIONS = (("(force=True replaces it)", "(use --force to replace it)"),
                 ("effect value ", "--effect "),
                 ("bound: expected a positive", "--bound: expected a positive"),
                 ("samples: expected a power of 2", "--samples: expected a power of 2"),
-                ("poses: give a normal", "--pose: give a normal"))
+                ("poses: give a normal", "--pose: give a normal"),
+                ("u_device_um: expected", "--u-device: expected"),
+                ("expansion_ppm_per_K: expected", "--expansion-ppm-per-K: expected"),
+                ("misalignment_mm: expected", "--misalignment: expected"),
+                ("drift_um: expected", "--drift: expected"),
+                ("temperature_deviation_K: expected", "--temperature-deviation: expected"),
+                ("temperature_deviation_K and expansion_ppm_per_K: state both",
+                 "--temperature-deviation and --expansion-ppm-per-K: state both"),
+                ("target tolerance: expected", "--tolerance: expected"))
 
 
 def to_command_line(message: str) -> str:

@@ -80,13 +80,7 @@ def run_iso230_2(args) -> int:
     from ..iso230 import uncertainty as U
     statement = U.Statement(args.u_device, args.temperature_deviation, args.expansion_ppm_per_K, args.misalignment,
                             args.drift)
-    try:
-        U.check(statement)
-    except InputError as exc:
-        raise InputError(str(exc).replace("u_device_um", "--u-device").replace(
-            "temperature_deviation_K", "--temperature-deviation").replace(
-            "expansion_ppm_per_K", "--expansion-ppm-per-K").replace("misalignment_mm", "--misalignment").replace(
-            "drift_um", "--drift")) from None
+    U.check(statement)
     model, meas = _read(args)
     evs = P.evaluate(meas, model, P.TARGET_TOL_MM if args.tolerance is None else args.tolerance)
     records, texts = [], []
@@ -103,6 +97,9 @@ def run_iso230_2(args) -> int:
         print(json.dumps({"file": str(args.file), "machine": model.machine.name, "axes": records}, indent=1))
     else:
         print("\n\n".join(texts))
+        if statement.empty:
+            print("(state them with --u-device, --temperature-deviation with --expansion-ppm-per-K, --misalignment, "
+                  "--drift)")
     return 0
 
 

@@ -83,7 +83,7 @@ def own_first(machine, axis) -> list[str]:
 def profile_candidates(prob, present) -> list:
     """Profile effects (fiveaxis.effects.families.Effect) a diagnosis of problem prob offers: per pose variable the
     axis' own error motions along it, at the spacing the data determines; none for a (param, var) that already has
-    a profile (ids in `present`)."""
+    a profile (ids in `present`) nor for a parameter whose column is parallel to that of one that has."""
     machine, model = prob.model.machine, prob.model
     errors = list(model.errors)
     out = []
@@ -94,14 +94,15 @@ def profile_candidates(prob, present) -> list:
         spacing = spacing_for(machine, tok, prob.meas.poses[:, i] * to_unit)
         if spacing is None:
             continue
-        offered = []
+        offered = []                 # columns of the parameters offered, or with a profile along tok already
         for param in own_first(machine, axis):
-            if param not in errors or any(p.startswith(f"{param}:{tok}k") for p in present):
+            if param not in errors:
                 continue
             col = prob.param_column(param) * prob.w
             norm = float(np.linalg.norm(col))
             if norm == 0 or any(abs(col @ c) > PARALLEL_COS * norm * np.linalg.norm(c) for c in offered):
                 continue
             offered.append(col)
-            out.append(fx.profile(machine, param, tok, spacing, "diagnose"))
+            if not any(p.startswith(f"{param}:{tok}k") for p in present):
+                out.append(fx.profile(machine, param, tok, spacing, "diagnose"))
     return out

@@ -26,9 +26,8 @@ from ..exceptions import InputError
 
 #: The figures with a budget.
 FIGURES = ("E", "M", "B")
-NONE_STATEMENT = ("no uncertainty statement: the measuring device's uncertainty, the temperature, the expansion "
-                  "coefficient, the misalignment and the drift were not stated (u_device, temperature_deviation "
-                  "with expansion_ppm_per_K, misalignment_mm, drift_um)")
+NONE_STATEMENT = ("no uncertainty statement: the measuring device's uncertainty, the temperature deviation with the "
+                  "uncertainty of the expansion coefficient, the misalignment and the drift were not stated")
 
 
 @dataclass(frozen=True)
