@@ -16,7 +16,7 @@ from fiveaxis.iso230 import uncertainty as U
 from fiveaxis.measurement.files import read
 from fiveaxis.measurement.simulate import simulate, to_frame
 
-from conftest import run_cli
+from conftest import one_line_error, run_cli
 
 NOISE = 1e-3
 
@@ -145,12 +145,7 @@ def test_fewer_cycles_and_targets_are_notes_not_errors(model, tmp_path):
 
 # -- bad input: what the standard needs -----------------------------------------------------------------------
 def _bad(model, tmp_path, df, match):
-    path = tmp_path / "bad.csv"
-    df.to_csv(path, index=False)
-    with pytest.raises(InputError, match=match) as exc:
-        P.evaluate(read(path, model.machine), model)
-    assert "\n" not in str(exc.value) and str(path) in str(exc.value)
-    return str(exc.value)
+    return one_line_error(tmp_path, df, lambda path: P.evaluate(read(path, model.machine), model), match)
 
 
 def test_bad_input_one_line_errors(model, tmp_path):

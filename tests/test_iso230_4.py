@@ -11,12 +11,12 @@ import pytest
 from scipy.optimize import least_squares
 
 import fiveaxis
-from fiveaxis.exceptions import InputError
 from fiveaxis.iso230 import circular as C
 from fiveaxis.measurement.files import read
 from fiveaxis.measurement.simulate import simulate, to_frame
 
-from conftest import run_cli
+from conftest import one_line_error, run_cli
+from test_fuzz import _bad_json_numbers
 
 NOISE = 1e-3
 RADIUS = 150.0
@@ -157,7 +157,7 @@ def test_cli_json_and_polar_plots(model, circles_file, tmp_path, capsys):
     rec = json.loads(out)
     c = rec["circles"][0]
     assert {"setup", "plane", "radius_mm", "runs", "H_um"} <= set(c) and c["feed_mm_per_min"] == 1000.0
-    assert not _nulls(rec)
+    assert not _bad_json_numbers(rec)
     assert {"G_um", "G_mz_um", "F_max_um", "F_min_um", "direction"} <= set(c["runs"][0])
     for plane in ("XY", "YZ", "ZX"):
         assert (tmp_path / "plots" / f"iso230-4_{plane}.png").stat().st_size > 10_000
@@ -165,25 +165,8 @@ def test_cli_json_and_polar_plots(model, circles_file, tmp_path, capsys):
     assert rc == 0 and "circular hysteresis H (ccw / cw)" in out and "G (MZ)" in out
 
 
-def _nulls(obj, path="$"):
-    """Paths of null or non-finite numbers in a JSON record (a number is given or its key left out)."""
-    if obj is None:
-        return [path] if not path.endswith(".setup") else []
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return [path]
-    if isinstance(obj, dict):
-        return [p for k, v in obj.items() for p in _nulls(v, f"{path}.{k}")]
-    if isinstance(obj, list):
-        return [p for i, v in enumerate(obj) for p in _nulls(v, f"{path}[{i}]")]
-    return []
-
-
 def _bad(model, tmp_path, df, match):
-    path = tmp_path / "bad.csv"
-    df.to_csv(path, index=False)
-    with pytest.raises(InputError, match=match) as exc:
-        C.evaluate(read(path, model.machine), model)
-    assert "\n" not in str(exc.value) and str(path) in str(exc.value)
+    return one_line_error(tmp_path, df, lambda path: C.evaluate(read(path, model.machine), model), match)
 
 
 def test_bad_input_one_line_errors(model, circles_file, tmp_path):

@@ -37,6 +37,7 @@ from ..estimation import fit as F
 from ..exceptions import InputError
 from ..model import frames
 from ..model import iso_names as iso
+from . import line_groups
 
 PLANES = {"XY": (0, 1), "YZ": (1, 2), "ZX": (2, 0)}
 #: Largest component of the directions out of the circle's plane (a ballbar set slightly inclined).
@@ -179,13 +180,9 @@ def _split_runs(theta, t):
 def evaluate(meas, model, feed: float | None = None) -> list[Circle]:
     """The ISO 230-4 figures of every circle (setup) of a measurement set (see the module docstring); feed: the
     circles' feed as stated (mm/min) or None. InputError when the rows are not circles of 1-D readings the standard can evaluate."""
-    if meas.du is None or not np.any(np.isfinite(meas.du)):
-        raise InputError(f"{meas.path}: no 1-D readings du (ISO 230-4 evaluates ballbar readings: du along ux,uy,uz "
-                         f"from the pivot to the tool ball)")
-    line = np.isfinite(meas.du)
-    groups = [(None, np.flatnonzero(line))] if meas.setup is None else \
-        [(s, np.flatnonzero(line & (meas.setup == s))) for s in meas.setups]
-    circles = [_circle(meas, model, setup, idx, feed) for setup, idx in groups if len(idx)]
+    groups = line_groups(meas, "ISO 230-4 evaluates ballbar readings: du along ux,uy,uz from the pivot to the tool "
+                               "ball")
+    circles = [_circle(meas, model, setup, idx, feed) for setup, idx in groups]
     _pair_across_setups(circles)
     return circles
 

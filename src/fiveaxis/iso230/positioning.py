@@ -37,6 +37,7 @@ import numpy as np
 
 from ..exceptions import InputError
 from ..model import frames
+from . import line_groups
 
 #: Positions of one target may differ by up to this (mm): targets that jitter around the nominal.
 TARGET_TOL_MM = 0.05
@@ -148,21 +149,11 @@ def evaluate(meas, model, tolerance: float = TARGET_TOL_MM) -> list[Positioning]
     """The ISO 230-2 evaluations of a measurement set (fiveaxis.measurement.files.Measurements) for a model: one per
     setup (or one for the whole file), from its 1-D readings; InputError when the data does not have the
     structure the standard needs. tolerance: positions of one target (mm)."""
-    machine = model.machine
     if not tolerance > 0:
         raise InputError(f"target tolerance: expected a positive distance in mm, got {tolerance}")
-    if meas.du is None or not np.any(np.isfinite(meas.du)):
-        raise InputError(f"{meas.path}: no 1-D readings du (ISO 230-2 evaluates positional deviations read along "
-                         f"one linear axis: du with ux,uy,uz along it)")
-    line = np.isfinite(meas.du)
-    groups = [(None, np.flatnonzero(line))] if meas.setup is None else \
-        [(s, np.flatnonzero(line & (meas.setup == s))) for s in meas.setups]
-    out = []
-    for setup, idx in groups:
-        if not len(idx):
-            continue
-        out.append(_evaluate_group(meas, model, setup, idx, tolerance))
-    return out
+    groups = line_groups(meas, "ISO 230-2 evaluates positional deviations read along one linear axis: du with "
+                               "ux,uy,uz along it")
+    return [_evaluate_group(meas, model, setup, idx, tolerance) for setup, idx in groups]
 
 
 def _evaluate_group(meas, model, setup, idx, tolerance) -> Positioning:

@@ -289,6 +289,16 @@ def _rounds(rec: dict, figs: dict) -> str:
     return "".join(out)
 
 
+def _figures_and_notes(figs: dict, prefix: str, records: list, words) -> str:
+    """Figure `<prefix>_<i>` of each record with its notes; words(record) -> (alt text, caption)."""
+    out = []
+    for i, r in enumerate(records):
+        alt, caption = words(r)
+        out.append(_figure(figs, f"{prefix}_{i}", alt, caption))
+        out += [f'<p class="note">{_t(n)}</p>' for n in r["notes"]]
+    return "".join(out)
+
+
 def _iso230(rec: dict, figs: dict) -> str:
     """The ISO 230-2 and ISO 230-4 sections (only when the data holds such readings)."""
     iso = rec.get("iso230")
@@ -315,12 +325,9 @@ def _iso230(rec: dict, figs: dict) -> str:
         out.append(_table(["axis", "targets", "cycles", "length (mm)"]
                           + [f"{label} (\u00b5m){' bi / fwd / bwd' if k in ('E', 'R', 'A') else ''}"
                              for k, label in keys], rows, "iso230-2-figures", numeric=tuple(range(1, 10))))
-        for i, r in enumerate(iso["positioning"]):
-            out.append(_figure(figs, f"iso230_2_{i}", f"ISO 230-2 {r['axis']}",
-                               f"Mean positional deviation of {_e(r['axis'])} per target, forward and backward, "
-                               "with the &plusmn;2 s bands; the dots are the single readings."))
-            for n in r["notes"]:
-                out.append(f'<p class="note">{_t(n)}</p>')
+        out.append(_figures_and_notes(figs, "iso230_2", iso["positioning"], lambda r: (
+            f"ISO 230-2 {r['axis']}", f"Mean positional deviation of {_e(r['axis'])} per target, forward and "
+                                      "backward, with the &plusmn;2 s bands; the dots are the single readings.")))
         out.append("</section>")
     circ = iso.get("circles")
     if circ:
@@ -340,12 +347,9 @@ def _iso230(rec: dict, figs: dict) -> str:
         out.append(_table(["circle", "radius (mm)", "direction", "G (\u00b5m)", "G min. zone (\u00b5m)",
                            "F max (\u00b5m)", "F min (\u00b5m)", "H (\u00b5m)"], rows, "iso230-4-figures",
                           numeric=(1, 3, 4, 5, 6, 7)))
-        for i, c in enumerate(circ["circles"]):
-            out.append(_figure(figs, f"iso230_4_{i}", f"ISO 230-4 {c['plane']}",
-                               f"Circle {_e(c['plane'])}: the radial deviation of each direction's path from its "
-                               "least-squares circle, magnified."))
-            for n in c["notes"]:
-                out.append(f'<p class="note">{_t(n)}</p>')
+        out.append(_figures_and_notes(figs, "iso230_4", circ["circles"], lambda c: (
+            f"ISO 230-4 {c['plane']}", f"Circle {_e(c['plane'])}: the radial deviation of each direction's path "
+                                       "from its least-squares circle, magnified.")))
         out.append("</section>")
     return "".join(out)
 

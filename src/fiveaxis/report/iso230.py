@@ -3,32 +3,25 @@ axis, and the ISO 230-4 evaluation of every setup that is a ballbar circle, with
 neither are left to the rest of the report (the reason is kept)."""
 from __future__ import annotations
 
-import numpy as np
-
 from ..exceptions import InputError
 from ..iso230 import circular as C
+from ..iso230 import line_groups
 from ..iso230 import positioning as P
 from ..iso230 import uncertainty as U
 from ..plots.iso230 import circle_figure, positioning_figure
 from .figures import png
 
 
-def _parts(meas):
-    """(setup, measurement set of its 1-D rows) per setup (or the whole file) that has 1-D readings."""
-    if meas.du is None:
-        return []
-    line = np.isfinite(meas.du)
-    if meas.setup is None:
-        return [(None, meas.subset(np.flatnonzero(line)))] if line.any() else []
-    return [(s, meas.subset(np.flatnonzero(line & (meas.setup == s)))) for s in meas.setups
-            if np.any(line & (meas.setup == s))]
-
-
 def sections(model, meas) -> tuple[dict | None, dict]:
     """({"positioning": [ISO 230-2 records], "circles": ISO 230-4 record or None, "skipped": {setup: reasons}} or
     None when no setup is either, figures {name: PNG bytes})."""
     positioning, circles, skipped = [], [], {}
-    for setup, part in _parts(meas):
+    try:
+        groups = line_groups(meas, "")
+    except InputError:                        # no 1-D readings: neither standard applies
+        return None, {}
+    for setup, idx in groups:
+        part = meas.subset(idx)
         reasons = []
         try:
             positioning += [P.to_json(ev, U.none_statement()) for ev in P.evaluate(part, model)]
