@@ -163,5 +163,8 @@ def test_lead_screw_through_the_command_line(model, lead_screw, tmp_path, capsys
                            "--axes", "X", "--targets", "9", "--effect", "dx_x:xr=0.0125", "--seed", "3", "-o",
                            tmp_path / "after.csv", "--compensation", tmp_path / "c", "--linuxcnc")
     assert rc == 0 and "compensated by LinuxCNC with" in err, err
+    rc, _, err = run_cli(capsys, "simulate", "--machine", "ac_trunnion", "--effect", "dx_x:xk100=0.01", "-o",
+                         tmp_path / "x.csv")
+    assert rc == 2 and "--effect dx_x:xk100=0.01: a profile needs its value at each of its 9 knots (-400, -300" in err
     rc, _, err = run_cli(capsys, "simulate", "--machine", "ac_trunnion", "--linuxcnc", "-o", tmp_path / "x.csv")
     assert rc == 2 and "--linuxcnc applies the LinuxCNC files of a compensation folder" in err

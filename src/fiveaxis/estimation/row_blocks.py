@@ -394,8 +394,8 @@ def diagnose(model, meas, added=(), top: int = 10, fixed=None):
         if pool_s.periodic:
             pg = D.pair_gains(Q_s, pool_s.Gp, rw_s)
             periodic = [pool_s.periodic[b] for b in np.argsort(-pg, kind="stable")[:SCREEN_BLOCKS]]
-        cands = singles + periodic + list(customs)
-        families = fams + ["periodic"] * len(periodic) + ["custom"] * len(customs)
+        cands = singles + periodic + list(pool_s.customs)        # custom effects and the per-position profiles
+        families = fams + ["periodic"] * len(periodic) + ["custom"] * len(pool_s.customs)
         # 2. One pass over all readings: the compressed columns per fold.
         p = int(free.sum())
         C = Compressed(p, cands, D.K_FOLDS)

@@ -57,7 +57,8 @@ class Simulation:
 
 def parse_effect(spec: str, model):
     """`ex_x:x1` (default size) or `ex_x:x1=2e-5` (the change at the end of the stroke, mm or rad; for a periodic
-    effect `=a` or `=a,b`: sine and cosine amplitudes); custom effects: `name=p1,p2,...`."""
+    effect `=a` or `=a,b`: sine and cosine amplitudes; for a profile `dx_x:xk100=v1,...,vk`: its value at each
+    knot); custom effects: `name=p1,p2,...`."""
     ident, _, value = spec.partition("=")
     if ident in model.machine.effects:
         from ..effects.custom import load_custom
@@ -68,6 +69,10 @@ def parse_effect(spec: str, model):
         return eff, (np.array(vals) if vals else np.full(len(eff.names), EFFECT_LINEAR_MM))
     eff = fx.parse(ident, model.machine, model.errors, "--effect")
     k = len(eff.names)
+    if eff.kind == "profile" and (not value or len(_floats(spec, value)) != k):
+        knots = ", ".join(f"{x:g}" for x in eff.knots)
+        raise InputError(f"effect value {spec}: a profile needs its value at each of its {k} knots ({knots}), "
+                         f"mm or rad, e.g. {ident}=" + ",".join(["0.001"] * min(k, 3)) + (",..." if k > 3 else ""))
     if value:
         vals = _floats(spec, value)
         if len(vals) == 1 and k > 1:
