@@ -76,10 +76,15 @@ def test_json_shape(model):
     dg = D.diagnose(model, simulate(model, ["dz_x:x2=0.01"], n=500, noise=NOISE, seed=24).meas, top=5)
     j = dg.to_json()
     assert j["n"] == 500 and j["missing_effect"] is True and len(j["candidates"]) == 5
-    assert j["n_candidates"] == 42 * 6 * 3
+    profiles = j["decision"]["families"]["custom"]["M"]      # the per-position profiles offered (diagnosis/profiles.py)
+    assert profiles > 0 and j["n_candidates"] == 42 * 6 * 3 + profiles
     c = j["candidates"][0]
     assert set(c) >= {"id", "aliases", "rms_mm", "description"} and c["rms_mm"] < j["rms_mm"]
-    rms = [c["rms_mm"] for c in j["candidates"]]
+    # best first by the decision's extended BIC; within a family of one penalty that is by the RMS after (a
+    # profile with its many coefficients may explain more and still rank lower)
+    deltas = [c["delta_ebic"] for c in j["candidates"]]
+    assert deltas == sorted(deltas)
+    rms = [c["rms_mm"] for c in j["candidates"] if c["family"] == "polynomial"]
     assert rms == sorted(rms)
     assert j["structure"]["x"]["dz"] > 0.3          # the residual is structured along X
 
