@@ -6,20 +6,15 @@ Run: .venv/bin/python bench/bench_profiles.py
 """
 from __future__ import annotations
 
-import time
+import os
+import sys
 
 import fiveaxis
 from fiveaxis.diagnosis import diagnose as D
 from fiveaxis.measurement.simulate import simulate
 
-
-def _best(fn, repeat=3):
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
+sys.path.insert(0, os.path.dirname(__file__))
+from bench_diagnose import _best  # noqa: E402  (the same best-of-3 timer)
 
 
 def main() -> dict:
