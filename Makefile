@@ -66,6 +66,7 @@ bench: install
 	$(BIN)/python -m pip install --quiet -e ".[bench]" || echo "bench: optional baselines did not install"
 	$(BIN)/python bench/run.py
 	$(BIN)/python bench/bench_diagnose.py
+	$(BIN)/python bench/bench_profiles.py
 	$(BIN)/python bench/bench_plan.py
 
 lint: install

@@ -69,6 +69,35 @@ say "A ballbar test (ISO 230-4 circles, both directions) on li2018 with a hidden
 loop "$BALLBAR" li2018
 # --- end section: measurements
 
+# --- section: iso230 (issue 22)
+# The figures a laser's and a ballbar's software print first, from the same files fiveaxis fits; and a lead-screw
+# error table (a per-position profile) found, fitted and put into LinuxCNC's compensation file.
+IDIR=${OUT:-out}/iso230
+mkdir -p "$IDIR"
+LASER="$IDIR/ac_trunnion_laser_x.csv"
+PROFILE="0,0.012,-0.008,0.015,-0.004,0.003,-0.015,0.009,-0.005"
+LSIM=("$BIN/fiveaxis" simulate --machine ac_trunnion --instrument interferometer --axes X --targets 9
+      --effect "dx_x:xk100=$PROFILE" --effect dx_x:xr=0.0125 --seed 3)
+say "An ISO 230-2 laser run of X on the A/C trunnion (9 targets, 5 cycles; a lead-screw error of 30 um spread at 9 knots, a 25 um reversal): $LASER"
+"${LSIM[@]}" -o "$LASER" --force
+say "ISO 230-2: fiveaxis iso230-2 $LASER (with ISO 230-9's uncertainty from what the test states)"
+"$BIN/fiveaxis" iso230-2 "$LASER" --machine ac_trunnion --u-device 0.4 --temperature-deviation 0.5 \
+    --expansion-ppm-per-K 2 --misalignment 0.5 --drift 0.2 --plot "$IDIR"
+say "diagnose with the reversal in: the per-position profile dx_x:xk100 is offered"
+"$BIN/fiveaxis" diagnose "$LASER" --machine ac_trunnion --add dx_x:xr --top 2
+say "Fit the reversal and the profile, compensate: LinuxCNC's trims at the profile's knots (joint0-X.comp)"
+"$BIN/fiveaxis" fit "$LASER" --machine ac_trunnion --add dx_x:xr --add dx_x:xk100 -o "$IDIR/model.json" --force \
+    | sed -n '/residual RMS/p'
+"$BIN/fiveaxis" compensate "$IDIR/model.json" -o "$IDIR/comp" --nodes X=2,Y=2,Z=2,A=2,C=2 --poses 500 --force \
+    > /dev/null
+cat "$IDIR/comp/linuxcnc/joint0-X.comp"
+say "The same laser run with LinuxCNC's files applied (simulate --compensation --linuxcnc): ISO 230-2 again"
+"${LSIM[@]}" -o "$IDIR/ac_trunnion_laser_x_after.csv" --force --compensation "$IDIR/comp" --linuxcnc
+"$BIN/fiveaxis" iso230-2 "$IDIR/ac_trunnion_laser_x_after.csv" --machine ac_trunnion | sed -n '/axis figures/,$p'
+say "ISO 230-4 of the ballbar circles above ($BALLBAR): G, F, H per circle and direction, and the ballbar's list"
+"$BIN/fiveaxis" iso230-4 "$BALLBAR" --feed 1000 --plot "$IDIR"
+# --- end section: iso230
+
 # --- section: scale (issue 12)
 BIG="$OUT/li2018_200k.parquet"
 say "A continuous measurement of 200,000 poses ($BIG, Parquet) with a hidden roll of X: diagnose in row blocks"

@@ -83,3 +83,15 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if "linuxcnc" in item.keywords:
             item.add_marker(skip)
+
+
+def one_line_error(tmp_path, df, evaluate, match):
+    """Write df as a CSV file, read it for evaluate(path) and check that it raises a one-line InputError that
+    names the file and matches `match`; the message."""
+    from fiveaxis.exceptions import InputError
+    path = tmp_path / "bad.csv"
+    df.to_csv(path, index=False)
+    with pytest.raises(InputError, match=match) as exc:
+        evaluate(path)
+    assert "\n" not in str(exc.value) and str(path) in str(exc.value)
+    return str(exc.value)

@@ -78,12 +78,20 @@ def test_json_shape(model):
     j = dg.to_json()
     assert j["n"] == 500 and j["missing_effect"] is True and len(j["candidates"]) == 5
     # Every error and L x 6 variables x degrees 1-3, but for the one error tip readings never see (ez_A: a rotation
-    # about the tool axis): no effect of a parameter the data do not see is a candidate.
+    # about the tool axis): no effect of a parameter the data do not see is a candidate; and the per-position
+    # profiles offered (diagnosis/profiles.py), a family of their own
     assert D.unseen(dg.fit) == {"ez_A"}
-    assert j["n_candidates"] == 41 * 6 * 3
+    profiles = j["decision"]["families"]["profile"]["M"]
+    assert profiles > 0 and j["n_candidates"] == 41 * 6 * 3 + profiles
     c = j["candidates"][0]
     assert set(c) >= {"id", "aliases", "rms_mm", "description"} and c["rms_mm"] < j["rms_mm"]
-    rms = [c["rms_mm"] for c in j["candidates"]]
+    # the accepted set first, then best first by the decision's extended BIC; within a family of one penalty that
+    # is by the RMS after (a profile with its many coefficients may explain more and still rank lower)
+    accepted = j["decision"]["accepted"]
+    assert [c["id"] for c in j["candidates"][:len(accepted)]] == accepted
+    deltas = [c["delta_ebic"] for c in j["candidates"][len(accepted):]]
+    assert deltas == sorted(deltas)
+    rms = [c["rms_mm"] for c in j["candidates"] if c["family"] == "polynomial"]
     assert rms == sorted(rms)
     assert j["structure"]["x"]["dz"] > 0.3          # the residual is structured along X
 

@@ -31,6 +31,10 @@ COMMANDS = {
                                                    "fitted model"),
     "plan": ("fiveaxis.commands.plan", "the measurement poses that determine the most, before measuring; CSV + G-code"),
     "dask": ("fiveaxis.commands.dask", "GSIL of a workspace grid on Dask: local worker processes or --scheduler"),
+    "iso230-2": ("fiveaxis.commands.iso230", "ISO 230-2 positioning figures of a linear axis (E, M, B, R, A per "
+                                             "target and axis) with ISO 230-9's uncertainty"),
+    "iso230-4": ("fiveaxis.commands.iso230", "ISO 230-4 circular test figures (G, F, H) of ballbar circles and the "
+                                             "ballbar's diagnostic list"),
 }
 
 
@@ -48,7 +52,7 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     for name, (module, helptext) in COMMANDS.items():
         p = sub.add_parser(name, help=helptext, description=helptext)
         if only is None or name == only:
-            getattr(importlib.import_module(module), f"register_{name}")(p)
+            getattr(importlib.import_module(module), f"register_{name.replace('-', '_')}")(p)
     return parser
 
 
@@ -73,7 +77,15 @@ TRANSLATIONS = (("(force=True replaces it)", "(use --force to replace it)"),
                 ("effect value ", "--effect "),
                 ("bound: expected a positive", "--bound: expected a positive"),
                 ("samples: expected a power of 2", "--samples: expected a power of 2"),
-                ("poses: give a normal", "--pose: give a normal"))
+                ("poses: give a normal", "--pose: give a normal"),
+                ("u_device_um: expected", "--u-device: expected"),
+                ("expansion_ppm_per_K: expected", "--expansion-ppm-per-K: expected"),
+                ("misalignment_mm: expected", "--misalignment: expected"),
+                ("drift_um: expected", "--drift: expected"),
+                ("temperature_deviation_K: expected", "--temperature-deviation: expected"),
+                ("temperature_deviation_K and expansion_ppm_per_K: state both",
+                 "--temperature-deviation and --expansion-ppm-per-K: state both"),
+                ("target tolerance: expected", "--tolerance: expected"))
 
 
 def to_command_line(message: str) -> str:

@@ -106,6 +106,14 @@ def register_simulate(p):
     p.add_argument("--compensation", type=Path, default=None, metavar="DIR",
                    help="apply the compensation table of `fiveaxis compensate -o DIR` to the commands (a table with "
                         "tool lengths: at each pose's own tool length; a warning for lengths outside the table's)")
+    p.add_argument("--linuxcnc", action="store_true",
+                   help="with --compensation: apply what LinuxCNC was given instead of the table: DIR/linuxcnc's "
+                        "compensation files (forward or reverse trims by the approach direction dir_<AXIS>) and "
+                        "the trunnion kinematics")
+    p.add_argument("--axes", default=None, metavar="X,Y",
+                   help="interferometer: the linear axes to run (default: every linear axis, a setup each)")
+    p.add_argument("--targets", type=int, default=None, help="interferometer: targets per axis (default 11)")
+    p.add_argument("--cycles", type=int, default=None, help="interferometer: bidirectional cycles (default 5)")
     p.set_defaults(func=run_simulate)
 
 
@@ -267,8 +275,14 @@ def run_simulate(args) -> int:
     check_size(args.n, "simulated poses (--n)", args.max_poses, "--max-poses {n}")
     if args.noise == 0 and args.with_sigma:
         raise InputError("--with-sigma with --noise 0: a standard deviation of 0 is not a measurement (give a noise)")
-    commands, comp = None, ""
-    if args.compensation is not None:
+    commands, comp, table = None, "", None
+    if args.linuxcnc and args.compensation is None:
+        raise InputError("--linuxcnc applies the LinuxCNC files of a compensation folder: give --compensation DIR")
+    if args.compensation is not None and args.linuxcnc:
+        from ..compensation.table import linuxcnc_function
+        commands = linuxcnc_function(args.compensation, model)
+        comp = f", compensated by LinuxCNC with {args.compensation}/linuxcnc"
+    elif args.compensation is not None:
         from ..compensation.table import command_function, load_table
         table = load_table(args.compensation, model)
         commands = command_function(args.compensation, model, table)
@@ -279,6 +293,14 @@ def run_simulate(args) -> int:
     plan = None
     if args.poses is not None:
         plan = _plan_from_file(args, model, lengths)
+    options = {}
+    for key in ("axes", "targets", "cycles"):
+        value = getattr(args, key)
+        if value is None:
+            continue
+        if args.instrument != "interferometer" or args.poses is not None:
+            raise InputError(f"--{key}: an option of the interferometer's standard plan (--instrument interferometer)")
+        options[key] = [a.strip() for a in value.split(",")] if key == "axes" else value
     errors = {}
     for spec in args.error:
         name, sep, raw = spec.partition("=")
@@ -291,9 +313,10 @@ def run_simulate(args) -> int:
     sim = simulate(model, args.effect, n=args.n, noise=args.noise, seed=args.seed, tool_lengths=lengths,
                    duration=None if args.no_time else args.duration, with_sigma=args.with_sigma,
                    instrument=args.instrument, with_axis=args.with_axis, noise_axis=args.noise_axis, plan=plan,
-                   setup_scale=args.setup_scale, errors=errors, setup_kind=args.setup_kind, commands=commands)
+                   setup_scale=args.setup_scale, errors=errors, setup_kind=args.setup_kind, commands=commands,
+                   options=options)
     meas = sim.meas
-    if commands is not None:
+    if table is not None:
         from ..compensation.table import length_warning
         warn = length_warning(table, meas.L)
         if warn:
@@ -324,7 +347,8 @@ def _plan_from_file(args, model, lengths):
     line = meas.u is not None
     return Plan("poses file", meas.poses, meas.L, meas.has_L, "line" if line else
                 ("tip+axis" if args.with_axis else "tip"), u=meas.u, setup=meas.setup, setup_kind=meas.setup_kind,
-                setup_frame=meas.setup_frame, dirs=meas.dirs, frame=meas.frame, t=meas.t)
+                setup_frame=meas.setup_frame, dirs=meas.dirs, frame=meas.frame, t=meas.t,
+                t_absolute=True)
 
 
 def run_model(args) -> int:

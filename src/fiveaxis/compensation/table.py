@@ -539,7 +539,9 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     errors_fn = fitted_errors(fm, model)
     table, nodes = build_table(model, errors_fn, counts, max_nodes, None, damping, lengths)
     reversal = [v for v in model.variables if _token(model, v) in fm.reversal_variables()]
-    lc = lx.fit(tip_error_function(model, errors_fn), model, comp_points or lx.COMP_POINTS, reversal=reversal)
+    points = comp_points or lx.COMP_POINTS
+    lc = lx.fit(tip_error_function(model, errors_fn), model, points, reversal=reversal,
+                nodes=profile_nodes(fm, model, points))
     from ..linuxcnc import kinematics as lk
     from . import kinematics as ck          # below this module's functions: imported here (it imports them)
     values, text, note = None, "", lk.unsupported(model.machine) or ""
@@ -551,6 +553,31 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     acc = account(model, errors_fn, table, lc, poses, seed, damping=damping, module=module, band=band)
     return Compensation(fm, model, table, nodes, lc, acc, float(damping), float(model.machine.tool_length),
                         values, text, note)
+
+
+def profile_nodes(fm, model, points: int) -> dict:
+    """{variable: nominal positions (machine units: mm, degrees)} for the compensation files of the joints along
+    which the fitted model has per-position profiles (`<param>:<var>k<spacing>`): their knots within the stroke
+    and the stroke's ends, so that LinuxCNC's linear interpolation between the file's lines is the profile itself;
+    where other effects also vary along that joint (polynomials, periods), `points` evenly spaced positions too."""
+    from ..effects.families import profile_knots
+    from ..linuxcnc.configuration import MAX_COMP_POINTS, comp_nodes
+    out = {}
+    for v in model.variables:
+        tok = _token(model, v)
+        recs = [e for e in fm.effects if e.var == tok and e.kind == "profile"]
+        if not recs:
+            continue
+        lo, hi = (float(x) for x in model.machine.axis(v).stroke)
+        knots = np.concatenate([profile_knots(model.machine, tok, e.arg) for e in recs] + [[lo, hi]])
+        if any(e.var == tok and e.kind in ("polynomial", "periodic", "custom") for e in fm.effects):
+            knots = np.concatenate([knots, comp_nodes(model.machine, v, points)])
+        knots = np.unique(np.round(knots[(knots >= lo) & (knots <= hi)], 9))
+        if len(knots) > MAX_COMP_POINTS:
+            raise InputError(f"compensation of {v}: the profiles' knots and the evenly spaced points make "
+                             f"{len(knots)} lines (LinuxCNC reads at most {MAX_COMP_POINTS}); a wider spacing")
+        out[v] = knots
+    return out
 
 
 def _token(model, variable):
@@ -810,12 +837,68 @@ def load_table(folder, model) -> Table:
 
 
 def command_function(folder, model, table: Table | None = None):
-    """(poses, L=None) -> compensated commands (mm, rad) with the table of a compensate output folder (or the
-    table given): at each pose's own tool length L (mm; (n,) or scalar; None: the machine's L0) when the table has
-    a tool-length dimension."""
+    """(poses, L=None, dirs=None) -> compensated commands (mm, rad) with the table of a compensate output folder (or
+    the table given): at each pose's own tool length L (mm; (n,) or scalar; None: the machine's L0) when the table
+    has a tool-length dimension; the table does not depend on the approach directions dirs."""
     table = load_table(folder, model) if table is None else table
     L0 = model.machine.tool_length
-    return lambda poses, L=None: compensated_commands(table, poses, L0 if L is None else L)
+    return lambda poses, L=None, dirs=None: compensated_commands(table, poses, L0 if L is None else L)
+
+
+def load_linuxcnc(folder, model):
+    """What LinuxCNC was given in a compensate output folder, as a linuxcnc.LinuxCNCCompensation: the per-joint
+    compensation files (linuxcnc/joint<N>-<axis>.comp, read as LinuxCNC reads them) and, for a trunnion, the
+    kinematics pins, the workpiece origin (G54) and the tool length of summary.json; checked against the model's
+    machine file."""
+    import json
+    from pathlib import Path
+
+    from ..linuxcnc import configuration as lx
+    folder = Path(folder)
+    load_table(folder, model)                     # the folder belongs to this machine file (summary.json)
+    info = json.loads((folder / "summary.json").read_text(encoding="utf-8")).get("linuxcnc", {})
+    machine = model.machine
+    variables = tuple(model.variables)
+    rotary = tuple(machine.axis(v).type == "rotary" for v in variables)
+    comps = []
+    for j, v in enumerate(variables):
+        path = folder / "linuxcnc" / f"joint{j}-{v}.comp"
+        if path.exists():
+            nominal, fwd, rev = lx.read_comp_file(path)
+            comps.append(lx.JointComp(j, v, "deg" if rotary[j] else "mm", nominal, fwd, rev))
+    if not comps:
+        raise InputError(f"{folder}/linuxcnc: no compensation file joint<N>-<axis>.comp for {machine.name}")
+    trt = None
+    kind = lx.trt_kind(machine)
+    if kind is not None:
+        pins = info.get("trt_pins_mm") or {}
+        origin = info.get("workpiece_origin_g54_mm")
+        try:
+            trt = lx.TrtParameters(kind, float(pins["x-rot-point"]), float(pins["y-rot-point"]),
+                                   float(pins["z-rot-point"]), float(pins[lx.TrtParameters(kind).offset_pin]),
+                                   float(pins["z-offset"]), tuple(float(x) for x in origin))
+        except (KeyError, TypeError, ValueError):
+            raise InputError(f"{folder}/summary.json: linuxcnc: expected trt_pins_mm and workpiece_origin_g54_mm of "
+                             f"{kind}-trt-kins") from None
+    L0 = float(info.get("tool_length_mm", machine.tool_length))
+    return lx.LinuxCNCCompensation(machine.name, variables, rotary, L0, tuple(comps), trt)
+
+
+def linuxcnc_function(folder, model):
+    """(poses, L=None, dirs=None) -> the positions the axes go to under LinuxCNC with the files of a compensate
+    output folder (kinematics, then the compensation files' forward or reverse trims by the approach direction:
+    dirs {axis: (n,) +1/-1}, missing axes forward), mm and rad."""
+    from ..linuxcnc.configuration import linuxcnc_commands
+    lc = load_linuxcnc(folder, model)
+
+    def commands(poses, L=None, dirs=None):
+        q = np.atleast_2d(np.asarray(poses, float))
+        D = np.ones_like(q)
+        for j, v in enumerate(model.variables):
+            if dirs and v in dirs:
+                D[:, j] = np.asarray(dirs[v], float)
+        return linuxcnc_commands(lc, model, q, D, L)
+    return commands
 
 
 def _written(path, text: str, force: bool = False) -> Path:

@@ -35,10 +35,11 @@ from ..effects import families as fx
 from ..effects.custom import load_custom
 from ..measurement import observations as ob
 from . import searches as es
+from .profiles import profile_candidates
 
 #: A candidate whose projected column keeps less than this fraction of its norm is already in the model.
 ABSORBED = 1e-6
-FAMILIES = ("polynomial", "reversal", "periodic", "thermal", "custom")
+FAMILIES = ("polynomial", "reversal", "periodic", "thermal", "profile", "custom")
 #: Families whose candidates carry a searched argument (period, time constant): one more parameter each.
 SEARCHED = ("periodic", "thermal")
 #: Searched (parameter, variable) pairs whose period or time constant is searched again in each CV fold.
@@ -196,6 +197,18 @@ class Pool:
     n_fixed: int               # polynomial + reversal + custom candidates
     fold_found: list = field(default_factory=list)   # per CV fold: [(family, es.Found)] searched on its training rows
     resampled: set = field(default_factory=set)      # ids of candidates the folds search again (their own periods)
+    profiles: list = field(default_factory=list)     # per-position profiles (`fiveaxis.diagnosis.profiles`)
+    profile_cols: list = field(default_factory=list)  # (N, k) weighted columns per profile
+
+    def items(self) -> list:
+        """Every candidate of the whole screen as (effect, family), in the order of `columns`."""
+        return ([(e, str(f)) for e, f in zip(self.singles, self.single_family)]
+                + [(e, "periodic") for e in self.periodic] + [(e, "custom") for e in self.customs]
+                + [(e, "profile") for e in self.profiles])
+
+    def columns(self) -> np.ndarray:
+        """The weighted columns of `items`, side by side (N, sum of their coefficients)."""
+        return np.hstack([self.G, self.Gp, *self.custom_cols, *self.profile_cols])
 
     @property
     def blocks(self) -> list:
@@ -239,11 +252,12 @@ def customs(model, present) -> list:
 
 
 def build_pool(block, w, Q: np.ndarray, rw: np.ndarray, present: set, custom: list, periodic: bool = True,
-               folds=None, unseen=()) -> Pool:
+               folds=None, unseen=(), profiles: bool = True) -> Pool:
     """Every candidate of a diagnosis on a screen block (its readings' weights w, residual rw, basis Q), effects
     already present left out; periodic: search periods (the costly search); folds: (training readings, basis and
     residual per fold, see `fold_searches`) to repeat the searches per fold; unseen: parameters the data do not
-    see (their columns within the data's resolution: no effect of theirs is a candidate)."""
+    see (their columns within the data's resolution: no effect of theirs is a candidate); profiles: offer the
+    per-position profiles the data determine (`fiveaxis.diagnosis.profiles`)."""
     prob = block.prob
     machine, model = prob.model.machine, prob.model
     unseen = set(unseen)
@@ -266,9 +280,10 @@ def build_pool(block, w, Q: np.ndarray, rw: np.ndarray, present: set, custom: li
     grid = es.tau_grid(prob.meas.t, sums.live) if prob.meas.t is not None else None
     therm = [f for f in es.thermal(sums, grid) if f.effect.id not in present] if grid is not None else []
     active = int(np.sum(sums.W2.sum(axis=0) > 0))
+    prof = profile_candidates(block, w, present, unseen) if profiles else []
     trials = {"polynomial": len(poly), "reversal": len(rev),
               "periodic": active * sum(b.trials for b in bands) if per else 0,
-              "thermal": active * grid.trials if therm else 0, "custom": len(custom)}
+              "thermal": active * grid.trials if therm else 0, "profile": len(prof), "custom": len(custom)}
     singles = poly + rev + [f.effect for f in therm]
     fam = np.array(["polynomial"] * len(poly) + ["reversal"] * len(rev) + ["thermal"] * len(therm), dtype=object)
     G = candidate_matrix(block, w, singles)
@@ -276,7 +291,8 @@ def build_pool(block, w, Q: np.ndarray, rw: np.ndarray, present: set, custom: li
     Gp = candidate_matrix(block, w, peff) if peff else np.zeros((len(rw), 0))
     ccols = [candidate_matrix(block, w, [e]) for e in custom]
     pool = Pool(singles, fam, G, peff, Gp, list(custom), ccols, Prior(trials), params, P, bands, grid, per, therm,
-                len(poly) + len(rev) + len(custom))
+                len(poly) + len(rev) + len(custom) + len(prof), profiles=prof,
+                profile_cols=[candidate_matrix(block, w, [e]) for e in prof])
     if folds is not None:
         fold_searches(pool, prob, *folds)
     return pool

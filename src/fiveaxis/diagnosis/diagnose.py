@@ -179,10 +179,10 @@ def accepted_effects(res: FitResult) -> list[str]:
     present = {e.id for e in prob.effects}
     pool = cd.build_pool(sc.block, sc.w, sc.Q, sc.rw, present, cd.customs(prob.model, present), periodic=False,
                          unseen=unseen(res))
-    items = _items(pool, None)
+    items = [(e, f, None) for e, f in pool.items()]
     if not items:
         return []
-    X = np.hstack([pool.G, *pool.custom_cols])
+    X = pool.columns()
     lay = dc.layout(0, items)
     N = len(sc.rw)
     main = lay.main()
@@ -206,6 +206,7 @@ def _items(pool: cd.Pool, keep) -> list:
     items = [(pool.singles[j], str(pool.single_family[j]), None) for j in singles]
     items += [(pool.periodic[b], "periodic", None) for b in periodic]
     items += [(e, "custom", None) for e in pool.customs]
+    items += [(e, "profile", None) for e in pool.profiles]
     items += [(x.effect, fam, f) for f, found in enumerate(pool.fold_found) for fam, x in found]
     return items
 
@@ -238,10 +239,10 @@ def _cut(pool: cd.Pool, sc: Screen, known: bool):
 def _search_after_first_choice(pool: cd.Pool, sc: Screen, present: set, known: bool) -> None:
     """The set the rule would accept on the screen (`decision.select`), and the period and time-constant
     searches again against the residual it leaves (`candidates.search_again`)."""
-    items = [it for it in _items(pool, None) if it[2] is None]
+    items = [(e, f, None) for e, f in pool.items()]
     if not items or not (pool.bands or pool.grid is not None):
         return
-    X = np.hstack([pool.G, pool.Gp, *pool.custom_cols])
+    X = pool.columns()
     lay = dc.layout(0, items)
     N = len(sc.rw)
     main = lay.main()

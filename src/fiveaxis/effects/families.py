@@ -19,6 +19,10 @@ The vocabulary (ids: `fiveaxis.model.effect_ids`):
   of 2c. Needs a `dir_<VAR>` column.
 - `<param>:<var>p<P>`: c1 sin(2 pi v / P) + c2 cos(2 pi v / P), v in mm, degrees or s: a periodic error.
 - `<param>:te<tau>`: c (1 - exp(-t / tau)), tau in s: a thermal drift with a time constant.
+- `<param>:<var>k<S>`: sum_j c_j h_j(v), a per-position profile: piecewise linear between knots every S (var's
+  interface unit: mm or degrees) from the low end of the axis' stroke over the stroke (the last knot at or past
+  its high end), held constant beyond the end knots; h_j are the hat functions of the knots, c_j the parameter's
+  value at knot j (mm or rad). One coefficient per knot (`<id>@<knot>`).
 Custom effects from the machine file (`[effects.<name>]`) live in `fiveaxis.effects.custom` and have the same
 interface.
 """
@@ -37,6 +41,11 @@ from ..units import human
 DEGREES = (1, 2, 3)
 TOOL = ids.TOOL
 TIME = ids.TIME
+#: A profile has at most this many knots (LinuxCNC reads at most 256 lines of a compensation file).
+MAX_PROFILE_KNOTS = 256
+#: The last knot of a profile may fall short of the stroke's end by this share of a spacing (ids are written with
+#: 6 significant digits).
+KNOT_TOL = 1e-4
 
 
 @dataclass(frozen=True)
@@ -148,7 +157,8 @@ class Effect:
     param: str
     var: str
     kind: str = "poly"
-    arg: float = 1.0           # degree, period (var's interface unit) or tau (s)
+    arg: float = 1.0           # degree, period or knot spacing (var's interface unit), or tau (s)
+    knots: tuple = ()          # profile: knot positions (var's interface unit: mm or deg), from the stroke
 
     @property
     def deg(self) -> int:
@@ -159,6 +169,8 @@ class Effect:
         """Names of its coefficients: the id, or id.sin / id.cos for a periodic effect."""
         if self.kind == "periodic":
             return (f"{self.id}.sin", f"{self.id}.cos")
+        if self.kind == "profile":
+            return tuple(f"{self.id}@{ids.fmt(k)}" for k in self.knots)
         return (self.id,)
 
     def basis(self, ctx: EffectContext) -> np.ndarray:
@@ -171,6 +183,8 @@ class Effect:
             s = ctx.scales[self.var]
             phase = 2.0 * math.pi * ctx.raw(self.var) * s.to_unit / self.arg
             return np.column_stack([np.sin(phase), np.cos(phase)])
+        if self.kind == "profile":
+            return hat_basis(ctx.raw(self.var) * ctx.scales[self.var].to_unit, np.asarray(self.knots))
         return (1.0 - np.exp(-ctx.raw(TIME) / self.arg))[:, None]
 
     def unit_of(self, machine) -> str:
@@ -185,7 +199,7 @@ class Effect:
             half = s.half * s.to_unit
             per = s.unit if self.deg == 1 else f"{s.unit}^{self.deg}"
             return [(float(c) / half ** self.deg, f"{unit}/{per}") for c in coefs]
-        return [(float(c), unit) for c in coefs]
+        return [(float(c), unit) for c in coefs]      # amplitudes; a profile: the value at each knot
 
     def describe(self, machine, coefs=None, ctx: "EffectContext | None" = None) -> str:
         return describe(machine, self, coefs, ctx)
@@ -203,7 +217,44 @@ def parse(effect_id: str, machine, errors, where: str = "effect") -> Effect:
     if e.param != TOOL and e.param not in errors:
         raise InputError(f"{where}: '{effect_id}': unknown parameter '{e.param}' (expected an error name such as "
                          f"{', '.join(errors[:3])} ... or L for the tool length)")
+    if e.kind == "profile":
+        return profile(machine, e.param, e.var, e.arg, where)
     return Effect(e.text, e.param, e.var, e.kind, e.arg)
+
+
+def profile_knots(machine, var: str, spacing: float, where: str = "effect") -> np.ndarray:
+    """Knots of a profile along pose variable token var every `spacing` (mm or degrees) from the low end of the
+    axis' stroke, the last at or past its high end (within KNOT_TOL of a spacing); InputError for more than
+    MAX_PROFILE_KNOTS knots or fewer than 2."""
+    name = next((v for v in machine.variables if var_token(machine, v) == var), None)
+    if name is None:
+        raise InputError(f"{where}: a profile needs a pose variable, not '{var}'")
+    lo, hi = (float(x) for x in machine.axis(name).stroke)
+    count = int(math.ceil((hi - lo) / spacing - KNOT_TOL)) + 1
+    unit = "deg" if machine.axis(name).type == "rotary" else "mm"
+    if count > MAX_PROFILE_KNOTS:
+        raise InputError(f"{where}: a profile along {name} every {ids.fmt(spacing)} {unit} has {count} knots over "
+                         f"the stroke [{lo:g}, {hi:g}] {unit} (expected at most {MAX_PROFILE_KNOTS}: a wider spacing)")
+    return lo + spacing * np.arange(max(count, 2))
+
+
+def profile(machine, param: str, var: str, spacing: float, where: str = "effect") -> Effect:
+    """The profile effect `<param>:<var>k<spacing>` with its knots over the machine's stroke."""
+    text = ids.EffectId(param, var, "profile", float(spacing)).text
+    knots = profile_knots(machine, var, float(ids.fmt(spacing)), where)
+    return Effect(text, param, var, "profile", float(ids.fmt(spacing)), tuple(float(k) for k in knots))
+
+
+def hat_basis(x, knots) -> np.ndarray:
+    """Piecewise-linear basis (n, len(knots)) on ascending knots, constant beyond the end knots: column j is 1 at
+    knot j, falling linearly to 0 at its neighbours (as LinuxCNC interpolates a compensation table)."""
+    x = np.clip(np.asarray(x, float), knots[0], knots[-1])
+    k = np.clip(np.searchsorted(knots, x, side="right") - 1, 0, len(knots) - 2)
+    t = (x - knots[k]) / (knots[k + 1] - knots[k])
+    B = np.zeros((len(x), len(knots)))
+    B[np.arange(len(x)), k] = 1 - t
+    B[np.arange(len(x)), k + 1] += t
+    return B
 
 
 def vocabulary(machine, errors, with_time: bool) -> list[Effect]:
@@ -317,6 +368,11 @@ def _own(machine, effect: Effect):
     return None
 
 
+def is_positioning(machine, param: str, var: str) -> bool:
+    """Whether param is the own positioning error of the axis of pose variable token var (dx_x for x, ez_C for C)."""
+    return _own(machine, Effect("", param, var)) is not None
+
+
 def is_own(machine, effect: Effect) -> bool:
     """The effect's parameter is an error motion of the axis its variable belongs to: dy_x, ex_x, dx_x along x;
     ez_C, dx_C along C (an axis's own error along its own travel)."""
@@ -379,6 +435,18 @@ def describe(machine, effect: Effect, coefs=None, ctx: "EffectContext | None" = 
             kind = "positioning" if unit == "mm" else "angular positioning"
             return f"a periodic {kind} error of {name} with {period}{note}"
         return f"{what} varying periodically with {name}, with {period}{note}"
+    if effect.kind == "profile":
+        knots = effect.knots
+        kind = "positioning error" if own is not None and unit == "mm" else (
+            "angular positioning error" if own is not None else "")
+        head = f"a per-position {kind} profile of {name}" if kind else f"{what} as a per-position profile along {name}"
+        text = (f"{head} (piecewise linear, knots every {ids.fmt(effect.arg)} {unit} from {knots[0]:g} to "
+                f"{knots[-1]:g} {unit}, {len(knots)} knots)")
+        if c is not None and len(c):
+            text += f" spanning {human(max(c) - min(c), size_unit, 2)} ({human(min(c), size_unit, 2)} to " \
+                    f"{human(max(c), size_unit, 2)})"
+        return text + (" — lead-screw, scale or encoder errors that are not a low polynomial" if own is not None
+                       else "")
     if effect.kind == "thermal":
         by = "" if c is None else f" by {human(c[0], size_unit, 2)}"
         if effect.param == TOOL:

@@ -33,7 +33,9 @@ it). A polynomial effect `<param>:<var><deg>` adds c * u^deg to param, u = (var 
 mm, rad, s); its coefficient c is the change of param at u = 1 (mm or rad). A reversal effect `<param>:<var>r` adds
 c * dir, dir = +1 when the axis approached its position moving in +, -1 moving in - (with no directions given it
 contributes its mean over both directions, 0). A periodic effect `<param>:<var>p<P>` adds c_sin sin(2 pi v / P) +
-c_cos cos(2 pi v / P); a thermal one `<param>:te<tau>` adds c (1 - exp(-t / tau)). A custom effect of the machine
+c_cos cos(2 pi v / P); a thermal one `<param>:te<tau>` adds c (1 - exp(-t / tau)); a profile `<param>:<var>k<S>`
+adds the piecewise-linear interpolation of its knot values (knots every S mm or degrees over the stroke, one
+coefficient `<id>@<knot>` per knot, constant beyond the end knots). A custom effect of the machine
 file adds its expression with parameters p_k. Time effects are evaluated at the times given; without times, at
 t = 0 (the start of the measurement run), where every time effect of the vocabulary is zero.
 """
@@ -59,8 +61,11 @@ VERSION = 1
 POLICY = ("parameters not determined alone by the data carry the minimum-norm solution of the fit (least squares "
           "with unit-norm design columns) and are listed under 'undetermined'; only the combinations the data "
           "determines (and the tool-tip errors at the measured tool lengths) are meaningful for them")
-KINDS = ("polynomial", "reversal", "periodic", "thermal", "custom")
-_KIND_OF = {"poly": "polynomial", "reversal": "reversal", "periodic": "periodic", "thermal": "thermal"}
+KINDS = ("polynomial", "reversal", "periodic", "thermal", "profile", "custom")
+_KIND_OF = {"poly": "polynomial", "reversal": "reversal", "periodic": "periodic", "thermal": "thermal",
+            "profile": "profile"}
+#: The key that holds the argument of an effect kind in the file (period, time constant, knot spacing).
+_ARG_KEY = {"periodic": "period", "thermal": "tau_s", "profile": "spacing"}
 _SCALE_UNIT = {"mm": "mm", "deg": "rad", "s": "s"}     # Scale.unit (interface) -> model unit of centre/half
 
 
@@ -75,7 +80,8 @@ class EffectRecord:
     names: tuple[str, ...]          # coefficient names (the fit's parameter names)
     values: tuple[float, ...]       # coefficients, mm or rad (polynomial/reversal: at u = 1 or s = 1)
     std: tuple[float | None, ...] = ()   # standard uncertainties (None where not determined alone)
-    arg: float | None = None        # period (var's unit) of a periodic effect, tau (s) of a thermal one
+    arg: float | None = None        # period (var's unit) of a periodic effect, tau (s) of a thermal one, knot spacing
+                                    # (var's unit) of a profile
 
 
 @dataclass
@@ -156,7 +162,7 @@ def from_fit(res) -> FittedModel:
         kind = _KIND_OF.get(getattr(eff, "kind", None), "custom")
         var = getattr(eff, "var", None)
         deg = eff.deg if kind == "polynomial" else None
-        arg = float(eff.arg) if kind in ("periodic", "thermal") else None
+        arg = float(eff.arg) if kind in _ARG_KEY else None
         effects.append(EffectRecord(eff.id, kind, eff.param, var, deg, cnames, vals, sd, arg))
         k += len(cnames)
     n_machine = ne + sum(len(e.names) for e in prob.effects)
@@ -263,7 +269,11 @@ def effect_of(rec: EffectRecord, model):
     custom effect."""
     if rec.kind == "custom":
         return load_custom(model.machine, rec.id)
-    return fx.parse(rec.id, model.machine, model.errors, "model file effect")
+    eff = fx.parse(rec.id, model.machine, model.errors, "model file effect")
+    if len(eff.names) != len(rec.values):
+        raise InputError(f"model file effect '{rec.id}': {len(rec.values)} coefficients, but the machine file's "
+                         f"stroke gives it {len(eff.names)}")
+    return eff
 
 
 def errors_at(fm: FittedModel, model, poses, t=None, dirs=None, L=None):
@@ -322,7 +332,7 @@ def to_json(fm: FittedModel) -> dict:
         if e.deg is not None:
             rec["degree"] = e.deg
         if e.arg is not None:
-            rec["period" if e.kind == "periodic" else "tau_s"] = e.arg
+            rec[_ARG_KEY[e.kind]] = e.arg
         rec["coefficients_mm_rad"] = dict(zip(e.names, e.values))
         sd = {n: v for n, v in zip(e.names, e.std) if v is not None}
         if sd:
@@ -416,13 +426,17 @@ def load(path) -> FittedModel:
         if kind == "polynomial" and (not isinstance(var, str) or deg not in fx.DEGREES or var not in scales):
             raise InputError(f"{where}: a polynomial effect needs 'variable' (one of {', '.join(scales)}) and "
                              f"'degree' 1 to 3")
-        if kind in ("reversal", "periodic", "thermal") and not isinstance(var, str):
+        if kind in ("reversal", "periodic", "thermal", "profile") and not isinstance(var, str):
             raise InputError(f"{where}: a {kind} effect needs 'variable'")
-        arg = e.get("period" if kind == "periodic" else "tau_s") if kind in ("periodic", "thermal") else None
+        arg = e.get(_ARG_KEY[kind]) if kind in _ARG_KEY else None
         if arg is not None and (isinstance(arg, bool) or not isinstance(arg, (int, float)) or not arg > 0):
-            raise InputError(f"{where}: expected a positive period or time constant, got {json.dumps(arg)[:40]}")
+            raise InputError(f"{where}: expected a positive period, time constant or knot spacing, got "
+                             f"{json.dumps(arg)[:40]}")
         expected = 2 if kind == "periodic" else 1
-        if kind != "custom" and len(values) != expected:
+        if kind == "profile" and len(values) < 2:
+            raise InputError(f"{where}: key 'coefficients_mm_rad': a profile has one coefficient per knot (at "
+                             f"least 2), got {len(values)}")
+        if kind not in ("custom", "profile") and len(values) != expected:
             raise InputError(f"{where}: key 'coefficients_mm_rad': expected {expected} coefficient(s), got "
                              f"{len(values)}")
         effects.append(EffectRecord(ident, kind, param, var, deg, names, values, stds, arg))

@@ -27,9 +27,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
+from ..effects.families import hat_basis
 from ..exceptions import InputError
 
 #: LinuxCNC reads at most this many lines of a compensation file (EMCMOT_COMP_SIZE).
@@ -260,21 +262,20 @@ def linuxcnc_commands(lc: LinuxCNCCompensation, model, poses, dirs=1.0, L=None) 
 
 
 # -- choosing LinuxCNC's parameters ---------------------------------------------------------------------------------
-def _hat(x, nodes):
-    """Piecewise-linear basis (n, len(nodes)) on ascending nodes, constant beyond the ends (as LinuxCNC)."""
-    x = np.clip(x, nodes[0], nodes[-1])
-    k = np.clip(np.searchsorted(nodes, x, side="right") - 1, 0, len(nodes) - 2)
-    t = (x - nodes[k]) / (nodes[k + 1] - nodes[k])
-    B = np.zeros((len(x), len(nodes)))
-    B[np.arange(len(x)), k] = 1 - t
-    B[np.arange(len(x)), k + 1] += t
-    return B
-
-
 def comp_nodes(machine, variable: str, points: int) -> np.ndarray:
     """Evenly spaced nominal positions over the axis stroke, machine units (mm or degrees)."""
     lo, hi = machine.axis(variable).stroke
     return np.linspace(float(lo), float(hi), int(points))
+
+
+def check_nodes(values, variable: str) -> np.ndarray:
+    """Nominal positions of a compensation file (machine units) as an array; InputError unless 2 to
+    MAX_COMP_POINTS finite, strictly ascending values (LinuxCNC: "compensation values must increase")."""
+    a = np.asarray(values, dtype=float).ravel()
+    if not 2 <= len(a) <= MAX_COMP_POINTS or not np.all(np.isfinite(a)) or np.any(np.diff(a) <= 0):
+        raise InputError(f"compensation nodes of {variable}: expected 2 to {MAX_COMP_POINTS} finite, strictly "
+                         f"ascending positions, got {len(a)}")
+    return a
 
 
 def full_turn(machine, variable: str) -> bool:
@@ -294,12 +295,13 @@ def periodic_extension(nodes, *curves, max_lines: int = MAX_COMP_POINTS):
     return (nominal, *out)
 
 
-def _roughness(blocks, points: int, n_trt: int, n_par: int, norms, periodic) -> np.ndarray:
+def _roughness(blocks, n_trt: int, n_par: int, norms, periodic) -> np.ndarray:
     """Rows of SMOOTHING x (second differences of every trim curve), each scaled by its block's typical design
     column norm; a full-turn joint's curve wraps around (its last node is its first)."""
     rows = []
     k = n_trt
     for what, j, keep in blocks:
+        points = len(keep)
         col = np.full(points, -1)
         col[keep] = np.arange(k, k + keep.sum())
         k += int(keep.sum())
@@ -317,13 +319,15 @@ def _roughness(blocks, points: int, n_trt: int, n_par: int, norms, periodic) -> 
 
 
 def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None, seed: int = 0,
-        reversal=(), L=None) -> LinuxCNCCompensation:
+        reversal=(), L=None, nodes: dict | None = None) -> LinuxCNCCompensation:
     """LinuxCNC's parameters that leave the least predicted tool-tip error over the workspace.
 
     tip_error(positions, dirs, commanded) -> (n, 3) mm: the tool-tip error a model predicts when the axes are at
     `positions` (n, nvar; mm, rad), arrived in directions `dirs` (+1/-1), relative to the nominal tool tip of the
     `commanded` poses (see compensation.tip_error_function). reversal: variables whose forward and reverse trims
-    may differ. Least squares over `samples` random poses (seeded), linearised with the
+    may differ. nodes: {variable: ascending nominal positions (machine units: mm, degrees)} for joints whose trims
+    belong at given positions (the knots of a per-position profile), instead of `points` evenly spaced ones.
+    Least squares over `samples` random poses (seeded), linearised with the
     nominal Jacobian, then two refinement steps on the exact tip errors; the trim curves' second differences are
     penalised (SMOOTHING), so that they follow the model, not the sampling of the poses. A full-turn rotary axis
     (C of a trunnion) gets a periodic curve (equal at -180 and 180 degrees), written over as many turns as a comp
@@ -336,20 +340,21 @@ def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None,
     rotary = tuple(machine.axis(v).type == "rotary" for v in variables)
     kind = trt_kind(machine)
     L0 = float(machine.tool_length) if L is None else float(L)
-    nodes = [comp_nodes(machine, v, points) for v in variables]
+    given = dict(nodes or {})
+    nodes = [check_nodes(given[v], v) if v in given else comp_nodes(machine, v, points) for v in variables]
     # unknowns: trunnion pins, then per joint the mean trim curve and (reversal joints) the half difference
     blocks = []
     centre_pin = kind is not None
     periodic = tuple(full_turn(machine, v) for v in variables)
     for j, v in enumerate(variables):
-        keep = np.ones(points, bool)
+        keep = np.ones(len(nodes[j]), bool)
         if centre_pin and not rotary[j]:
             keep[int(np.argmin(np.abs(nodes[j] - 0.5 * (nodes[j][0] + nodes[j][-1]))))] = False
         if periodic[j]:
             keep[-1] = False                               # the last node is the first, a turn on
         blocks.append(("mean", j, keep))
         if v in reversal:
-            blocks.append(("half", j, keep.copy() if periodic[j] else np.ones(points, bool)))
+            blocks.append(("half", j, keep.copy() if periodic[j] else np.ones(len(nodes[j]), bool)))
     n_trt = len(TRT_NAMES) if kind else 0
     n_par = n_trt + sum(int(b[2].sum()) for b in blocks)
     samples = samples or max(4000, 12 * n_par)
@@ -359,11 +364,11 @@ def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None,
 
     def build(theta):
         trt = TrtParameters.from_vector(kind, theta[:n_trt]) if kind else None
-        fwd = [np.zeros(points) for _ in variables]
-        rev = [np.zeros(points) for _ in variables]
+        fwd = [np.zeros(len(a)) for a in nodes]
+        rev = [np.zeros(len(a)) for a in nodes]
         k = n_trt
         for what, j, keep in blocks:
-            vals = np.zeros(points)
+            vals = np.zeros(len(nodes[j]))
             vals[keep] = theta[k:k + keep.sum()]
             k += keep.sum()
             if periodic[j]:
@@ -390,7 +395,7 @@ def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None,
             cols.append(np.einsum("nkj,nj->nk", G, dJ))
         del base
     for what, j, keep in blocks:
-        B = _hat(np.degrees(q[:, j]) if rotary[j] else q[:, j], nodes[j])
+        B = hat_basis(np.degrees(q[:, j]) if rotary[j] else q[:, j], nodes[j])
         if periodic[j]:
             B[:, 0] += B[:, -1]
         B = B[:, keep]
@@ -400,7 +405,7 @@ def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None,
     D = np.concatenate([c if c.ndim == 3 else c[:, :, None] for c in cols], axis=2).reshape(3 * samples, n_par)
     norms = np.linalg.norm(D, axis=0)
     norms[norms == 0] = 1.0
-    R = _roughness(blocks, points, n_trt, n_par, norms, periodic)
+    R = _roughness(blocks, n_trt, n_par, norms, periodic)
     U, S, Vt = np.linalg.svd(np.vstack([D, R]) / norms, full_matrices=False)
     keep = S > 1e-10 * S[0]
     U, S, Vt = U[:, keep], S[keep], Vt[keep]
@@ -411,6 +416,7 @@ def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None,
         theta = theta - (Vt.T @ ((U.T @ np.concatenate([r, R @ theta])) / S)) / norms
     lc = build(theta)
     lc.info = {"samples": int(samples), "seed": int(seed), "points_per_joint": int(points),
+               "profile_knots": {v: [float(x) for x in nodes[j]] for j, v in enumerate(variables) if v in given},
                "parameters": int(n_par), "reversal_joints": [v for v in variables if v in reversal],
                "smoothing": SMOOTHING, "periodic_joints": [v for v, p in zip(variables, periodic) if p]}
     return lc
@@ -441,6 +447,37 @@ def startup_code(lc: LinuxCNCCompensation) -> str | None:
         return None
     o = lc.trt.origin
     return f"G10 L2 P1 X{o[0]:.9f} Y{o[1]:.9f} Z{o[2]:.9f} G54"
+
+
+def read_comp_file(path) -> tuple:
+    """A compensation file as LinuxCNC 2.9 reads it: `nominal forward reverse` per line (machine units); reading
+    stops at the first line that is not three numbers (as LinuxCNC does). Returns (nominal, forward, reverse)
+    arrays; InputError naming the file and line when fewer than 2 lines are read or the nominals do not increase
+    ("compensation values must increase")."""
+    path = Path(path)
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except FileNotFoundError:
+        raise InputError(f"{path}: compensation file not found") from None
+    rows = []
+    for line in lines:
+        parts = line.split()
+        try:
+            vals = [float(x) for x in parts]
+        except ValueError:
+            break
+        if len(vals) != 3 or not all(math.isfinite(v) for v in vals):
+            break
+        rows.append(vals)
+    if len(rows) < 2:
+        raise InputError(f"{path}: line {len(rows) + 1}: expected 'nominal forward reverse' (three numbers per line, "
+                         f"at least 2 lines; LinuxCNC stops reading at the first other line)")
+    a = np.array(rows[:MAX_COMP_POINTS])
+    bad = np.flatnonzero(np.diff(a[:, 0]) <= 0)
+    if len(bad):
+        raise InputError(f"{path}: line {bad[0] + 2}: nominal {a[bad[0] + 1, 0]:g} does not increase (LinuxCNC: "
+                         f"compensation values must increase)")
+    return a[:, 0], a[:, 1], a[:, 2]
 
 
 def ini_text(lc: LinuxCNCCompensation, source: str = "") -> str:

@@ -13,9 +13,10 @@ readings are reported in. `fiveaxis.measurement.simulate` turns a plan into read
 - `probe-sphere`: a sphere on the table probed at a grid of rotary positions (KinematicsOpt-like); the sphere
   centre's deviation from the nominal kinematics, machine frame; each placement a setup.
 - `ballbar`: ISO 230-4 circles of radius 150 mm in the XY, YZ and ZX planes at the workspace centre, both
-  directions, each circle a setup (pivot offset and bar length); 1-D readings along the bar.
-- `interferometer`: ISO 230-2 bidirectional runs of each linear axis, 5 cycles, 1-D along the axis, each axis a
-  setup (dead path).
+  directions without moving the pivot, each plane a setup (pivot offset and bar length); 1-D readings along the
+  bar; times at the feed.
+- `interferometer`: ISO 230-2 bidirectional runs of each linear axis (or the axes asked for): 11 targets
+  (irregular spacing), 5 cycles, overrun, a dwell per target, 1-D along the axis, each axis a setup (dead path).
 - `test-part`: a plate of holes drilled at a grid of X, Y positions (Z and the rotary axes fixed), measured on a
   CMM in the plate's plane only (dx, dy; dz blank): one setup of kind `planar` (the plate's unknown position and
   rotation on the CMM), workpiece frame.
@@ -35,6 +36,13 @@ from ..exceptions import InputError
 from ..model.inverse import linear_for_tip, within_strokes
 
 NAMES = ("tip", "rtest", "probe-sphere", "ballbar", "interferometer", "tracker", "test-part")
+#: Ballbar test: feed along the circle (mm/min) and the pause between runs (s).
+BALLBAR_FEED = 1000.0
+BALLBAR_PAUSE_S = 5.0
+#: ISO 230-2 run: feed between targets (mm/min), dwell at a target (s), overrun past the end targets (mm).
+INTERFEROMETER_FEED = 2000.0
+INTERFEROMETER_DWELL_S = 4.0
+INTERFEROMETER_OVERRUN_MM = 5.0
 
 
 @dataclass
@@ -51,8 +59,9 @@ class Plan:
     setup_frame: dict = field(default_factory=dict)
     dirs: dict = field(default_factory=dict)
     frame: str = "workpiece"
-    t: np.ndarray | None = None
+    t: np.ndarray | None = None          # (n,) s: a cadence (scaled to the simulated duration), or absolute times
     notes: list = field(default_factory=list)
+    t_absolute: bool = False             # t is when each pose was measured (a poses file), kept as it is
 
     @property
     def n(self) -> int:
@@ -198,8 +207,10 @@ def approach_directions(path: np.ndarray) -> np.ndarray:
     return out
 
 
-def ballbar(model, n, rng, radius: float = 150.0, L: float | None = None) -> Plan:
-    """ISO 230-4 circles in the XY, YZ and ZX planes, both directions; 1-D along the bar; a setup per circle."""
+def ballbar(model, n, rng, radius: float = 150.0, L: float | None = None, feed: float = BALLBAR_FEED) -> Plan:
+    """ISO 230-4 circles in the XY, YZ and ZX planes, counter-clockwise then clockwise without moving the pivot
+    (one setup per plane: the pivot's placement and the bar length); 1-D along the bar; times (s) at `feed` mm/min
+    along the path, one circle after the other."""
     lin, _ = linear_rotary(model)
     if len(lin) < 3:
         raise InputError(f"instrument ballbar: machine {model.machine.name} needs three linear axes")
@@ -210,10 +221,12 @@ def ballbar(model, n, rng, radius: float = 150.0, L: float | None = None) -> Pla
     per = max(16, int(round(n / 6)))
     theta = np.linspace(0.0, 2 * math.pi, per, endpoint=False)
     planes = {"XY": (0, 1), "YZ": (1, 2), "ZX": (2, 0)}
-    poses, us, setups, dirs = [], [], [], []
+    poses, us, setups, dirs, times = [], [], [], [], []
     idx_lin = [model.variables.index(v) for v in lin]
+    step_s = 2 * math.pi * radius / per / (feed / 60.0)
+    clock = 0.0
     for name, (a, b) in planes.items():
-        for sense, sign in (("ccw", 1.0), ("cw", -1.0)):
+        for sign in (1.0, -1.0):             # counter-clockwise, then clockwise
             th = sign * theta
             u = np.zeros((per, 3))
             u[:, a] = np.cos(th)
@@ -224,33 +237,50 @@ def ballbar(model, n, rng, radius: float = 150.0, L: float | None = None) -> Pla
                                  f"of {model.machine.name}")
             poses.append(q)
             us.append(u)
-            setups += [f"{name}-{sense}"] * per
+            setups += [name] * per
             dirs.append(approach_directions(q[:, idx_lin]))
+            times.append(clock + step_s * np.arange(1, per + 1))
+            clock = times[-1][-1] + BALLBAR_PAUSE_S
     D = np.vstack(dirs)
     poses = np.vstack(poses)
     setup = np.array(setups, dtype=object)
     return Plan("ballbar", poses, np.full(len(poses), L), False, "line", u=np.vstack(us), setup=setup,
                 setup_kind={s: "point" for s in dict.fromkeys(setup)},
                 setup_frame={s: "workpiece" for s in dict.fromkeys(setup)},
-                dirs={v: D[:, j] for j, v in enumerate(lin)},
-                notes=[f"pivot at {pivot.round(3).tolist()} mm (workpiece frame), radius {radius:g} mm"])
+                dirs={v: D[:, j] for j, v in enumerate(lin)}, t=np.concatenate(times),
+                notes=[f"pivot at {pivot.round(3).tolist()} mm (workpiece frame), radius {radius:g} mm, feed "
+                       f"{feed:g} mm/min; each plane counter-clockwise then clockwise, one setup"])
 
 
-def interferometer(model, n, rng, cycles: int = 5, targets: int = 11) -> Plan:
-    """ISO 230-2 bidirectional runs of every linear axis: `targets` positions over 90% of the stroke (slightly
-    irregular spacing), `cycles` forward and reverse passes; 1-D along the axis; a setup per axis."""
+def interferometer(model, n, rng, cycles: int = 5, targets: int = 11, axes=None) -> Plan:
+    """ISO 230-2 bidirectional runs of linear axes (`axes`: names, default every linear axis): `targets` positions
+    over 90% of the stroke (irregular spacing, as the standard asks), visited in a fixed order cycle after cycle,
+    forward then backward, with an overrun of INTERFEROMETER_OVERRUN_MM past each end so that the end target is
+    approached in both directions; 1-D along the axis; a setup per axis (its dead path); times (s): moves at
+    INTERFEROMETER_FEED mm/min and a dwell of INTERFEROMETER_DWELL_S at each target."""
     lin, _ = linear_rotary(model)
+    axes = lin if axes is None else list(axes)
+    unknown = [v for v in axes if v not in lin]
+    if unknown or not axes:
+        raise InputError(f"instrument interferometer: axes {', '.join(unknown) or '(none)'}: expected linear axes of "
+                         f"{model.machine.name} ({', '.join(lin)})")
+    if cycles < 1 or targets < 2:
+        raise InputError(f"instrument interferometer: expected at least 1 cycle and 2 targets, got {cycles} and "
+                         f"{targets}")
     centre = centre_pose(model)
-    poses, us, setups, dirs_all = [], [], [], {v: [] for v in lin}
-    for v in lin:
+    speed = INTERFEROMETER_FEED / 60.0
+    poses, us, setups, times, dirs_all = [], [], [], [], {v: [] for v in lin}
+    clock = 0.0
+    for v in axes:
         i = model.variables.index(v)
         lo, hi = model.machine.axis(v).model_stroke
         pad = 0.05 * (hi - lo)
         pos = np.linspace(lo + pad, hi - pad, targets)
-        step = pos[1] - pos[0] if targets > 1 else 0.0
+        step = pos[1] - pos[0]
         pos[1:-1] += rng.uniform(-0.2, 0.2, targets - 2) * step
         direction = np.asarray(model.machine.axis(v).direction, float)
         direction = direction / np.linalg.norm(direction)
+        over = INTERFEROMETER_OVERRUN_MM
         for _ in range(cycles):
             for sign, seq in ((1.0, pos), (-1.0, pos[::-1])):
                 q = np.tile(centre, (len(seq), 1))
@@ -258,6 +288,12 @@ def interferometer(model, n, rng, cycles: int = 5, targets: int = 11) -> Plan:
                 poses.append(q)
                 us.append(np.tile(direction, (len(seq), 1)))
                 setups += [f"laser-{v}"] * len(seq)
+                # from the overrun point before the pass, target to target, a dwell at each
+                path = np.abs(np.diff(np.concatenate([[seq[0] - sign * over], seq])))
+                path[0] = over
+                t = clock + np.cumsum(path / speed + INTERFEROMETER_DWELL_S)
+                times.append(t)
+                clock = t[-1] + 2 * over / speed
                 for w in lin:
                     dirs_all[w].append(np.full(len(seq), sign if w == v else 1.0))
     poses = np.vstack(poses)
@@ -271,7 +307,9 @@ def interferometer(model, n, rng, cycles: int = 5, targets: int = 11) -> Plan:
     return Plan("interferometer", poses, L, False, "line", u=u, setup=setup,
                 setup_kind={s: "point" for s in dict.fromkeys(setup)},
                 setup_frame={s: "workpiece" for s in dict.fromkeys(setup)},
-                dirs={w: np.concatenate(dirs_all[w]) for w in lin})
+                dirs={w: np.concatenate(dirs_all[w]) for w in lin}, t=np.concatenate(times),
+                notes=[f"ISO 230-2 runs of {', '.join(axes)}: {targets} targets, {cycles} bidirectional cycles, "
+                       f"overrun {INTERFEROMETER_OVERRUN_MM:g} mm, dwell {INTERFEROMETER_DWELL_S:g} s"])
 
 
 def station_positions(tip_m: np.ndarray, stations: int) -> np.ndarray:

@@ -58,7 +58,8 @@ class Simulation:
 
 def parse_effect(spec: str, model):
     """`ex_x:x1` (default size) or `ex_x:x1=2e-5` (the change at the end of the stroke, mm or rad; for a periodic
-    effect `=a` or `=a,b`: sine and cosine amplitudes); custom effects: `name=p1,p2,...`."""
+    effect `=a` or `=a,b`: sine and cosine amplitudes; for a profile `dx_x:xk100=v1,...,vk`: its value at each
+    knot); custom effects: `name=p1,p2,...`."""
     ident, _, value = spec.partition("=")
     if ident in model.machine.effects:
         eff = load_custom(model.machine, ident)
@@ -68,6 +69,10 @@ def parse_effect(spec: str, model):
         return eff, (np.array(vals) if vals else np.full(len(eff.names), EFFECT_LINEAR_MM))
     eff = fx.parse(ident, model.machine, model.errors, "--effect")
     k = len(eff.names)
+    if eff.kind == "profile" and (not value or len(_floats(spec, value)) != k):
+        knots = ", ".join(f"{x:g}" for x in eff.knots)
+        raise InputError(f"effect value {spec}: a profile needs its value at each of its {k} knots ({knots}), "
+                         f"mm or rad, e.g. {ident}=" + ",".join(["0.001"] * min(k, 3)) + (",..." if k > 3 else ""))
     if value:
         vals = _floats(spec, value)
         if len(vals) == 1 and k > 1:
@@ -114,12 +119,14 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
 
     instrument: a plan of `fiveaxis.measurement.instruments` (n: about how many poses), or `plan` given; tool_lengths: None
     (the machine's L0, no L column) or (min, max) mm for a random L per pose (tip plans); duration: s over which the
-    poses are measured in order (t column), None for no t column (a plan with times keeps its own); setup_scale: size of the random setup placements
+    poses are measured in order (t column: sorted random times, or the plan's cadence scaled to it, or the plan's
+    own times when they are absolute: a poses file's), None for no t column; setup_scale: size of the random setup
+    placements
     relative to SETUP_OFFSET_MM and SETUP_ROTATION_RAD; errors: {name: value} (mm, rad) set instead of drawn;
     setup_kind: the kind of every setup of the plan (point, rigid, planar) instead of the instrument's;
     placements: {setup id: {"c_mm": [3], "l_mm": x, "w_rad": [3]}} set instead of drawn (any key may be left out);
-    commands: None, or a function of the poses (n, nvar; mm, rad) and their tool lengths (n,; mm) giving the
-    positions the axes are actually sent to (a compensation); the readings are then those of the machine there
+    commands: None, or a function of the poses (n, nvar; mm, rad), their tool lengths (n,; mm) and approach
+    directions ({axis: (n,) +1/-1}) giving the positions the axes are actually sent to (a compensation); the readings are then those of the machine there
     against the nominal tool of the poses."""
     _check(n, noise, noise_axis, duration, tool_lengths)
     rng = np.random.default_rng(seed)
@@ -133,19 +140,20 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
     if setup_kind is not None:
         plan.setup_kind = {s: setup_kind for s in plan.setup_kind}
     m = plan.n
-    if plan.t is not None:        # the plan's own times (a poses file's t column): kept
-        t = np.asarray(plan.t, dtype=float)
-    else:
-        t = None if duration is None else np.sort(rng.uniform(0, duration, m))
-        if t is not None:
-            t[-1] = duration      # the last pose ends the run: u = t / duration
+    t = None if duration is None else np.sort(rng.uniform(0, duration, m))   # drawn always: the stream is kept
+    if t is not None and plan.t is not None and plan.t_absolute:
+        t = np.asarray(plan.t, float)       # a poses file's own times: kept, to replay a campaign
+    elif t is not None:
+        if plan.t is not None:    # the plan's own cadence
+            t = np.asarray(plan.t, float) * (duration / float(plan.t[-1]))
+        t[-1] = duration          # the last pose ends the run: u = t / duration
     sd = np.array([BASE_ANGULAR_RAD if machine.is_angular(e) else BASE_LINEAR_MM for e in model.errors])
     base = rng.normal(0.0, 1.0, len(sd)) * sd * base_scale
     for name, value in (errors or {}).items():
         if name not in model.errors:
             raise InputError(f"error '{name}': unknown error name (expected one of {', '.join(model.errors[:3])} ...)")
         base[list(model.errors).index(name)] = float(value)
-    at = plan.poses if commands is None else commands(plan.poses, plan.L)    # where the axes go
+    at = plan.poses if commands is None else commands(plan.poses, plan.L, plan.dirs)    # where the axes go
     ctx = fx.context(machine, at, t, plan.dirs)
     E = np.tile(base, (m, 1))
     dL = np.zeros(m)

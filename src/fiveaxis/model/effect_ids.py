@@ -7,6 +7,9 @@ lower case; rotary axes as named, `A B C`) or `t` (time, s); the suffix says how
     r            reversal: +c or -c by the approach direction dir_<var>    dx_x:xr (a backlash of 2c)
     p<P>         periodic with period P (var's unit: mm, deg or s)         dx_x:xp800, ez_C:Cp360
     e<tau>       (time only) 1 - exp(-t / tau), tau in s                   L:te900
+    k<spacing>   (pose variables only) a per-position profile: piecewise   dx_x:xk100, ez_C:Ck30
+                 linear between knots every <spacing> (var's unit: mm or deg) over the axis' stroke, one
+                 coefficient per knot (the parameter's value there)
 
 This module only splits and checks ids; what each kind does is in `fiveaxis.effects.families`.
 """
@@ -20,7 +23,7 @@ PARAM_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 NUMBER_RE = re.compile(r"^(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?$")
 TOOL = "L"
 TIME = "t"
-KINDS = ("poly", "reversal", "periodic", "thermal")
+KINDS = ("poly", "reversal", "periodic", "thermal", "profile")
 
 
 @dataclass(frozen=True)
@@ -29,7 +32,8 @@ class EffectId:
     param: str
     var: str
     kind: str           # one of KINDS
-    arg: float          # degree (poly), period (periodic, var's unit), tau (thermal, s); 0 for reversal
+    arg: float          # degree (poly), period (periodic, var's unit), tau (thermal, s), knot spacing (profile,
+                        # var's unit: mm or deg); 0 for reversal
 
     @property
     def text(self) -> str:
@@ -40,6 +44,8 @@ class EffectId:
             return f"{self.param}:{self.var}r"
         if self.kind == "periodic":
             return f"{self.param}:{self.var}p{fmt(self.arg)}"
+        if self.kind == "profile":
+            return f"{self.param}:{self.var}k{fmt(self.arg)}"
         return f"{self.param}:{self.var}e{fmt(self.arg)}"
 
 
@@ -52,7 +58,8 @@ def fmt(x: float) -> str:
 def expected(tokens) -> str:
     toks = "|".join(tokens)
     return (f"<param>:<var><suffix> with var one of {toks} and suffix 1-3 (polynomial), r (reversal), p<period> "
-            f"(periodic) or, for t, e<tau> (thermal time constant), e.g. ex_x:x1, dx_x:xr, dx_x:xp800, L:te900")
+            f"(periodic), k<spacing> (per-position profile, knots every spacing) or, for t, e<tau> (thermal time "
+            f"constant), e.g. ex_x:x1, dx_x:xr, dx_x:xp800, dx_x:xk100, L:te900")
 
 
 def split(ident: str, tokens) -> EffectId | None:
@@ -72,13 +79,15 @@ def split(ident: str, tokens) -> EffectId | None:
             return EffectId(param, tok, "poly", float(suffix))
         if suffix == "r" and tok != TIME:
             return EffectId(param, tok, "reversal", 0.0)
-        if suffix[:1] in ("p", "e") and NUMBER_RE.match(suffix[1:]):
+        if suffix[:1] in ("p", "e", "k") and NUMBER_RE.match(suffix[1:]):
             value = float(suffix[1:])
             if not (math.isfinite(value) and value > 0):
                 return None
             if suffix[0] == "p":
                 return EffectId(param, tok, "periodic", value)
-            if tok == TIME:
+            if suffix[0] == "k" and tok != TIME:
+                return EffectId(param, tok, "profile", value)
+            if suffix[0] == "e" and tok == TIME:
                 return EffectId(param, tok, "thermal", value)
     return None
 
@@ -90,7 +99,7 @@ def explain(ident: str, tokens) -> str:
     param, _, rest = ident.strip().partition(":")
     if not PARAM_RE.match(param):
         return f"'{ident}': '{param}' is not a parameter name (expected {expected(tokens)})"
-    m = re.match(r"^([A-Za-z]+?)(?:[0-9].*|r|p.*|e.*)?$", rest)
+    m = re.match(r"^([A-Za-z]+?)(?:[0-9].*|r|p.*|e.*|k.*)?$", rest)
     if m and not any(rest.startswith(t) for t in tokens):
         return f"'{ident}': unknown variable '{m.group(1)}' (expected one of: {' '.join(tokens)})"
     return f"'{ident}' is not an effect id (expected {expected(tokens)})"

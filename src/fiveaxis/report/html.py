@@ -300,6 +300,71 @@ def _rounds(rec: dict, figs: dict) -> str:
     return "".join(out)
 
 
+def _figures_and_notes(figs: dict, prefix: str, records: list, words) -> str:
+    """Figure `<prefix>_<i>` of each record with its notes; words(record) -> (alt text, caption)."""
+    out = []
+    for i, r in enumerate(records):
+        alt, caption = words(r)
+        out.append(_figure(figs, f"{prefix}_{i}", alt, caption))
+        out += [f'<p class="note">{_t(n)}</p>' for n in r["notes"]]
+    return "".join(out)
+
+
+def _iso230(rec: dict, figs: dict) -> str:
+    """The ISO 230-2 and ISO 230-4 sections (only when the data holds such readings)."""
+    iso = rec.get("iso230")
+    if not iso:
+        return ""
+    out = []
+    if iso["positioning"]:
+        out.append('<section id="iso230-2"><h2>ISO 230-2: positioning of linear axes</h2>'
+                   "<p>Per axis, from the readings along it: per target and approach direction the mean positional "
+                   "deviation and its estimated standard uncertainty s over the cycles; the axis figures of ISO "
+                   "230-2:2014 (&micro;m). E: systematic positional deviation (range of the mean deviations), M: mean "
+                   "bidirectional systematic positional deviation, B: reversal value (largest reversal at a "
+                   "target), R: repeatability (4 s, bidirectional with the reversal), A: accuracy (range of the mean "
+                   "deviations &plusmn; 2 s). No uncertainty statement: the measuring device, temperature, "
+                   "expansion, misalignment and drift were not stated (<span class=\"code\">fiveaxis iso230-2 "
+                   "--u-device ...</span>).</p>")
+        keys = [("E", "E"), ("M", "M"), ("B", "B"), ("B_mean", "B mean"), ("R", "R"), ("A", "A")]
+        rows = []
+        for r in iso["positioning"]:
+            rows.append([_e(r["axis"]) + (f" ({_e(r['setup'])})" if r.get("setup") else ""), str(r["targets"]),
+                         str(r["cycles"]), _num(r["measured_length_mm"], 5)]
+                        + [_num(r[f"{k}_um"], 3) + (f" / {_num(r[f'{k}_fwd_um'], 3)} / {_num(r[f'{k}_bwd_um'], 3)}"
+                                                    if f"{k}_fwd_um" in r else "") for k, _ in keys])
+        out.append(_table(["axis", "targets", "cycles", "length (mm)"]
+                          + [f"{label} (\u00b5m){' bi / fwd / bwd' if k in ('E', 'R', 'A') else ''}"
+                             for k, label in keys], rows, "iso230-2-figures", numeric=tuple(range(1, 10))))
+        out.append(_figures_and_notes(figs, "iso230_2", iso["positioning"], lambda r: (
+            f"ISO 230-2 {r['axis']}", f"Mean positional deviation of {_e(r['axis'])} per target, forward and "
+                                      "backward, with the &plusmn;2 s bands; the dots are the single readings.")))
+        out.append("</section>")
+    circ = iso.get("circles")
+    if circ:
+        out.append('<section id="iso230-4"><h2>ISO 230-4: circular tests</h2>'
+                   "<p>Per circle and direction: the circular deviation G (about the least-squares centre, and about "
+                   "the minimum-zone centre), the radial deviation F (largest and smallest, against the nominal "
+                   "radius, least-squares centre), and the circular hysteresis H between the two directions "
+                   "(&micro;m).</p>")
+        rows = []
+        for c in circ["circles"]:
+            for k, r in enumerate(c["runs"]):
+                rows.append([_e(c["plane"]) + (f" ({_e(c['setup'])})" if c.get("setup") not in (None, c["plane"])
+                                               else ""),
+                             _num(c["radius_mm"], 6), _e(r["direction"]), _num(r["G_um"], 3), _num(r["G_mz_um"], 3),
+                             _num(r["F_max_um"], 3), _num(r["F_min_um"], 3),
+                             _num(c.get("H_um"), 3) if k == 0 else ""])
+        out.append(_table(["circle", "radius (mm)", "direction", "G (\u00b5m)", "G min. zone (\u00b5m)",
+                           "F max (\u00b5m)", "F min (\u00b5m)", "H (\u00b5m)"], rows, "iso230-4-figures",
+                          numeric=(1, 3, 4, 5, 6, 7)))
+        out.append(_figures_and_notes(figs, "iso230_4", circ["circles"], lambda c: (
+            f"ISO 230-4 {c['plane']}", f"Circle {_e(c['plane'])}: the radial deviation of each direction's path "
+                                       "from its least-squares circle, magnified.")))
+        out.append("</section>")
+    return "".join(out)
+
+
 def _sensitivity(rec: dict, figs: dict) -> str:
     s = rec["sensitivity"]
     if s is None:
@@ -371,14 +436,25 @@ def _compensation(rec: dict, figs: dict) -> str:
     return "".join(out)
 
 
+def _has_iso(rec: dict, key: str) -> bool:
+    """Whether the nav entry `key` has a section (the ISO 230 sections only when the data holds such readings)."""
+    iso = rec.get("iso230") or {}
+    if key == "iso230-2":
+        return bool(iso.get("positioning"))
+    if key == "iso230-4":
+        return bool(iso.get("circles"))
+    return True
+
+
 def render(report) -> str:
     """The whole page as text (UTF-8)."""
     rec, figs = report.record, report.figures
     m = rec["machine"]
     nav = "".join(f'<a href="#{k}">{t}</a>' for k, t in (
         ("verdict", "Verdict"), ("terms", "Terms"), ("data", "Data"), ("fit", "Fitted errors"),
-        ("residuals", "Residuals"), ("rounds", "Diagnosis rounds"), ("sensitivity", "Sensitivity"),
-        ("compensation", "Compensation")) if k != "sensitivity" or rec["sensitivity"] is not None)
+        ("residuals", "Residuals"), ("rounds", "Diagnosis rounds"), ("iso230-2", "ISO 230-2"),
+        ("iso230-4", "ISO 230-4"), ("sensitivity", "Sensitivity"), ("compensation", "Compensation"))
+        if (k != "sensitivity" or rec["sensitivity"] is not None) and _has_iso(rec, k))
     body = [f"<h1>{_e(rec['title'])}</h1>",
             f'<p class="meta">Machine <b>{_e(m["name"])}</b> ({_e(m["title"])}; file <span class="code">'
             f"{_e(m['file'])}</span>, {_e(m['convention'])} convention) &middot; data <span class=\"code\">"
@@ -386,7 +462,7 @@ def render(report) -> str:
             f"{_e(rec['fiveaxis_version'])}</p>",
             f"<nav>{nav}</nav>",
             _verdict(rec), _glossary(), _data(rec, figs), _fit(rec), _residuals(rec, figs), _rounds(rec, figs),
-            _sensitivity(rec, figs), _compensation(rec, figs),
+            _iso230(rec, figs), _sensitivity(rec, figs), _compensation(rec, figs),
             "<footer>Made by fiveaxis from the measurement file and the machine file named above. Lengths in "
             "\u00b5m (mm in the data), angles in \u00b5rad (degrees for axis positions). Method: the project's "
             "docs/measurements.md and docs/iso230.md.</footer>"]

@@ -36,7 +36,7 @@ from ..plots.residuals import residual_figure, series_of
 from ..sensitivity.grid import Grid
 from ..sensitivity.indices import gsil
 from . import compensation as C
-from . import figures
+from . import figures, iso230
 
 #: Rounds of diagnose -> add the top candidate, at most (as scripts/run-main.sh).
 MAX_ROUNDS = 4
@@ -268,6 +268,8 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
         model, meas, series, "Fit residual (measured minus modelled reading, um; urad for "
                                                     "the tool axis) against each axis "
                              "position and time" + (", before and after the effects found" if len(diags) > 1 else "")))
+    record["iso230"], iso_figs = iso230.sections(model, meas)
+    figs.update(iso_figs)
     if sensitivity:
         record["sensitivity"], top = _sensitivity(model)
         figs["sensitivity"] = figures.sensitivity(top)

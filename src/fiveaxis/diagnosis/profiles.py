@@ -1,0 +1,112 @@
+"""Per-position error profiles as diagnosis candidates: which `<param>:<var>k<spacing>` effects a data set can
+determine, offered beside the polynomials (`fiveaxis.diagnosis.candidates.build_pool` takes them as multi-column
+candidates of a family of their own, `profile`: k ln N + 2 ln(F M) for k coefficients).
+
+A profile is the parameter's value at knots every `spacing` over the stroke, interpolated linearly
+(`fiveaxis.effects.families`). Per axis, the candidates are the axis' own six error motions (positioning,
+straightness, angular: ISO 230-1's E_XX ... E_CX) as functions of its own position, as a laser, a ballbar or a
+step gauge sees them. The spacing is the finest (at most MAX_KNOTS knots over the stroke) at which every knot is
+determined by the measured positions: a measured position within half a spacing of every knot, and the hat
+functions of the knots at the distinct positions of full rank with a condition number below MAX_CONDITION. An
+ISO 230-2 log with 9 targets over the travel gets 9 knots; data that covers only part of the stroke gets none (its
+outer knots would be extrapolated). At least MIN_KNOTS: a profile of fewer knots is close to a low polynomial, and
+the family prior of the decision (uniform over families, then over each family's few trials) would let it compete
+with the polynomials on small data sets (an R-test of 20 poses: a 5-knot profile of the A axis beat ex_A:A2 in 2
+of 3 simulations); at 7 knots it costs at least 6 ln N against ln N + 2 ln(M_poly / M_profile). A parameter whose
+readings' column is zero, or parallel to that of a parameter already offered (a pitch error seen through a
+constant Abbe offset is the positioning error again), is not offered.
+Units: positions in the axis' interface unit (mm, degrees).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..effects import families as fx
+
+#: Knots of a candidate profile at most (the penalty grows with them; a lead-screw log has about 10 targets).
+MAX_KNOTS = 17
+#: Knots of a candidate profile at least.
+MIN_KNOTS = 7
+#: Largest condition number of the hat functions at the distinct measured positions.
+MAX_CONDITION = 100.0
+#: Positions closer than this share of the stroke count as one (targets that jitter around the nominal).
+SAME_POSITION = 1e-4
+#: Parameter columns whose |cos| exceeds this are the same candidate on this data.
+PARALLEL_COS = 0.999
+#: Significant figures of a candidate's spacing (ids stay short: 625, 33.34).
+SPACING_DIGITS = 4
+
+
+def nice_spacing(span: float, intervals: int) -> float:
+    """span / intervals rounded up to SPACING_DIGITS significant figures (so the knots still cover the span)."""
+    raw = span / intervals
+    scale = 10.0 ** (math.floor(math.log10(raw)) - SPACING_DIGITS + 1)
+    return math.ceil(raw / scale - 1e-9) * scale
+
+
+def distinct(values: np.ndarray, tol: float) -> np.ndarray:
+    """Sorted cluster centres of values whose neighbours are closer than tol (same unit)."""
+    v = np.sort(np.asarray(values, float))
+    if not len(v):
+        return v
+    breaks = np.flatnonzero(np.diff(v) > tol) + 1
+    return np.array([part.mean() for part in np.split(v, breaks)])
+
+
+def spacing_for(machine, token: str, positions: np.ndarray) -> float | None:
+    """The finest knot spacing (interface unit) over the stroke whose knots the positions determine (see the module
+    docstring), or None if not even MIN_KNOTS knots are determined."""
+    name = next(v for v in machine.variables if fx.var_token(machine, v) == token)
+    lo, hi = (float(x) for x in machine.axis(name).stroke)
+    span = hi - lo
+    points = distinct(positions, SAME_POSITION * span)
+    for k in range(min(MAX_KNOTS, len(points)) - 1, MIN_KNOTS - 2, -1):
+        spacing = nice_spacing(span, k)
+        knots = fx.profile_knots(machine, token, spacing)
+        if not MIN_KNOTS <= len(knots) <= len(points):
+            continue
+        gap = np.abs(points[None, :] - knots[:, None]).min(axis=1)
+        if np.any(gap > 0.5 * spacing * (1 + 1e-9)):
+            continue
+        s = np.linalg.svd(fx.hat_basis(points, knots), compute_uv=False)
+        if s[-1] > 0 and s[0] / s[-1] < MAX_CONDITION:
+            return spacing
+    return None
+
+
+def own_first(machine, axis) -> list[str]:
+    """The axis' error motions, its own positioning error first (dx_x for X, ez_C for C)."""
+    own = [p for p in axis.pdge if fx.is_positioning(machine, p, fx.var_token(machine, axis.name))]
+    return own + [p for p in axis.pdge if p not in own]
+
+
+def profile_candidates(block, w, present, unseen=()) -> list:
+    """Profile effects (fiveaxis.effects.families.Effect) a diagnosis offers on a block of readings (weights w):
+    per pose variable the axis' own error motions along it, at the spacing the data determines; none for a
+    (param, var) that already has a profile (ids in `present`), for a parameter the data do not see (`unseen`), nor
+    for a parameter whose column is parallel to that of one that has."""
+    prob = block.prob
+    machine, model = prob.model.machine, prob.model
+    errors = list(model.errors)
+    out = []
+    for i, name in enumerate(model.variables):
+        axis = machine.axis(name)
+        tok = fx.var_token(machine, name)
+        to_unit = prob.scales[tok].to_unit
+        spacing = spacing_for(machine, tok, prob.meas.poses[:, i] * to_unit)
+        if spacing is None:
+            continue
+        offered = []                 # columns of the parameters offered, or with a profile along tok already
+        for param in own_first(machine, axis):
+            if param not in errors or param in unseen:
+                continue
+            col = block.param_column(param) * w
+            norm = float(np.linalg.norm(col))
+            if norm == 0 or any(abs(col @ c) > PARALLEL_COS * norm * np.linalg.norm(c) for c in offered):
+                continue
+            offered.append(col)
+            if not any(p.startswith(f"{param}:{tok}k") for p in present):
+                out.append(fx.profile(machine, param, tok, spacing, "diagnose"))
+    return out
