@@ -22,6 +22,10 @@ readings are reported in. `fiveaxis.measurement.simulate` turns a plan into read
 - `tracker`: 1-D distances from 4 stations on the bed (setups in the machine frame: station offset and dead path)
   to the tool tip at random poses; machine frame.
 Units: mm, rad inside; the plan's setup truth (when simulated) in mm and rad.
+
+The instruments' geometry (`RTEST`, `PROBE`, `BALLBAR`, `INTERFEROMETER`, `TRACKER`: sizes, travels and the
+limits the measurement programs keep, mm and degrees) lives here only: the planner (`fiveaxis.planning.plan`), the
+programs' motion rules (`fiveaxis.planning.motion`) and their checker (`fiveaxis.planning.safety`) read it.
 """
 from __future__ import annotations
 
@@ -35,6 +39,92 @@ from ..exceptions import InputError
 from ..model.inverse import linear_for_tip, within_strokes
 
 NAMES = ("tip", "rtest", "probe-sphere", "ballbar", "interferometer", "tracker", "test-part")
+
+
+# -- the instruments' geometry (mm, degrees) ---------------------------------------------------------------------
+@dataclass(frozen=True)
+class RTestGeometry:
+    """R-test: a sphere on a holder in the spindle (tool length = gauge line to the sphere centre), a nest of three
+    displacement sensors on the table around it. The sensors read +-travel_mm; a program keeps the sphere centre
+    within limit_mm of where the nest was mounted around it, and leaves the nest along the tool axis (retract_mm)."""
+    travel_mm: float = 2.0
+    limit_mm: float = 0.5
+    retract_mm: float = 50.0
+
+
+@dataclass(frozen=True)
+class ProbeGeometry:
+    """A touch probe on a sphere on the table (a reference sphere on a stem below it, along -z of the workpiece
+    frame), stylus: a ball on a straight shank along the tool axis. Probing: from clearance_mm off contact,
+    G38.2 towards the sphere centre at feed_mm_min, to overtravel_mm past the nominal contact, along the axis
+    between the table normal and the reversed tool axis and four directions cone_deg around it. Limits of a
+    program: the stylus (ball and shank) keeps clearance_limit_mm from the sphere and its stem outside probing
+    moves, and near_mm where a rotary axis moves or a G0 rapid runs (before any rotary move the stylus retracts
+    along the approach to where no orientation of the shank reaches within near_mm: `retract_radius_mm`)."""
+    sphere_radius_mm: float = 12.7          # a 25.4 mm sphere
+    stem_radius_mm: float = 5.0
+    stem_length_mm: float = 60.0
+    ball_radius_mm: float = 3.0             # a 6 mm stylus ball
+    shank_radius_mm: float = 2.25
+    shank_length_mm: float = 40.0           # ball centre to the probe body
+    clearance_mm: float = 5.0
+    overtravel_mm: float = 3.0
+    feed_mm_min: float = 100.0
+    cone_deg: float = 30.0
+    clearance_limit_mm: float = 2.0
+    near_mm: float = 10.0
+
+    @property
+    def contact_mm(self) -> float:
+        """Distance of the stylus ball's centre from the sphere centre at contact."""
+        return self.sphere_radius_mm + self.ball_radius_mm
+
+    @property
+    def retract_radius_mm(self) -> float:
+        """Distance of the ball centre from the sphere centre at which no orientation of the shank comes within
+        near_mm of the sphere: where the rotary axes may move."""
+        return self.sphere_radius_mm + self.shank_length_mm + self.shank_radius_mm + self.near_mm + 1.0
+
+
+@dataclass(frozen=True)
+class BallbarGeometry:
+    """A telescopic ballbar between a pivot on the table and a cup in the spindle (tool length: gauge line to the
+    tool ball's centre), ISO 230-4: bars of radii_mm, a circle measured at points_per_circle poses, the bar reads
+    +-travel_mm; a program keeps the bar within limit_mm of its mounted length, runs lead-in and lead-out arcs
+    of lead_deg on the circle, and leaves the tool cup along the tool axis (retract_mm)."""
+    radii_mm: tuple = (100.0, 150.0, 300.0)
+    points_per_circle: int = 24
+    travel_mm: float = 1.0
+    limit_mm: float = 0.5
+    lead_deg: float = 90.0
+    retract_mm: float = 50.0
+
+
+@dataclass(frozen=True)
+class InterferometerGeometry:
+    """A laser interferometer along a linear axis (ISO 230-2): the reflector on the spindle, the beam along the
+    axis; every target is approached in the run's direction after an overrun of overrun_mm (the targets stay that
+    far inside the stroke); a program keeps the reflector within limit_mm of the beam line and the rotary axes
+    within rotary_limit_deg while it is mounted."""
+    overrun_mm: float = 5.0
+    limit_mm: float = 0.5
+    rotary_limit_deg: float = 1e-3
+
+
+@dataclass(frozen=True)
+class TrackerGeometry:
+    """A laser tracker (or tracing interferometer) on the bed following a reflector on the tool tip (a cat's eye
+    facing out of the spindle along the tool axis): the line of sight must stay within acceptance_deg of the
+    reflector's axis while it is tracked, or the beam breaks."""
+    acceptance_deg: float = 60.0
+    limit_deg: float = 55.0
+
+
+RTEST = RTestGeometry()
+PROBE = ProbeGeometry()
+BALLBAR = BallbarGeometry()
+INTERFEROMETER = InterferometerGeometry()
+TRACKER = TrackerGeometry()
 
 
 @dataclass
