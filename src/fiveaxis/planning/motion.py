@@ -165,22 +165,52 @@ def _pieces(model, q0, q1, mode) -> int:
     return max(1, math.ceil(np.degrees(np.max(np.abs(q1[rot] - q0[rot]), initial=0.0)) / JOINT_PIECE_DEG))
 
 
+def rotation_legs(model, here, target, L):
+    """How to turn the rotary axes from pose `here` to the angles of pose `target` with the tool tip held: a list of
+    (goal pose, axes) legs, each within the strokes, or None. Tried in turn: straight to the target's angles (the
+    axes together, then one after the other in each order); through the centre pose's angles; through a pose with
+    one axis at its centre value (the others as at the start, or as at the target). A position-limited axis cannot
+    wrap: a table tilted past vertical may have to come back before its C axis turns half a revolution."""
+    rot = rotary_index(model)
+    centre = ins.centre_pose(model)
+    vias = [[]]
+    via = np.array(here, float)
+    via[rot] = centre[rot]
+    vias.append([via])
+    for i in rot:
+        for base in (here, target):
+            via = np.array(base, float)
+            via[i] = centre[i]
+            vias.append([via])
+    for route in vias:
+        for order in rotation_orders(model):
+            legs, q, ok = [], np.array(here, float), True
+            for goal in route + [np.asarray(target, float)]:
+                for axes in order:
+                    p = hold_tip(model, q, goal, L, axes)
+                    if not path_inside(model, p):
+                        ok = False
+                        break
+                    legs.append((goal, axes))
+                    q = p(np.array([1.0]))[0]
+                if not ok:
+                    break
+            if ok:
+                return legs
+    return None
+
+
 def rotate_holding_tip(w: Writer, target, feed, what: str) -> None:
-    """Turn the rotary axes to those of pose `target` with the tool tip held where it is (together, or one axis
-    after the other where together would leave the strokes)."""
+    """Turn the rotary axes to those of pose `target` with the tool tip held where it is, along `rotation_legs`."""
     model, L = w.model, w.L
-    for order in rotation_orders(model):
-        q, legs = w.q, []
-        for axes in order:
-            legs.append(hold_tip(model, q, target, L, axes))
-            q = legs[-1](np.array([1.0]))[0]
-        if all(path_inside(model, p) for p in legs):
-            for axes in order:
-                p = hold_tip(model, w.q, target, L, axes)
-                follow(w, p, feed, pieces=_pieces(model, w.q, p(np.array([1.0]))[0], w.mode))
-            return
-    raise InputError(f"{what}: the rotary axes cannot turn from {w.words(w.q)} to the angles of {w.words(target)} "
-                     f"with the tool tip held (the linear axes would leave the strokes)")
+    legs = rotation_legs(model, w.q, target, L)
+    if legs is None:
+        raise InputError(f"{what}: the rotary axes cannot turn from {w.words(w.q)} to the angles of "
+                         f"{w.words(target)} with the tool tip held (the linear axes would leave the strokes, also "
+                         f"through the centre pose's angles)")
+    for goal, axes in legs:
+        p = hold_tip(model, w.q, goal, L, axes)
+        follow(w, p, feed, pieces=_pieces(model, w.q, p(np.array([1.0]))[0], w.mode))
 
 
 def _hubs(model, here, target, L) -> list:
@@ -383,9 +413,8 @@ def _probe_transit(w, prev, cyc, pose, feed, what):
     for d in _turning_points(model, centre, prev["axis"], cyc["axis"], L):
         first = great_circle(model, here, centre, r, prev["axis"], d, L)
         at = first(np.array([1.0]))[0]
-        turn = hold_tip(model, at, pose, L)
         second = great_circle(model, pose, centre, r, d, cyc["axis"], L)
-        if all(path_inside(model, p) for p in (first, turn, second)):
+        if all(path_inside(model, p) for p in (first, second)) and rotation_legs(model, at, pose, L) is not None:
             for p in (first, None, second):
                 if p is None:
                     rotate_holding_tip(w, pose, feed, what)

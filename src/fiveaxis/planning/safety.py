@@ -24,7 +24,7 @@ writes them):
 Rules beyond the limits: a mount, unmount or tool change is followed by an operator message and M0 before the next
 move; the tool changes only with nothing mounted; a probing move (G38) keeps the rotary axes still, and the move
 after it (whose start, where the probe stopped, the interpreter cannot know) must lead back along the probing line
-(it is sampled from the probing move's start on). The first move starts wherever the machine is: only its end is
+(G0 or G1, the rotary axes still; it is sampled from the probing move's start on). The first move starts wherever the machine is: only its end is
 sampled. Units: mm and degrees in the report; mm and rad inside.
 """
 from __future__ import annotations
@@ -344,10 +344,10 @@ def _run(prog, model, instrument, mode, tool_length, res):
         elif name == "mount":
             if state["mounted"] is not None:
                 res.problems.append((ev.line, "mounted again without being removed"))
-            if not segs:
-                res.problems.append((ev.line, "mounted before any move: where is the machine?"))
-                return
-            ref = {"line": ev.line, "at": len(segs) - 1}
+            if not segs:                   # its reference pose: the first move's end
+                res.problems.append((ev.line, "mounted before any move: the first move starts wherever the machine "
+                                              "is, its path unknown"))
+            ref = {"line": ev.line, "at": max(len(segs) - 1, 0)}
             for key, count in MOUNT_KEYS[instrument].items():
                 if key not in vals:
                     raise InputError(f"{where}: a {instrument} mount comment without {key}=")
@@ -357,7 +357,8 @@ def _run(prog, model, instrument, mode, tool_length, res):
                 raise InputError(f"{where}: axis={ref['axis']}: expected a linear axis of {machine.name}")
             refs.append(ref)
             state["mounted"] = ref
-            segs.append(_Segment(ev.line, "mount", segs[-1].pts[-1:].copy(), L, ref, False))
+            if segs:
+                segs.append(_Segment(ev.line, "mount", segs[-1].pts[-1:].copy(), L, ref, False))
         elif name == "unmount":
             if state["mounted"] is None:
                 res.problems.append((ev.line, "removed without being mounted"))
@@ -394,7 +395,7 @@ def _run(prog, model, instrument, mode, tool_length, res):
                 # and is sampled from the probing move's start on (the rest retraces the probing move)
                 p_start, p_end, p_line = probe
                 d = p_end[:3] - p_start[:3]
-                if kind == "feed" and _point_line(end_c[:3], p_start[:3], d) <= RETRACT_TOL_MM and \
+                if kind in ("feed", "traverse") and _point_line(end_c[:3], p_start[:3], d) <= RETRACT_TOL_MM and \
                         np.allclose(end_c[3:], p_start[3:], atol=1e-9) and np.dot(end_c[:3] - p_start[:3], d) <= 1e-9:
                     start = dict(zip(letters, p_start))
                     kind = "retract"
