@@ -26,7 +26,7 @@ from conftest import run_cli
 MACHINES = ("li2018", "ac_trunnion", "tilting_head")
 #: (instrument, poses, pool units, effects) of the plans the tests make: small, to keep them quick.
 PLANS = {"rtest": (12, 150, ()), "probe-sphere": (6, 120, ()), "ballbar": (120, 30, ()),
-         "interferometer": (12, 150, ("dx_x:x1",)), "tip": (16, 150, ())}
+         "interferometer": (12, 150, ("dx_x:x1",)), "tip": (16, 150, ()), "tracker": (16, 150, ())}
 #: Samples per move of the independent reference.
 SAMPLES = 64
 
@@ -210,17 +210,25 @@ def stylus_points_clearance(tip, axis, centre):
         np.min(_to_segment(shank, centre, stem_end), axis=1) - g.stem_radius_mm - g.shank_radius_mm])
 
 
+def table(machine, q):
+    """The rotations (n, 3, 3) of the workpiece frame in the machine frame at poses q (n, 5), from the chain above."""
+    q = np.atleast_2d(q)
+    if machine == "li2018":
+        return np.broadcast_to(np.eye(3), (len(q), 3, 3))
+    return _rx(q[:, 3]) @ _rz(q[:, 4]) if machine == "ac_trunnion" else _rz(q[:, 4])
+
+
 def beam_direction(machine, axis, q):
     """The direction of a linear axis (machine frame) in the workpiece frame at pose q, from the chain above."""
     d = {"X": [1.0, 0, 0], "Y": [0, 1.0, 0], "Z": [0, 0, -1.0 if machine == "tilting_head" else 1.0]}[axis]
-    W = {"li2018": np.eye(3), "ac_trunnion": (_rx(q[3:4]) @ _rz(q[4:5]))[0], "tilting_head": _rz(q[4:5])[0]}[machine]
-    return W.T @ np.array(d)
+    return table(machine, q)[0].T @ np.array(d)
 
 
 def independent_worst(machine, model, steps, instrument):
     """From the reference: "value": (worst, line) of the instrument's main quantity over the mounted samples
     (rtest: tip distance from the sphere centre; ballbar: bar length change; probe-sphere: stylus clearance
-    outside probing moves, the least; interferometer: the reflector's distance from the beam line), "by_line":
+    outside probing moves, the least; interferometer: the reflector's distance from the beam line; tracker: the
+    angle between the line of sight and the reflector's axis, deg), "by_line":
     the worst per program line, "clearance_rotary" (probe-sphere: the least clearance on moves that turn a rotary
     axis), "rotary" (interferometer: rotary motion with the beam set up, deg), "rapids" (probe-sphere: G0 moves
     with the sphere on the table), "stroke": the largest excess beyond a stroke (mm or deg)."""
@@ -249,6 +257,11 @@ def independent_worst(machine, model, steps, instrument):
             v = stylus_points_clearance(tip, axis, numbers(ref["centre"]))
             if len(st["q"]) > 1 and np.ptp(st["q"][:, rot], axis=0).max() > 1e-9:
                 out["clearance_rotary"] = min(out.get("clearance_rotary", (np.inf, 0)), (float(v.min()), st["line"]))
+        elif instrument == "tracker":                 # the line of sight against the reflector's axis, machine frame
+            W = table(machine, st["q"])
+            los = numbers(ref["station"])[None, :] - np.einsum("nij,nj->ni", W, tip)
+            ax = np.einsum("nij,nj->ni", W, axis)
+            v = np.degrees(np.arccos(np.clip(np.sum(los * ax, 1) / np.linalg.norm(los, axis=1), -1, 1)))
         elif instrument == "interferometer":
             q0 = ref["q"]
             t0, _ = chain(machine, q0, st["L"])
@@ -311,7 +324,7 @@ CASES = [(m, i) for m in MACHINES for i in PLANS] + [("li2018", "rtest", "tcp"),
                                                                                           "joint")]
 CASES = [c if len(c) == 3 else (*c, None) for c in CASES]
 LIMIT_OF = {"rtest": ins.RTEST.limit_mm, "ballbar": ins.BALLBAR.limit_mm, "probe-sphere": ins.PROBE.clearance_limit_mm,
-            "interferometer": ins.INTERFEROMETER.limit_mm}
+            "interferometer": ins.INTERFEROMETER.limit_mm, "tracker": ins.TRACKER.limit_deg}
 
 
 @pytest.mark.parametrize("machine, instrument, mode", CASES)

@@ -115,9 +115,13 @@ class InterferometerGeometry:
 class TrackerGeometry:
     """A laser tracker (or tracing interferometer) on the bed following a reflector on the tool tip (a cat's eye
     facing out of the spindle along the tool axis): the line of sight must stay within acceptance_deg of the
-    reflector's axis while it is tracked, or the beam breaks."""
+    reflector's axis while it is tracked, or the beam breaks; a program keeps it within limit_deg, a plan's poses
+    within plan_deg (room for the moves between them). Stations for plans: on the bed below the workspace,
+    below_mm under the lowest tool tip (`bed_stations`)."""
     acceptance_deg: float = 60.0
     limit_deg: float = 55.0
+    plan_deg: float = 50.0
+    below_mm: float = 150.0
 
 
 RTEST = RTestGeometry()
@@ -143,6 +147,7 @@ class Plan:
     frame: str = "workpiece"
     t: np.ndarray | None = None
     notes: list = field(default_factory=list)
+    points: dict = field(default_factory=dict)   # setup id -> its nominal position (mm, in its setup_frame)
 
     @property
     def n(self) -> int:
@@ -371,6 +376,25 @@ def station_positions(tip_m: np.ndarray, stations: int) -> np.ndarray:
     c, half = 0.5 * (lo + hi), 0.5 * (hi - lo) + 100.0
     corners = np.array([[1, 1, 1], [-1, 1, -1], [1, -1, -1], [-1, -1, 1], [0, 0, 1.5], [1.5, 0, 0]])[:stations]
     return c + 1.5 * corners * half
+
+
+def bed_stations(tip_m: np.ndarray, stations: int) -> np.ndarray:
+    """Tracker stations (stations, 3; mm, machine frame) a reflector looking down the tool axis can see: on the bed
+    below the box of tool-tip positions tip_m (n, 3), TRACKER.below_mm under its lowest point, at the corners of
+    its footprint shrunk to half (the lines of sight from a tip cross at many angles)."""
+    lo, hi = tip_m.min(axis=0), tip_m.max(axis=0)
+    c, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    corners = np.array([[1, 1], [-1, -1], [1, -1], [-1, 1], [0, 0], [1, 0]])[:stations]
+    xy = c[:2] + 0.5 * corners * half[:2]
+    return np.column_stack([xy, np.full(len(xy), lo[2] - TRACKER.below_mm)])
+
+
+def sight_angles(tip_m: np.ndarray, axis_m: np.ndarray, stations: np.ndarray) -> np.ndarray:
+    """Angles (n, s; deg) between the reflector's axis (the tool axis, n, 3, machine frame) and the line of sight
+    from the tool tip (n, 3) to each station (s, 3)."""
+    los = stations[None, :, :] - tip_m[:, None, :]
+    c = np.einsum("nsk,nk->ns", los, axis_m) / np.linalg.norm(los, axis=2) / np.linalg.norm(axis_m, axis=1)[:, None]
+    return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
 
 
 def tracker(model, n, rng, stations: int = 4) -> Plan:

@@ -22,8 +22,9 @@ path by the nominal inverse kinematics. The rules (docs/plan.md):
   transit between poses on the retract sphere; no G0 while the sphere is on the table;
 - interferometer: along the beam only, every target approached in the positive direction of the axis, after an
   overrun below it where the run reverses;
-- tip, tracker: straight moves between the poses (tracker: the line of sight to the station within the
-  reflector's acceptance on every move, `fiveaxis.planning.safety` checks it).
+- tip: straight moves between the poses (through a hub where they would leave the strokes);
+- tracker: per station, moves that keep the line of sight within TRACKER.limit_deg of the reflector's axis (the
+  tool axis), straight or through a hub.
 Units: mm and rad inside; the program in mm and degrees.
 """
 from __future__ import annotations
@@ -532,38 +533,65 @@ def _tip(w, plan, notes, feed, dwell):
             _reading(w, j, dwell)
 
 
+def sight(model, q, L, station) -> np.ndarray:
+    """Angles (n,; deg) between the reflector's axis (the tool axis) and the line of sight to a station (machine
+    frame) at poses q."""
+    tip, axis = tips(model, q, L)
+    if frames.has_workpiece_rotation(model.machine):
+        tip, axis = frames.to_machine(model.machine, q, tip), frames.to_machine(model.machine, q, axis)
+    return ins.sight_angles(tip, axis, np.asarray(station, float)[None, :])[:, 0]
+
+
+def _tracked_move(w: Writer, target, station, feed, what: str) -> None:
+    """To the next pose with the tracker following: one move if its line of sight stays within TRACKER.limit_deg
+    (and the strokes) all along, else through a hub that keeps it (straight to the hub, turn the rotary axes about
+    the tip, straight on): the point above the station at the start's height, or `_hubs`."""
+    model, L, mode = w.model, w.L, w.mode
+    lim = ins.TRACKER.limit_deg - 1.0
+    direct = controller_path(model, w.q, target, np.linspace(0, 1, STROKE_SAMPLES), L, mode)
+    if inside(model, direct) and np.max(sight(model, direct, L, station)) <= lim:
+        w.move(target, feed)
+        return
+    here = w.q
+    s = np.linspace(0.0, 1.0, STROKE_SAMPLES)
+    tip_m, _ = tips(model, here, L)
+    if frames.has_workpiece_rotation(model.machine):
+        tip_m = frames.to_machine(model.machine, here[None, :], tip_m)
+    nadir = np.array([station[0], station[1], tip_m[0, 2]])     # above the station: it sees every tilt up to 55 deg
+    if frames.has_workpiece_rotation(model.machine):
+        nadir = frames.to_workpiece(model.machine, here[None, :], nadir[None, :])[0]
+    for hub in [nadir] + _hubs(model, here, target, L):
+        a = linear_for_tip(model, here[None, :], hub, L)[0]
+        b = linear_for_tip(model, target[None, :], hub, L)[0]
+        legs = [straight(model, here, a, L), hold_tip(model, a, target, L), straight(model, b, target, L)]
+        if all(inside(model, p(s)) and np.max(sight(model, p(s), L, station)) <= lim for p in legs):
+            for p in legs:
+                if w.words(quantize(model, p(np.array([1.0])), L, mode)[0]) != w.words(w.q):
+                    follow(w, p, feed, pieces=_pieces(model, w.q, p(np.array([1.0]))[0], mode))
+            return
+    raise InputError(f"{what}: no move from {w.words(here)} to {w.words(target)} keeps the reflector facing the "
+                     f"tracker within {ins.TRACKER.limit_deg:g} deg")
+
+
 def _tracker(w, plan, notes, feed, dwell):
     model = w.model
     for L, s, idx in blocks(plan):
-        _tool(w, L, "reflector")
+        _tool(w, L, "reflector [cat's eye centre]")
         q = quantize(model, plan.poses[idx], L, w.mode)
+        if s not in plan.points:
+            raise InputError(f"tracker setup {s}: the plan does not say where its station is")
+        station = np.asarray(plan.points[s], float)
         w.comment(f"setup {s}: {notes.get(s, '')}".rstrip(": "))
-        transit(w, q[0], feed)
-        station = plan_station(plan, idx, model, q, L)
+        transit(w, q[0])
         w.event("mount", station=station)
-        w.stop(f"set up the tracker at {s} [{_vec(station)} mm, machine frame] and lock on the reflector, then "
+        w.stop(f"set up the tracker at {s} [{_vec(station)} mm, machine frame] and lock it on the reflector, then "
                f"resume")
         _reading(w, idx[0], dwell)
         for k in range(1, len(idx)):
-            w.move(q[k], feed)
+            _tracked_move(w, q[k], station, feed, f"tracker pose {idx[k] + 1}")
             _reading(w, idx[k], dwell)
         w.event("unmount")
         w.stop(f"release the tracker at {s}, then resume")
-
-
-def plan_station(plan, idx, model, q, L) -> np.ndarray:
-    """The tracker station (machine frame, mm) of a run of poses: where the lines of sight u (machine frame) from
-    the tips meet (least squares)."""
-    tip, _ = tips(model, q, L)
-    tip_m = frames.to_machine(model.machine, q, tip) if frames.has_workpiece_rotation(model.machine) else tip
-    u = plan.u[idx]
-    A = np.zeros((3, 3))
-    b = np.zeros(3)
-    for p, d in zip(tip_m, u):
-        P = np.eye(3) - np.outer(d, d)
-        A += P
-        b += P @ p
-    return np.linalg.solve(A, b) if np.linalg.matrix_rank(A) == 3 else tip_m[0] - 1000.0 * u[0]
 
 
 RULES = {"tip": _tip, "rtest": _rtest, "probe-sphere": _probe, "ballbar": _ballbar,
@@ -580,7 +608,8 @@ RULE_TEXT = {
                "is mounted and removed at M0 stops on the circle",
     "interferometer": "moves along the beam only; every target approached in the positive direction, with an "
                       "overrun where the run reverses",
-    "tracker": "straight moves between the poses; the tracker is set up at each station at an M0 stop",
+    "tracker": "moves that keep the reflector facing the tracker's station; the tracker is set up at each station "
+               "at an M0 stop",
 }
 
 

@@ -38,8 +38,8 @@ Constraints per instrument (candidates):
   within the strokes; 1-D readings along the bar.
 - interferometer: targets along a few beam lines per linear axis (each line a setup: its dead path), at least the
   overrun inside the stroke; 1-D along the axis.
-- tracker: poses and the station that sees them (stations on the bed around the workspace, setups in the machine
-  frame); 1-D along the line of sight.
+- tracker: poses and a station their reflector (looking down the tool axis) sees within TRACKER.plan_deg
+  (stations on the bed below the workspace, setups in the machine frame); 1-D along the line of sight.
 Tool lengths: one (the machine's L0) or two given ones; every candidate exists at each length (separating angular
 from translational errors needs two). A plan is made for a program in a kinematics mode (`fiveaxis.linuxcnc.program`:
 joint or tcp): the candidates' poses are exactly what the program's words say (`program.quantize`: 1e-4 mm and
@@ -322,17 +322,35 @@ def _interferometer_units(model, count, rng, extreme, L, fixtures):
 
 
 def _tracker_units(model, count, rng, extreme, L, fixtures):
+    """count poses, each with a station its reflector sees within TRACKER.plan_deg (a random one of those that do);
+    poses no station sees are not candidates."""
     st = fixtures["stations"]
-    q = _quantized(model, _sample_poses(model, count, rng, extreme), L, fixtures)
+    found_q, found_k = [], []
+    for _ in range(50):
+        q = _quantized(model, _sample_poses(model, 2 * count, rng, extreme), L, fixtures)
+        tip, axis = model.ideal_tool(q, L)
+        if frames.has_workpiece_rotation(model.machine):
+            tip, axis = frames.to_machine(model.machine, q, tip), frames.to_machine(model.machine, q, axis)
+        seen = ins.sight_angles(tip, axis, st) <= ins.TRACKER.plan_deg
+        ok = seen.any(axis=1)
+        pick = np.array([rng.choice(np.flatnonzero(row)) for row in seen[ok]], dtype=int)
+        found_q.append(q[ok])
+        found_k.append(pick)
+        if sum(len(x) for x in found_k) >= count:
+            break
+    q, k = np.vstack(found_q)[:count], np.concatenate(found_k)[:count]
+    if len(q) < count:
+        raise InputError(f"instrument tracker: machine {model.machine.name}: too few poses whose reflector sees a "
+                         f"station ({len(q)} of {count} candidates found)")
     tip, _ = model.ideal_tool(q, L)
     tip_m = frames.to_machine(model.machine, q, tip) if frames.has_workpiece_rotation(model.machine) else tip
-    k = rng.integers(0, len(st), count)
     vec = tip_m - st[k]
     u = vec / np.linalg.norm(vec, axis=1)[:, None]
     setup = np.array([f"station{i + 1}" for i in k], dtype=object)
     ids = [f"station{i + 1}" for i in range(len(st))]
     return _plan("tracker", q, np.full(count, L), "line", u=u, setup=setup, frame="machine",
-                 setup_kind={s: "point" for s in ids}, setup_frame={s: "machine" for s in ids}), np.arange(count)
+                 setup_kind={s: "point" for s in ids}, setup_frame={s: "machine" for s in ids},
+                 points={s: st[i] for i, s in enumerate(ids)}), np.arange(count)
 
 
 _UNITS = {"tip": _tip_units, "rtest": _sphere_units, "probe-sphere": _sphere_units, "ballbar": _ballbar_units,
@@ -391,7 +409,7 @@ def _fixtures(model, instrument, rng, mode: str) -> dict:
         q = model.machine.random_poses(2000, rng)
         tip, _ = model.ideal_tool(q, model.machine.tool_length)
         tip_m = frames.to_machine(model.machine, q, tip) if frames.has_workpiece_rotation(model.machine) else tip
-        st = ins.station_positions(tip_m, STATIONS)
+        st = np.round(ins.bed_stations(tip_m, STATIONS), 1)
         out["stations"] = st
         for i, p in enumerate(st):
             out["notes"][f"station{i + 1}"] = (f"tracker station at ({p[0]:.1f}, {p[1]:.1f}, {p[2]:.1f}) mm on the "
@@ -411,8 +429,10 @@ def _concat_plans(parts) -> ins.Plan:
         kinds.update(p.setup_kind)
         fr.update(p.setup_frame)
     dirs = {k: np.concatenate([p.dirs[k] for p in parts]) for k in first.dirs}
+    points = {k: v for p in parts for k, v in p.points.items()}
     return ins.Plan(first.instrument, np.vstack([p.poses for p in parts]), cat("L"), True, first.reads, u=cat("u"),
-                    setup=cat("setup"), setup_kind=kinds, setup_frame=fr, dirs=dirs, frame=first.frame)
+                    setup=cat("setup"), setup_kind=kinds, setup_frame=fr, dirs=dirs, frame=first.frame,
+                    points=points)
 
 
 def pool(model, instrument: str, n_uniform: int, n_extreme: int, rng, lengths=None, kinematics: str | None = None
@@ -465,7 +485,8 @@ def subplan(pool_: Pool, units) -> ins.Plan:
     return ins.Plan(p.instrument, p.poses[idx], p.L[idx], True, p.reads, u=pick(p.u), setup=setup,
                     setup_kind={s: k for s, k in p.setup_kind.items() if s in present},
                     setup_frame={s: f for s, f in p.setup_frame.items() if s in present},
-                    dirs={k: v[idx] for k, v in p.dirs.items()}, frame=p.frame)
+                    dirs={k: v[idx] for k, v in p.dirs.items()}, frame=p.frame,
+                    points={s: v for s, v in p.points.items() if s in present})
 
 
 def measurements(plan: ins.Plan, model, noise_mm: float = NOISE_MM, noise_rad: float = NOISE_RAD,
