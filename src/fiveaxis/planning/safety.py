@@ -6,7 +6,8 @@ included): moves, comments, messages and stops with their lines. Every move is s
 interpolates it in the program's kinematics mode (`fiveaxis.linuxcnc.program`: joint mode linear in the axes,
 tcp mode linear in world coordinates; G2/G3 on their circle, the other axes linear, `sensitivity.toolpath.
 arc_points`), at least MIN_SAMPLES points per move and one every STEP_MM mm / STEP_DEG deg of the program's
-coordinates; tcp samples become joints by the nominal inverse kinematics. At every sample the nominal chain
+coordinates (SPARSE times fewer where nothing is mounted); tcp samples become joints by the nominal inverse
+kinematics. At every sample the nominal chain
 gives the tool tip and axis (workpiece frame), and the instrument's quantities are compared with its limits
 (`LIMITS`, a table per instrument; the geometry is `fiveaxis.measurement.instruments`'s).
 
@@ -49,6 +50,8 @@ from ..sensitivity.toolpath import arc_points, move_samples
 STEP_MM = 0.25
 STEP_DEG = 0.05
 MIN_SAMPLES = 16
+#: Moves with nothing mounted (only the strokes to check) are sampled this many times more sparsely.
+SPARSE = 4.0
 #: The move after a probing move must end within this of the probing line (mm) to count as its retract.
 RETRACT_TOL_MM = 0.01
 #: The measuring poses equal a plan's to this (mm, deg); a probing line passes this close to the planned sphere
@@ -403,7 +406,8 @@ def _run(prog, model, instrument, mode, tool_length, res):
                     res.problems.append((mv.line, f"the move after the probing move of line {p_line} does not lead "
                                                   f"back along its probing line"))
                 probe = None
-            n = max(MIN_SAMPLES, move_samples(start, rel, lin_letters, rot_letters, STEP_MM, STEP_DEG))
+            f = 1.0 if state["mounted"] is not None else SPARSE
+            n = max(MIN_SAMPLES, move_samples(start, rel, lin_letters, rot_letters, f * STEP_MM, f * STEP_DEG))
             t = np.linspace(0.0, 1.0, n + 1)
             if mv.kind == "arc":
                 pts = arc_points(start, rel, t, letters)
@@ -610,7 +614,7 @@ def to_json(res: CheckResult) -> dict:
     fin = (lambda x: None if x is None or not math.isfinite(x) else x)
     return {"program": str(res.path), "machine": res.machine, "instrument": res.instrument,
             "kinematics": res.kinematics, "kinematics_source": res.kinematics_source, "moves": res.moves,
-            "samples": res.samples, "sampling": {"step_mm": STEP_MM, "step_deg": STEP_DEG,
+            "samples": res.samples, "sampling": {"step_mm": STEP_MM, "step_deg": STEP_DEG, "sparse_factor": SPARSE,
                                                  "min_per_move": MIN_SAMPLES},
             "limits": [{"name": w.limit.name, "unit": w.limit.unit, "bound": w.limit.bound, "limit": w.limit.limit,
                         "worst": fin(w.value), "line": w.line, "samples": w.samples, "violations": w.violations}
@@ -628,7 +632,8 @@ def report(res: CheckResult) -> str:
     setup changes, the measuring poses, the verdict."""
     out = [f"[[Check]] {res.path}: {res.instrument} on {res.machine}, {res.kinematics} kinematics (from "
            f"{res.kinematics_source}); {res.moves} moves sampled at {res.samples} points (every {STEP_MM:g} mm / "
-           f"{STEP_DEG:g} deg, at least {MIN_SAMPLES} per move) on the nominal chain"]
+           f"{STEP_DEG:g} deg, {SPARSE * STEP_MM:g} mm / {SPARSE * STEP_DEG:g} deg with nothing mounted, at least "
+           f"{MIN_SAMPLES} per move) on the nominal chain"]
     for w in res.worst:
         lim = w.limit
         rel = "at most" if lim.bound == "max" else "at least"
