@@ -20,13 +20,10 @@ import re
 import sys
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 import test_plan_programs as T   # noqa: E402
 import fiveaxis                 # noqa: E402
 from fiveaxis.planning import safety  # noqa: E402
-
 
 
 def annotate(text, machine, instrument, how):

@@ -20,8 +20,6 @@ G54 puts program zero at the machine file's origin (tcp: the workpiece origin). 
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..exceptions import InputError
@@ -82,15 +80,20 @@ def _rotary(model) -> np.ndarray:
     return np.array([model.machine.axis(v).type == "rotary" for v in model.variables])
 
 
+def _converted(x, columns, convert) -> np.ndarray:
+    """A copy of x (n, k) with `convert` (np.degrees, np.radians) applied to the columns selected."""
+    out = np.array(np.atleast_2d(x), dtype=float)
+    out[:, columns] = convert(out[:, columns])
+    return out
+
+
 def coordinates(model, poses, L, mode: str) -> np.ndarray:
     """Program coordinates (n, k) of poses (n, nvar; mm, rad) for tool lengths L (mm), in the order of `letters`:
     mm and degrees."""
     q = np.atleast_2d(np.asarray(poses, float))
     rot = _rotary(model)
     if mode == "joint":
-        out = q.copy()
-        out[:, rot] = np.degrees(out[:, rot])
-        return out
+        return _converted(q, rot, np.degrees)
     tip, _ = model.ideal_tool(q, model.tool_lengths(L, len(q)))
     return np.hstack([tip, np.degrees(q[:, rot])])
 
@@ -102,9 +105,7 @@ def poses_of(model, coords, L, mode: str) -> np.ndarray:
     c = np.atleast_2d(np.asarray(coords, float))
     rot = _rotary(model)
     if mode == "joint":
-        out = c.copy()
-        out[:, rot] = np.radians(out[:, rot])
-        return out
+        return _converted(c, rot, np.radians)
     q = np.zeros((len(c), len(rot)))
     q[:, rot] = np.radians(c[:, 3:])
     lin = np.flatnonzero(~rot)

@@ -293,6 +293,23 @@ def approach_directions(path: np.ndarray) -> np.ndarray:
     return out
 
 
+#: Ballbar circle planes: their names and the two coordinate axes (0 x, 1 y, 2 z) they span, in their order.
+CIRCLE_PLANES = (("XY", (0, 1)), ("YZ", (1, 2)), ("ZX", (2, 0)))
+
+
+def circle_directions(theta, plane, sense) -> np.ndarray:
+    """Unit vectors (m, k, 3) from the centres of m circles at angles theta (k,; rad): plane (m,) an index into
+    CIRCLE_PLANES, sense (m,) +1 counter-clockwise (from the plane's first axis towards its second), -1 clockwise."""
+    pairs = np.array([p for _, p in CIRCLE_PLANES])
+    plane, sense = np.atleast_1d(plane), np.atleast_1d(np.asarray(sense, float))
+    m, k = len(plane), len(theta)
+    u = np.zeros((m, k, 3))
+    idx = np.arange(m)[:, None]
+    u[idx, np.arange(k)[None, :], pairs[plane, 0][:, None]] = np.cos(sense[:, None] * theta)
+    u[idx, np.arange(k)[None, :], pairs[plane, 1][:, None]] = np.sin(sense[:, None] * theta)
+    return u
+
+
 def ballbar(model, n, rng, radius: float = 150.0, L: float | None = None) -> Plan:
     """ISO 230-4 circles in the XY, YZ and ZX planes, both directions; 1-D along the bar; a setup per circle."""
     lin, _ = linear_rotary(model)
@@ -304,15 +321,11 @@ def ballbar(model, n, rng, radius: float = 150.0, L: float | None = None) -> Pla
     pivot = pivot[0]
     per = max(16, int(round(n / 6)))
     theta = np.linspace(0.0, 2 * math.pi, per, endpoint=False)
-    planes = {"XY": (0, 1), "YZ": (1, 2), "ZX": (2, 0)}
     poses, us, setups, dirs = [], [], [], []
     idx_lin = [model.variables.index(v) for v in lin]
-    for name, (a, b) in planes.items():
+    for p, (name, _) in enumerate(CIRCLE_PLANES):
         for sense, sign in (("ccw", 1.0), ("cw", -1.0)):
-            th = sign * theta
-            u = np.zeros((per, 3))
-            u[:, a] = np.cos(th)
-            u[:, b] = np.sin(th)
+            u = circle_directions(theta, p, sign)[0]
             q = linear_for_tip(model, np.tile(centre, (per, 1)), pivot + radius * u, L)
             if not within_strokes(model.machine, q).all():
                 raise InputError(f"instrument ballbar: a circle of radius {radius:g} mm in {name} leaves the strokes "

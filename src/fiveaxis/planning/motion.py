@@ -274,8 +274,12 @@ def blocks(plan):
 
 
 def _tool(w: Writer, L: float, what: str) -> None:
+    """A tool change (nothing mounted): first, for a longer tool, the spindle backs off along the tool axis by the
+    difference (as far as the strokes allow), so that the new tool's tip is no nearer the work than the old one's."""
     if w.L == L:
         return
+    if w.q is not None and w.L is not None and L > w.L:
+        follow(w, straight(w.model, w.q, retract(w.model, w.q, w.L, L - w.L, w.mode), w.L), None, tol=1.0)
     w.tool(L)
     w.stop(f"mount the {what} of length {L:g} mm [gauge line to its centre] in the spindle, then resume")
 
@@ -291,15 +295,22 @@ def _vec(p) -> str:
     return f"[{p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}]"
 
 
+def _setups(w: Writer, plan, notes: dict, tool: str):
+    """Per run of poses with one tool length and one setup (`blocks`): the tool change where the length changes
+    (`tool`: what to mount), the setup's comment; yields (L, setup, pose indices, the poses quantized)."""
+    for L, s, idx in blocks(plan):
+        _tool(w, L, tool)
+        if s is not None:
+            w.comment(f"setup {s}: {notes.get(s, '')}".rstrip(": "))
+        yield L, s, idx, quantize(w.model, plan.poses[idx], L, w.mode)
+
+
 # -- the instruments ------------------------------------------------------------------------------------------------
 def _rtest(w, plan, notes, feed, dwell):
     model = w.model
     g = ins.RTEST
-    for L, s, idx in blocks(plan):
-        _tool(w, L, "R-test sphere")
-        q = quantize(model, plan.poses[idx], L, w.mode)
+    for L, s, idx, q in _setups(w, plan, notes, "R-test sphere"):
         centre, _ = tips(model, q[0], L)
-        w.comment(f"setup {s}: {notes.get(s, '')}".rstrip(": "))
         transit(w, retract(model, q[0], L, g.retract_mm, w.mode))
         follow(w, straight(model, w.q, q[0], L), feed)
         w.event("mount", centre=centre[0])
@@ -357,13 +368,10 @@ def probe_cycles(model, poses, L) -> dict:
 def _probe(w, plan, notes, feed, dwell):
     model = w.model
     g = ins.PROBE
-    for L, s, idx in blocks(plan):
-        _tool(w, L, "probe [stylus ball centre]")
-        poses = quantize(model, plan.poses[idx], L, w.mode)
+    for L, s, idx, poses in _setups(w, plan, notes, "probe [stylus ball centre]"):
         every = probe_cycles(model, poses, L)
         cycles = [{k: v[j] for k, v in every.items()} for j in range(len(poses))]
         centre = cycles[0]["centre"]
-        w.comment(f"setup {s}: {notes.get(s, '')}".rstrip(": "))
         transit(w, quantize(model, cycles[0]["far"][None, :], L, w.mode)[0])
         w.event("mount", centre=centre)
         w.stop(f"place the sphere {s} with its centre at {_vec(centre)} mm [workpiece frame, within 1 mm], then "
@@ -447,9 +455,7 @@ def _ballbar(w, plan, notes, feed, dwell):
     model = w.model
     g = ins.BALLBAR
     lead = math.radians(g.lead_deg)
-    for L, s, idx in blocks(plan):
-        _tool(w, L, "ballbar tool cup [tool ball centre]")
-        q = quantize(model, plan.poses[idx], L, w.mode)
+    for L, s, idx, q in _setups(w, plan, notes, "ballbar tool cup [tool ball centre]"):
         pivot, R, v0, v1, ang = circle_of(model, q, plan.u[idx], L)
         rot = q[0]
 
@@ -457,7 +463,6 @@ def _ballbar(w, plan, notes, feed, dwell):
             p = pivot + R * (math.cos(theta) * v0 + math.sin(theta) * v1)
             return quantize(model, linear_for_tip(model, rot[None, :], p, L), L, w.mode)[0]
         centre = quantize(model, linear_for_tip(model, rot[None, :], pivot, L), L, w.mode)[0]
-        w.comment(f"setup {s}: {notes.get(s, '')}".rstrip(": "))
         transit(w, retract(model, centre, L, g.retract_mm, w.mode))
         follow(w, straight(model, w.q, centre, L), feed)
         w.stop(f"set the pivot of {s} at the tool cup [pivot ball centre {_vec(pivot)} mm, workpiece frame]: fix "
@@ -497,16 +502,13 @@ def beam_axis(model, q, u) -> int:
 def _interferometer(w, plan, notes, feed, dwell):
     model = w.model
     g = ins.INTERFEROMETER
-    for L, s, idx in blocks(plan):
-        _tool(w, L, "reflector")
-        q = quantize(model, plan.poses[idx], L, w.mode)
+    for L, s, idx, q in _setups(w, plan, notes, "reflector"):
         i = beam_axis(model, q[0], plan.u[idx[0]])
         v = model.variables[i]
         others = np.delete(q, i, axis=1)
         if np.max(np.ptp(others, axis=0)) > 0:
             raise InputError(f"interferometer setup {s}: its poses differ in axes other than {v} (a beam line runs "
                              f"along one axis)")
-        w.comment(f"setup {s}: {notes.get(s, '')}".rstrip(": "))
         start = q[0].copy()
         start[i] -= g.overrun_mm
         transit(w, start)
@@ -525,9 +527,7 @@ def _interferometer(w, plan, notes, feed, dwell):
 
 
 def _tip(w, plan, notes, feed, dwell):
-    for L, s, idx in blocks(plan):
-        _tool(w, L, "tool")
-        q = quantize(w.model, plan.poses[idx], L, w.mode)
+    for L, s, idx, q in _setups(w, plan, notes, "tool"):
         for k, j in enumerate(idx):
             transit(w, q[k], feed)
             _reading(w, j, dwell)
@@ -575,13 +575,10 @@ def _tracked_move(w: Writer, target, station, feed, what: str) -> None:
 
 def _tracker(w, plan, notes, feed, dwell):
     model = w.model
-    for L, s, idx in blocks(plan):
-        _tool(w, L, "reflector [cat's eye centre]")
-        q = quantize(model, plan.poses[idx], L, w.mode)
+    for L, s, idx, q in _setups(w, plan, notes, "reflector [cat's eye centre]"):
         if s not in plan.points:
             raise InputError(f"tracker setup {s}: the plan does not say where its station is")
         station = np.asarray(plan.points[s], float)
-        w.comment(f"setup {s}: {notes.get(s, '')}".rstrip(": "))
         transit(w, q[0])
         w.event("mount", station=station)
         w.stop(f"set up the tracker at {s} [{_vec(station)} mm, machine frame] and lock it on the reflector, then "

@@ -217,17 +217,6 @@ def _sphere_units(model, count, rng, extreme, L, fixtures, instrument="rtest"):
                  frame="machine" if instrument == "probe-sphere" else "workpiece"), np.arange(len(poses))
 
 
-def _circle_directions(theta, plane, sense) -> np.ndarray:
-    """Unit vectors (m, k, 3) of m circles at angles theta (k,): plane (m,) 0 XY, 1 YZ, 2 ZX, sense (m,) +1 ccw."""
-    pairs = np.array([(0, 1), (1, 2), (2, 0)])
-    m = len(plane)
-    u = np.zeros((m, len(theta), 3))
-    idx = np.arange(m)[:, None]
-    u[idx, np.arange(len(theta))[None, :], pairs[plane, 0][:, None]] = np.cos(sense[:, None] * theta)
-    u[idx, np.arange(len(theta))[None, :], pairs[plane, 1][:, None]] = np.sin(sense[:, None] * theta)
-    return u
-
-
 def _ballbar_units(model, count, rng, extreme, L, fixtures):
     """count circles of BALLBAR.points_per_circle poses, each its own setup, the whole circle within the strokes.
     The circle lies in a coordinate plane of the program's coordinates: the workpiece frame's (tcp) or the machine
@@ -237,7 +226,7 @@ def _ballbar_units(model, count, rng, extreme, L, fixtures):
     per = geo.points_per_circle
     theta = np.linspace(0.0, 2 * math.pi, per, endpoint=False)
     dense = np.linspace(0.0, 2 * math.pi, CIRCLE_SAMPLES, endpoint=False)
-    names = ("XY", "YZ", "ZX")
+    names = [name for name, _ in ins.CIRCLE_PLANES]
     machine_planes = fixtures["kinematics"] == "joint" and frames.has_workpiece_rotation(model.machine)
     found = []
     for _ in range(200):
@@ -249,8 +238,8 @@ def _ballbar_units(model, count, rng, extreme, L, fixtures):
         if extreme:
             radius = np.where(rng.random(m) < 0.5, max(geo.radii_mm), radius)
         sense = np.where(rng.random(m) < 0.5, 1.0, -1.0)
-        u = _circle_directions(theta, plane, sense)
-        ud = _circle_directions(dense, plane, sense)
+        u = ins.circle_directions(theta, plane, sense)
+        ud = ins.circle_directions(dense, plane, sense)
         if machine_planes:
             R = frames.workpiece_rotation(model.machine, q0)
             u = np.einsum("mji,mkj->mki", R, u)

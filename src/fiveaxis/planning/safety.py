@@ -25,8 +25,8 @@ writes them):
 Rules beyond the limits: a mount, unmount or tool change is followed by an operator message and M0 before the next
 move; the tool changes only with nothing mounted; a probing move (G38) keeps the rotary axes still, and the move
 after it (whose start, where the probe stopped, the interpreter cannot know) must lead back along the probing line
-(G0 or G1, the rotary axes still; it is sampled from the probing move's start on). The first move starts wherever the machine is: only its end is
-sampled. Units: mm and degrees in the report; mm and rad inside.
+(G0 or G1, the rotary axes still; it is sampled from the probing move's start on). The first move starts wherever
+the machine is: only its end is sampled. Units: mm and degrees in the report; mm and rad inside.
 """
 from __future__ import annotations
 
@@ -643,8 +643,8 @@ def report(res: CheckResult) -> str:
             out.append(f"    {lim.name}: worst {w.value:.4g} {lim.unit} at line {w.line} (limit: {rel} "
                        f"{lim.limit:g} {lim.unit}){'' if w.ok else f'  EXCEEDED in {w.violations} move(s)'}")
     if res.stroke_excess <= 1e-6:
-        out.append(f"    strokes: every sample within; smallest margin {max(0.0, -res.stroke_excess):.4g} {res.stroke_unit} "
-                   f"({res.stroke_axis}, line {res.stroke_line})")
+        out.append(f"    strokes: every sample within; smallest margin {max(0.0, -res.stroke_excess):.4g} "
+                   f"{res.stroke_unit} ({res.stroke_axis}, line {res.stroke_line})")
     else:
         out.append(f"    strokes: {res.stroke_violations} move(s) outside; worst {res.stroke_axis} "
                    f"{res.stroke_excess:.4g} {res.stroke_unit} beyond its stroke at line {res.stroke_line}")
