@@ -73,7 +73,8 @@ TRANSLATIONS = (("(force=True replaces it)", "(use --force to replace it)"),
                 ("effect value ", "--effect "),
                 ("bound: expected a positive", "--bound: expected a positive"),
                 ("samples: expected a power of 2", "--samples: expected a power of 2"),
-                ("poses: give a normal", "--pose: give a normal"))
+                ("poses: give a normal", "--pose: give a normal"),
+                ("give the kinematics (", "give --kinematics ("))
 
 
 def to_command_line(message: str) -> str:

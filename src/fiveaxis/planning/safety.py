@@ -40,7 +40,8 @@ import numpy as np
 
 from ..exceptions import InputError
 from ..linuxcnc import rs274
-from ..linuxcnc.program import KINEMATICS, poses_of
+from ..linuxcnc.program import KINEMATICS, check_mode, poses_of
+from ..linuxcnc.program import letters as program_letters
 from ..measurement import instruments as ins
 from ..model import frames
 from ..sensitivity.toolpath import arc_points, move_samples
@@ -250,6 +251,7 @@ def check(path, model, instrument: str, kinematics: str | None = None, tool_leng
                              f"kinematics=...)` comment); give the kinematics ({' or '.join(KINEMATICS)})")
     if kinematics not in KINEMATICS:
         raise InputError(f"{path}: kinematics mode '{kinematics}': expected one of {', '.join(KINEMATICS)}")
+    check_mode(model.machine, kinematics)
     prog = rs274.interpret(path, probes=True)
     res = CheckResult(path, model.machine.name, instrument, kinematics, source,
                       worst=[Worst(lim) for lim in LIMITS[instrument]], program=prog)
@@ -270,13 +272,6 @@ def check_text(text: str, model, instrument: str, plan_poses=None, plan_L=None, 
     return res
 
 
-def _letters(model, mode):
-    variables = list(model.variables)
-    if mode == "joint":
-        return [v.upper() for v in variables]
-    return ["X", "Y", "Z"] + [v.upper() for v in variables if model.machine.axis(v).type == "rotary"]
-
-
 @dataclass
 class _Segment:
     """The samples of one move (or of the pose at a mount), before the chain: program coordinates (k, ncoord)."""
@@ -292,7 +287,7 @@ def _run(prog, model, instrument, mode, tool_length, res):
     """Walk the program (events, moves) into segments of samples, then evaluate every sample on the nominal chain at
     once and account the strokes and the limits per move."""
     machine = model.machine
-    letters = _letters(model, mode)
+    letters = program_letters(model, mode)
     rot_letters = [a for a in letters if machine.axis(a).type == "rotary"] if mode == "joint" else letters[3:]
     lin_letters = [a for a in letters if a not in rot_letters]
     rot_cols = [letters.index(a) for a in rot_letters]
@@ -582,7 +577,7 @@ def _probe_poses(res, model, poses, L) -> dict:
     marks = sorted((ln, n) for n, (ln, _, _) in res.poses.items())
     machine = model.machine
     rot = np.array([machine.axis(v).type == "rotary" for v in model.variables])
-    letters = _letters(model, res.kinematics)
+    letters = program_letters(model, res.kinematics)
     Ls = model.tool_lengths(L if L is not None else machine.tool_length, len(poses))
     centres, _ = model.ideal_tool(poses, Ls)
     off = deg = 0.0
