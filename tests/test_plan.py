@@ -10,11 +10,9 @@ import pytest
 import fiveaxis
 from fiveaxis.estimation import fit as F
 from fiveaxis.planning import plan as P
-from fiveaxis.linuxcnc import program as G
 from fiveaxis.cli import main
 from fiveaxis.diagnosis.diagnose import diagnose
 from fiveaxis.exceptions import InputError
-from fiveaxis.linuxcnc.rs274 import moves
 from fiveaxis.linuxcnc.rs274 import run as run_rs274
 
 
@@ -143,46 +141,7 @@ def test_two_tool_lengths_add_directions(models):
     assert any("second tool length adds" in n for n in two.notes)
 
 
-# -- the G-code ---------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("name", ["rtest", "ballbar", "tip"])
-def test_gcode_parses_in_rs274_and_reaches_the_planned_poses(rs274_available, plans, name, tmp_path):
-    res = plans[name]
-    path = tmp_path / "plan.ngc"
-    path.write_text(G.program(res.model, res.plan, res.setup_notes, "test"))
-    out = rs274(path)
-    feeds = [m for cmd, m in moves(out) if cmd == "STRAIGHT_FEED"]
-    assert len(feeds) == res.n
-    model = res.model
-    for (pose, m) in zip(res.plan.poses, feeds):
-        for v, x in zip(model.variables, pose):
-            want = math.degrees(x) if model.machine.axis(v).type == "rotary" else x
-            assert m[v] == pytest.approx(want, abs=1e-4)          # 4 decimals written, 4 printed
-    assert out.count("DWELL(") == res.n
-    changes = len({(L, s) for L, s in zip(res.plan.L, res.plan.setup if res.plan.setup is not None
-                                          else [None] * res.n)})
-    assert out.count("PROGRAM_STOP()") == changes
-    assert "PROGRAM_END()" in out
-
-
-def test_probe_sphere_gcode_probes_the_planned_sphere_centres(rs274_available, plans, tmp_path):
-    """Every G38.2 probing move of the program ends (per rs274) where the stylus centre is PROBE_CONTACT -
-    OVERTRAVEL mm from the planned sphere centre, along one of five directions, at the planned rotary positions."""
-    res = plans["probe-sphere"]
-    model = res.model
-    path = tmp_path / "probe.ngc"
-    path.write_text(G.program(model, res.plan, res.setup_notes, "probe"))
-    probes = [m for cmd, m in moves(rs274(path)) if cmd == "STRAIGHT_PROBE"]
-    assert len(probes) == 5 * res.n
-    q = np.array([[math.radians(m[v]) if model.machine.axis(v).type == "rotary" else m[v]
-                   for v in model.variables] for m in probes])
-    tips, _ = model.ideal_tool(q, np.repeat(res.plan.L, 5))
-    centres, _ = model.ideal_tool(res.plan.poses, res.plan.L)
-    dist = np.linalg.norm(tips - np.repeat(centres, 5, axis=0), axis=1)
-    np.testing.assert_allclose(dist, G.PROBE_CONTACT_MM - G.PROBE_OVERTRAVEL_MM, atol=1e-3)
-    rot = [i for i, v in enumerate(model.variables) if model.machine.axis(v).type == "rotary"]
-    np.testing.assert_allclose(q[:, rot], np.repeat(res.plan.poses[:, rot], 5, axis=0), atol=1e-5)
-
-
+# -- the G-code (the programs' motion and their checker: tests/test_plan_programs.py) -------------------------------
 def test_rs274_runner_reports_a_program_it_cannot_interpret(rs274_available, tmp_path):
     bad = tmp_path / "bad.ngc"
     bad.write_text("G21 G90\nG1 X10 Q3 F100\nM2\n")

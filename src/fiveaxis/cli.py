@@ -85,7 +85,8 @@ TRANSLATIONS = (("(force=True replaces it)", "(use --force to replace it)"),
                 ("temperature_deviation_K: expected", "--temperature-deviation: expected"),
                 ("temperature_deviation_K and expansion_ppm_per_K: state both",
                  "--temperature-deviation and --expansion-ppm-per-K: state both"),
-                ("target tolerance: expected", "--tolerance: expected"))
+                ("target tolerance: expected", "--tolerance: expected"),
+                ("give the kinematics (", "give --kinematics ("))
 
 
 def to_command_line(message: str) -> str:

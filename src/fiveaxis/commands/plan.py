@@ -2,7 +2,9 @@
 
 Prints what the plan will determine and what it cannot (formulas), the criterion against a random plan of the same
 size, and writes the poses as a CSV (`simulate --poses` and the measurement readers take it) and a G-code program
-for LinuxCNC. The logic is in `fiveaxis.planning.plan` and `fiveaxis.linuxcnc.program`; docs/plan.md.
+for LinuxCNC, once its checker has found every move safe for the instrument. `--check FILE.ngc` checks a program
+(edited, or written elsewhere) the same way. The logic is in `fiveaxis.planning.plan`, `fiveaxis.planning.motion`
+(the program), `fiveaxis.planning.safety` (the checker); docs/plan.md.
 """
 from __future__ import annotations
 
@@ -15,14 +17,15 @@ from ..exceptions import InputError
 
 def register_plan(p):
     from ..planning.plan import MAX_POSES, NOISE_MM, PLANNERS
-    from ..linuxcnc.program import DWELL_S, FEED_MM_MIN
+    from ..linuxcnc.program import DWELL_S, FEED_MM_MIN, KINEMATICS
     p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
     p.add_argument("--convention", default="equations", help="convention of the machine file (default: equations)")
-    p.add_argument("--instrument", default="tip", choices=PLANNERS,
+    p.add_argument("--instrument", default=None, choices=PLANNERS,
                    help="what will measure: tip (any pose, 3-D tool tip; default), rtest and probe-sphere (tool tip "
-                        "on a sphere), ballbar (circles), interferometer (along an axis), tracker (stations)")
-    p.add_argument("--n", type=int, required=True, help=f"number of poses (ballbar: rounded to whole circles; at most "
-                                                        f"{MAX_POSES})")
+                        "on a sphere), ballbar (circles), interferometer (along an axis), tracker (stations); with "
+                        "--check: default the program's own")
+    p.add_argument("--n", type=int, default=None, help=f"number of poses (ballbar: rounded to whole circles; at most "
+                                                       f"{MAX_POSES})")
     p.add_argument("--effects", action="append", default=[], metavar="ID,...",
                    help="effects the plan should detect and tell apart, e.g. ex_x:x2,ez_C:C1 (repeatable)")
     p.add_argument("--tool-lengths", default=None, metavar="L1[,L2]",
@@ -31,7 +34,7 @@ def register_plan(p):
     p.add_argument("--seed", type=int, default=0, help="random seed of the candidates (default 0)")
     p.add_argument("--noise", type=float, default=NOISE_MM,
                    help=f"assumed noise of one reading, mm (default {NOISE_MM}): predicted uncertainties scale with it")
-    p.add_argument("-o", "--output", type=Path, required=True,
+    p.add_argument("-o", "--output", type=Path, default=None,
                    help="the poses, .csv (also writes the G-code program next to it as .ngc unless --gcode)")
     p.add_argument("--gcode", type=Path, default=None, metavar="FILE",
                    help="where to write the G-code program (default: the output with .ngc)")
@@ -39,6 +42,17 @@ def register_plan(p):
                    help=f"feed of the moves, mm/min (default {FEED_MM_MIN:g})")
     p.add_argument("--dwell", type=float, default=DWELL_S,
                    help=f"dwell at each pose while the instrument reads, s (default {DWELL_S:g})")
+    p.add_argument("--kinematics", default=None, choices=KINEMATICS,
+                   help="the kinematics mode the program runs in: tcp (world X Y Z = tool tip in the workpiece frame, "
+                        "as xyzac/xyzbc-trt-kins) or joint (identity kinematics); default: what `fiveaxis "
+                        "compensate` sets up (tcp for trunnions, joint otherwise); with --check: the program's header")
+    p.add_argument("--check", type=Path, default=None, metavar="FILE.ngc",
+                   help="check a program instead of planning: every move sampled on the nominal chain against the "
+                        "instrument's limits and the strokes (LinuxCNC's rs274 interprets it)")
+    p.add_argument("--poses", type=Path, default=None, metavar="PLAN.csv",
+                   help="with --check: the plan's poses, compared with the program's measuring poses")
+    p.add_argument("--tool-length", type=float, default=None, metavar="L",
+                   help="with --check: the tool length (mm) of a joint-mode program that does not state it")
     p.add_argument("--json", action="store_true", help="print the summary as JSON instead of the report")
     p.add_argument("--force", action="store_true", help="replace the output files if they exist")
     p.set_defaults(func=run_plan)
@@ -54,13 +68,51 @@ def _lengths(text):
     return vals
 
 
+def run_check(args) -> int:
+    """`fiveaxis plan --check FILE.ngc`: the checker's report; a program it refuses is an error (exit 2)."""
+    from ..model.error_model import load
+    from ..model.machine import load_machine
+    from ..measurement.files import read
+    from ..planning import safety
+    for opt in ("output", "n", "gcode"):
+        if getattr(args, opt) is not None:
+            raise InputError(f"--check: --{opt.replace('output', 'output/-o')} is for planning, not for checking a "
+                             f"program")
+    if args.tool_length is not None and not (0 < args.tool_length < float("inf")):
+        raise InputError(f"--tool-length: expected a positive length in mm, got {args.tool_length}")
+    head = safety.header(args.check)
+    instrument = args.instrument or head.get("instrument")
+    if instrument is None:
+        raise InputError(f"{args.check}: the program does not say its instrument (no `(fiveaxis: program ...)` "
+                         f"comment); give --instrument")
+    model = load(load_machine(args.machine), args.convention)
+    poses = L = None
+    if args.poses is not None:
+        meas = read(args.poses, model.machine, readings_required=False)
+        poses, L = meas.poses, meas.L
+    res = safety.check(args.check, model, instrument, args.kinematics, args.tool_length, poses, L)
+    print(json.dumps(safety.to_json(res), indent=1) if args.json else safety.report(res))
+    if not res.ok:
+        raise InputError(f"refused: {safety.first_problem(res)}")
+    return 0
+
+
 def run_plan(args) -> int:
     from ..planning import plan as P
+    from ..planning import motion, safety
     from ..model.error_model import load
     from ..model.machine import load_machine
     from ..measurement.files import write
-    from ..linuxcnc.program import check_axes, program
+    from ..linuxcnc.program import check_mode, default_mode
     from ..outputs import write_text
+    if args.check is not None:
+        return run_check(args)
+    for opt, given in (("--poses", args.poses), ("--tool-length", args.tool_length)):
+        if given is not None:
+            raise InputError(f"{opt}: only with --check FILE.ngc")
+    if args.n is None or args.output is None:
+        raise InputError("plan: give --n (the number of poses) and -o PLAN.csv, or --check FILE.ngc")
+    instrument = args.instrument or "tip"
     if args.output.suffix.lower() != ".csv":
         raise InputError(f"{args.output}: expected a .csv file for the poses")
     gcode = args.gcode or args.output.with_suffix(".ngc")
@@ -80,28 +132,36 @@ def run_plan(args) -> int:
     if not (args.dwell >= 0 and args.dwell < float("inf")):
         raise InputError(f"--dwell: expected a finite time >= 0 s, got {args.dwell}")
     machine = load_machine(args.machine)
-    P.check_host(machine, args.instrument)         # before any derivation of a machine that cannot host it
-    check_axes(machine)
+    P.check_host(machine, instrument)              # before any derivation of a machine that cannot host it
+    mode = args.kinematics or default_mode(machine)
+    check_mode(machine, mode)
     model = load(machine, args.convention)
     effects = [e.strip() for spec in args.effects for e in spec.split(",") if e.strip()]
     try:
-        res = P.make(model, args.instrument, args.n, effects=effects, lengths=_lengths(args.tool_lengths),
-                     seed=args.seed, noise_mm=args.noise, where="--effects")
+        res = P.make(model, instrument, args.n, effects=effects, lengths=_lengths(args.tool_lengths),
+                     seed=args.seed, noise_mm=args.noise, where="--effects", kinematics=mode)
     except P.TooFewPoses as exc:
         raise InputError(f"--n {args.n}: {exc}") from None
     except P.BadLengths as exc:
         raise InputError(f"--tool-lengths: {exc}") from None
-    title = (f"fiveaxis plan: {args.instrument} on {model.machine.name}, {res.n} poses, seed {args.seed}"
+    title = (f"fiveaxis plan: {instrument} on {model.machine.name}, {res.n} poses, seed {args.seed}"
              + (f", effects {','.join(effects)}" if effects else ""))
-    text = program(model, res.plan, res.setup_notes, title, feed=args.feed, dwell=args.dwell)
+    text = motion.program(model, res.plan, res.setup_notes, title, mode=mode, feed=args.feed, dwell=args.dwell)
+    chk = safety.check_text(text, model, instrument, res.plan.poses, res.plan.L, name=str(gcode))
     if args.json:
-        print(json.dumps(P.to_json(res), indent=1))
+        out = P.to_json(res)
+        out["program_check"] = safety.to_json(chk)
+        print(json.dumps(out, indent=1))
     else:
         print(P.report(res))
+        print(safety.report(chk))
+    if not chk.ok:                                 # never happens on a shipped machine (tests); refuse to write it
+        raise InputError(f"the program for this plan would not keep the instrument safe; nothing written: "
+                         f"{safety.first_problem(chk)}")
     path = write(P.to_frame(res), args.output, force=args.force)
     write_text(gcode, text, force=True)
-    print(f"fiveaxis: wrote {path}: {res.n} poses ({args.instrument}, {res.plan.frame} frame); "
+    print(f"fiveaxis: wrote {path}: {res.n} poses ({instrument}, {res.plan.frame} frame); "
           f"`fiveaxis simulate --poses {path} --machine {args.machine}` simulates them", file=sys.stderr)
-    print(f"fiveaxis: wrote {gcode}: the G-code program (LinuxCNC, G21 G90; axis positions in mm and deg)",
-          file=sys.stderr)
+    print(f"fiveaxis: wrote {gcode}: the G-code program (LinuxCNC, {mode} kinematics, G21 G90; checked: "
+          f"`fiveaxis plan --check {gcode} --machine {args.machine}`)", file=sys.stderr)
     return 0

@@ -1,42 +1,44 @@
-"""A measurement plan as a G-code program in LinuxCNC's dialect (RS274/NGC), for the poses of `fiveaxis.planning.plan`.
+"""G-code programs in LinuxCNC's dialect (RS274/NGC): the words of a pose in a kinematics mode, and a writer of a
+program's lines. Instrument-agnostic: the motion rules of the measurement programs are in
+`fiveaxis.planning.motion`, their checker in `fiveaxis.planning.safety`.
 
-The program (mm, degrees, absolute, feed per minute: G21 G90 G94) visits the plan's poses in order:
-- every pose: a move with the machine's axis words (`G1 X.. Y.. Z.. A.. C.. F..`, mm and degrees) and a dwell
-  (`G4 P..`, seconds) while the instrument reads; the probe-sphere instrument instead probes the sphere from five
-  directions with `G38.2` (straight probe towards the sphere, stopping on contact) from clearance points, and the
-  sphere centre is the reading;
-- a new setup (sphere placement, ballbar circle, beam line, tracker station) or tool length starts with comments
-  that say where it is and a program pause (`M0`) for the operator;
-- `M2` ends the program.
-The axis words are the machine file's axis positions (joint positions of identity kinematics, e.g. `trivkins`, or
-`switchkins` type 0): the tool length is already in the positions, so no tool-length offset is applied (G49), and the
-program must not run in a TCP (tool centre point) kinematics mode. The work offset (G54) must put program zero at the
-machine file's origin. Moves are not checked for collisions: run the program in the simulator first.
-LinuxCNC's standalone interpreter `rs274` parses these programs (tests/test_plan.py, through `fiveaxis.linuxcnc.rs274.run`).
+Kinematics modes (`KINEMATICS`), stated in every program's header (`(fiveaxis: program ... kinematics=MODE)`):
+
+- "joint": identity kinematics (`trivkins`; `switchkins` type 0 with `sparm=identityfirst`): the axis words are the
+  machine file's axis positions (mm, degrees), world = joints, the tool length is in the positions (G49, no tool
+  length offset). LinuxCNC moves G0 and G1 linearly in the joints, G2/G3 on a circle of two joints.
+- "tcp": tool-centre-point kinematics with the world coordinates of LinuxCNC's `xyzac-trt-kins` /
+  `xyzbc-trt-kins` (type 0: what `fiveaxis compensate` sets up for trunnions; a kinematics module with the same
+  world coordinates for other machines): X Y Z the tool tip in the workpiece (table) frame, mm, the rotary words
+  the axis angles, degrees; the tool length through `G43.1 Z<L>` (G43 adds it to Z, the kinematics removes it).
+  LinuxCNC moves G0 and G1 linearly in these world coordinates (the tip on a straight line in the workpiece,
+  the angles linear with it), G2/G3 on a circle in the workpiece frame; the kinematics turns every point into
+  joints. Here the joints are those of the nominal chain (the trunnion pins at 0: trt-kins then equals the
+  ideal chain, docs/compensation.md).
+G54 puts program zero at the machine file's origin (tcp: the workpiece origin). Words have DECIMALS decimals
+(0.1 um, 1e-4 deg: what rs274 prints); `quantize` makes poses exactly what their words say.
 """
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
 from ..exceptions import InputError
 from ..model.inverse import linear_for_tip
+from .configuration import trt_kind
 
 #: Axis words of RS274/NGC.
 AXIS_WORDS = "XYZABCUVW"
 FEED_MM_MIN = 2000.0
 DWELL_S = 1.0
-#: Probing a sphere: radius of the sphere plus the stylus ball (contact distance from the centre, mm), clearance
-#: before contact and overtravel past the nominal surface (mm), probing feed (mm/min), and the half-angle of the cone
-#: of the four side directions around the approach axis (deg).
-PROBE_CONTACT_MM = 12.7 + 3.0
-PROBE_CLEARANCE_MM = 5.0
-PROBE_OVERTRAVEL_MM = 3.0
-PROBE_FEED_MM_MIN = 100.0
-PROBE_CONE_DEG = 30.0
 #: Decimals of the axis words: 0.1 um, 0.0001 deg.
 DECIMALS = 4
+#: The kinematics modes a program can be written for (module docstring).
+KINEMATICS = ("joint", "tcp")
+#: The preamble: mm, absolute, incremental arc centres, feed per minute, XY plane, no cutter or tool length
+#: compensation, G54.
+PREAMBLE = "G21 G90 G91.1 G94 G17 G40 G49 G54"
+#: Arc planes by the axis of their normal: (G code, first and second in-plane axes, rs274's plane name).
+PLANES = {2: ("G17", (0, 1)), 1: ("G18", (2, 0)), 0: ("G19", (1, 2))}
 
 
 def check_axes(machine) -> None:
@@ -47,88 +49,174 @@ def check_axes(machine) -> None:
                          f"{' '.join(AXIS_WORDS)} for a G-code program)")
 
 
+def check_mode(machine, mode: str) -> None:
+    """InputError unless a program in kinematics mode `mode` can be written for the machine."""
+    check_axes(machine)
+    if mode not in KINEMATICS:
+        raise InputError(f"kinematics mode '{mode}': expected one of {', '.join(KINEMATICS)}")
+    if mode == "tcp":
+        lin = [v for v in machine.variables if machine.axis(v).type == "linear"]
+        rot_named_xyz = [v for v in machine.variables if machine.axis(v).type == "rotary" and v.upper() in "XYZ"]
+        if len(lin) != 3 or rot_named_xyz:
+            raise InputError(f"machine {machine.name}: tcp kinematics needs three linear axes and rotary axes named "
+                             f"A B C (world X Y Z are the tool tip)")
+
+
+def default_mode(machine) -> str:
+    """The kinematics mode `fiveaxis compensate` sets up: tcp for trunnions LinuxCNC's trt kinematics describe
+    (xyzac-trt-kins, xyzbc-trt-kins as type 0), joint (identity kinematics) for every other machine."""
+    return "tcp" if trt_kind(machine) else "joint"
+
+
+def letters(model, mode: str) -> list[str]:
+    """The axis words of a program's coordinates, in order: joint mode the machine's axes; tcp mode X Y Z (the
+    tool tip) then the rotary axes."""
+    if mode == "joint":
+        return [v.upper() for v in model.variables]
+    return ["X", "Y", "Z"] + [v.upper() for v in model.variables if model.machine.axis(v).type == "rotary"]
+
+
+def _rotary(model) -> np.ndarray:
+    return np.array([model.machine.axis(v).type == "rotary" for v in model.variables])
+
+
+def _converted(x, columns, convert) -> np.ndarray:
+    """A copy of x (n, k) with `convert` (np.degrees, np.radians) applied to the columns selected."""
+    out = np.array(np.atleast_2d(x), dtype=float)
+    out[:, columns] = convert(out[:, columns])
+    return out
+
+
+def coordinates(model, poses, L, mode: str) -> np.ndarray:
+    """Program coordinates (n, k) of poses (n, nvar; mm, rad) for tool lengths L (mm), in the order of `letters`:
+    mm and degrees."""
+    q = np.atleast_2d(np.asarray(poses, float))
+    rot = _rotary(model)
+    if mode == "joint":
+        return _converted(q, rot, np.degrees)
+    tip, _ = model.ideal_tool(q, model.tool_lengths(L, len(q)))
+    return np.hstack([tip, np.degrees(q[:, rot])])
+
+
+def poses_of(model, coords, L, mode: str) -> np.ndarray:
+    """Poses (n, nvar; mm, rad) of program coordinates (n, k; mm, degrees, order of `letters`) for tool lengths L:
+    joint mode the axis positions; tcp mode the nominal inverse kinematics (the linear axes that put the tip there
+    at those angles)."""
+    c = np.atleast_2d(np.asarray(coords, float))
+    rot = _rotary(model)
+    if mode == "joint":
+        return _converted(c, rot, np.radians)
+    q = np.zeros((len(c), len(rot)))
+    q[:, rot] = np.radians(c[:, 3:])
+    lin = np.flatnonzero(~rot)
+    for j, v in enumerate(lin):              # a start for Newton: the stroke centre
+        lo, hi = model.machine.axis(model.variables[v]).model_stroke
+        q[:, v] = 0.5 * (lo + hi)
+    return linear_for_tip(model, q, c[:, :3], model.tool_lengths(L, len(q)))
+
+
+def rounded(x):
+    """Values rounded to the words' DECIMALS."""
+    return np.round(np.asarray(x, float), DECIMALS)
+
+
+def quantize(model, poses, L, mode: str) -> np.ndarray:
+    """Poses (n, nvar; mm, rad) whose program coordinates are exactly their words (DECIMALS decimals): the words
+    of the poses, rounded, read back (`poses_of`)."""
+    return poses_of(model, rounded(coordinates(model, poses, L, mode)), L, mode)
+
+
 def _num(x: float) -> str:
     text = f"{x:.{DECIMALS}f}"
-    return "0.0000" if text in ("-0.0000",) else text
+    return "0.0000" if text == "-0.0000" else text
 
 
-def words(model, pose) -> str:
-    """Axis words of one pose (mm, rad inside; degrees for rotary axes in the program)."""
-    out = []
-    for v, x in zip(model.variables, pose):
-        value = math.degrees(x) if model.machine.axis(v).type == "rotary" else x
-        out.append(f"{v.upper()}{_num(value)}")
-    return " ".join(out)
-
-
-def _comment(text: str) -> str:
+def comment(text: str) -> str:
     """An RS274 comment: parentheses inside are not allowed, so they become brackets."""
     return "(" + text.replace("(", "[").replace(")", "]") + ")"
 
 
-def probe_directions(tool_axis: np.ndarray) -> np.ndarray:
-    """Five probing directions (5, 3) from the sphere centre (workpiece frame): the axis a between the table normal
-    (+z) and the reversed tool axis, and four at PROBE_CONE_DEG around it: away from the sphere's stem (below it) and
-    from the stylus' shank (along the tool axis)."""
-    a = np.array([0.0, 0.0, 1.0]) - np.asarray(tool_axis, float)
-    a = a / np.linalg.norm(a) if np.linalg.norm(a) > 1e-9 else np.array([0.0, 0.0, 1.0])
-    helper = np.eye(3)[int(np.argmin(np.abs(a)))]
-    e1 = np.cross(a, helper)
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(a, e1)
-    c, s = math.cos(math.radians(PROBE_CONE_DEG)), math.sin(math.radians(PROBE_CONE_DEG))
-    return np.array([a] + [c * a + s * e for e in (e1, -e1, e2, -e2)])
+class Writer:
+    """The lines of a program for one machine in one kinematics mode; it knows the current pose (mm, rad) and the
+    tool length (mm). Moves take full poses (quantize them first: the words are rounded)."""
 
+    def __init__(self, model, mode: str, title: str, instrument: str, notes=()):
+        check_mode(model.machine, mode)
+        self.model, self.mode = model, mode
+        self.letters = letters(model, mode)
+        self.q = None                      # current pose: unknown at the start
+        self.L = None
+        self.lines = ["%", comment(title),
+                      comment(f"fiveaxis: program instrument={instrument} machine={model.machine.name} "
+                              f"kinematics={mode}")]
+        self.lines += [comment(n) for n in notes]
+        self.lines.append(PREAMBLE)
 
-def probe_points(model, pose, L):
-    """For one planned pose (the tool tip at the sphere centre): the poses above the sphere (1, nvar), at the
-    clearance points (5, nvar) and at the probing targets (5, nvar), rotary axes as planned (mm, rad)."""
-    centre, axis = model.ideal_tool(pose[None, :], L)
-    dirs = probe_directions(axis[0])
-    up = centre[0] + (PROBE_CONTACT_MM + 2 * PROBE_CLEARANCE_MM) * dirs[0]
-    clear = centre[0] + (PROBE_CONTACT_MM + PROBE_CLEARANCE_MM) * dirs
-    target = centre[0] + (PROBE_CONTACT_MM - PROBE_OVERTRAVEL_MM) * dirs
-    pts = np.vstack([up[None, :], clear, target])
-    q = linear_for_tip(model, np.tile(pose, (len(pts), 1)), pts, L)
-    return q[:1], q[1:6], q[6:]
+    def comment(self, text: str) -> None:
+        self.lines.append(comment(text))
 
+    def event(self, name: str, **values) -> None:
+        """A machine-readable comment `(fiveaxis: NAME key=value ...)` (numbers in mm; vectors comma-separated)."""
+        parts = [name]
+        for k, v in values.items():
+            if isinstance(v, (list, tuple, np.ndarray)):
+                v = ",".join(_num(float(x)) for x in v)
+            elif isinstance(v, float):
+                v = _num(v)
+            parts.append(f"{k}={v}")
+        self.lines.append(comment("fiveaxis: " + " ".join(parts)))
 
-def program(model, plan, setup_notes: dict, title: str, feed: float = FEED_MM_MIN, dwell: float = DWELL_S) -> str:
-    """The G-code program of a plan (poses in measuring order); see the module docstring."""
-    check_axes(model.machine)
-    if not (math.isfinite(feed) and feed > 0):
-        raise InputError(f"feed: expected a positive, finite feed in mm/min, got {feed}")
-    if not (math.isfinite(dwell) and dwell >= 0):
-        raise InputError(f"dwell: expected a finite time >= 0 s, got {dwell}")
-    probing = plan.instrument == "probe-sphere"
-    lines = ["%", _comment(title),
-             _comment("poses: the machine file's axis positions, mm and deg; identity kinematics, not TCP; G54 "
-                      "puts program zero at the machine file's origin; no tool-length offset"),
-             _comment("check the moves in the simulator first: they are not checked for collisions"),
-             "G21 G90 G94 G17 G40 G49 G54"]
-    setup = plan.setup if plan.setup is not None else np.full(plan.n, None, dtype=object)
-    last = (None, None)
-    for i in range(plan.n):
-        L, s = float(plan.L[i]), setup[i]
-        if (L, s) != last:
-            if L != last[0]:
-                lines.append(_comment(f"tool length L = {L:g} mm: mount the tool or stylus of this length"))
-            if s is not None and s != last[1]:
-                lines.append(_comment(f"setup {s}: {setup_notes.get(s, '')}".rstrip(": ")))
-            lines.append("M0 " + _comment("set up as the comments above say, then resume"))
-            last = (L, s)
-        pose = plan.poses[i]
-        lines.append(_comment(f"pose {i + 1}" + (f", {s}" if s is not None else "")))
-        if probing:
-            up, clear, target = probe_points(model, pose, L)
-            lines.append(f"G0 {words(model, up[0])}")
-            for c, t in zip(clear, target):
-                lines.append(f"G0 {words(model, c)}")
-                lines.append(f"G38.2 {words(model, t)} F{_num(PROBE_FEED_MM_MIN)}")
-                lines.append(f"G0 {words(model, c)}")
-                lines.append(f"G0 {words(model, up[0])}")
-        else:
-            lines.append(f"G1 {words(model, pose)} F{_num(feed)}")
-            lines.append(f"G4 P{_num(dwell)}")
-    lines += ["M2", "%"]
-    return "\n".join(lines) + "\n"
+    def stop(self, message: str) -> None:
+        """An operator message (MSG) and a program pause (M0)."""
+        self.lines.append(comment("MSG, " + message))
+        self.lines.append("M0")
+
+    def tool(self, L: float) -> None:
+        """From here on the tool length is L (mm): a machine-readable comment; in tcp mode G43.1 Z<L>."""
+        self.L = float(L)
+        self.event("tool", length=self.L)
+        if self.mode == "tcp":
+            self.lines.append(f"G43.1 Z{_num(self.L)}")
+
+    def words(self, pose) -> str:
+        c = coordinates(self.model, np.asarray(pose, float)[None, :], self.L, self.mode)[0]
+        return " ".join(f"{a}{_num(x)}" for a, x in zip(self.letters, c))
+
+    def move(self, pose, feed: float | None = None) -> None:
+        """G1 to a pose at feed (mm/min), or G0 with feed None."""
+        self.lines.append(f"G0 {self.words(pose)}" if feed is None else f"G1 {self.words(pose)} F{_num(feed)}")
+        self.q = np.asarray(pose, float)
+
+    def probe(self, pose, feed: float) -> None:
+        """G38.2 (probe towards the pose, stop on contact, error if none) at feed (mm/min). The position after it is
+        where the probe stopped: the next move must give every axis word (all moves here do)."""
+        self.lines.append(f"G38.2 {self.words(pose)} F{_num(feed)}")
+        self.q = np.asarray(pose, float)
+
+    def arc(self, pose, centre, via, feed: float) -> None:
+        """G2/G3 from the current pose to `pose` about `centre` through `via` (poses, mm, rad; the arc's rotary
+        axes and its coordinate along the normal unchanged), at feed (mm/min). The arc must lie in a coordinate
+        plane of the program's coordinates (XY, ZX or YZ)."""
+        s, e, c, m = coordinates(self.model, np.vstack([self.q, pose, centre, via]), self.L, self.mode)
+        if np.max(np.abs(s[3:] - e[3:])) > 0 or np.max(np.abs(rounded(s[3:]) - rounded(c[3:]))) > 0:
+            raise InputError(f"an arc with moving rotary axes or its centre at other angles (from "
+                             f"{self.words(self.q)} to {self.words(pose)})")
+        normal = np.cross(m[:3] - c[:3], e[:3] - c[:3]) if np.linalg.norm(np.cross(s[:3] - c[:3], e[:3] - c[:3])) \
+            < 1e-9 * np.linalg.norm(s[:3] - c[:3]) ** 2 else np.cross(s[:3] - c[:3], e[:3] - c[:3])
+        axis = int(np.argmax(np.abs(normal)))
+        if np.linalg.norm(normal) == 0 or np.linalg.norm(np.delete(normal, axis)) > 1e-6 * np.linalg.norm(normal):
+            raise InputError(f"an arc that lies in no coordinate plane of the program (from {self.words(self.q)} to "
+                             f"{self.words(pose)}): G2/G3 need the XY, ZX or YZ plane")
+        g, (i1, i2) = PLANES[axis]
+        turn = "G3" if normal[axis] > 0 else "G2"
+        ijk = {0: "I", 1: "J", 2: "K"}
+        offsets = " ".join(f"{ijk[i]}{_num(c[i] - rounded(s[i]))}" for i in (i1, i2))
+        self.lines.append(f"{g} {turn} {self.words(pose)} {offsets} F{_num(feed)}")
+        self.q = np.asarray(pose, float)
+
+    def dwell(self, seconds: float) -> None:
+        self.lines.append(f"G4 P{_num(seconds)}")
+
+    def text(self) -> str:
+        back = [] if self.mode == "joint" else ["G49"]
+        return "\n".join(self.lines + back + ["G17", "M2", "%"]) + "\n"

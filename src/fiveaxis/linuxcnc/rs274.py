@@ -29,7 +29,16 @@ subroutines and loops are the interpreter's. What this module does with the cano
   plane's axes are turned by the XY rotation (a G18/G19 arc under G10 L2 R lies in a turned plane). An arc is a
   `Move` of kind "arc" with plane, centre, frame and rotation; it starts where the move before it ends.
 
-Other moves (probing, rigid tapping, NURBS, splines) are refused with their line.
+* Probing moves (G38.2-G38.5, `STRAIGHT_PROBE`): refused unless asked for (`probes=True`, the measurement
+  programs' checker): then a `Move` of kind "probe" to its programmed end. The interpreter alone does not know
+  where a probe stops (rs274 continues from a position of its own): the next move's start is the trip point.
+* Events: the program's comments (`COMMENT`, text as written), operator messages (`(MSG, ...)`: `MESSAGE`),
+  program stops (`M0` `PROGRAM_STOP`, `M1` `OPTIONAL_PROGRAM_STOP`), dwells (`G4`, `DWELL`, seconds) and the end
+  (`PROGRAM_END`), each an `Event` with its line and the number of moves before it (`Program.events`).
+
+Other moves (rigid tapping, NURBS, splines) are refused with their line.
+Every move records the tool length offset in effect (`Move.tool`, X Y Z in mm, already in its end point): a
+program for TCP kinematics (world coordinates of the tool tip, G43/G43.1) subtracts it to get the tip.
 Positions are printed by rs274 to 4 decimals (0.1 um in G21, 2.54 um in G20; 1e-4 deg).
 """
 from __future__ import annotations
@@ -40,7 +49,7 @@ import re
 import shutil
 import subprocess
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..exceptions import InputError
@@ -57,16 +66,18 @@ TIMEOUT = 300.0
 _LINE = re.compile(r"^\s*\d+\s+N(\d+|\.\.\.\.\.)\s*([A-Z_0-9]+)\((.*)\)\s*$")
 _NUM = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?(?:nan|inf)", re.IGNORECASE)
 _N_WORD = re.compile(r"^(\s*/?\s*)[Nn](?:\s*\d)+")
-_OTHER_MOTION = {"STRAIGHT_PROBE": "a probing move (G38)",
+_PROBE = "STRAIGHT_PROBE"
+_OTHER_MOTION = {_PROBE: "a probing move (G38)",
                  "RIGID_TAP": "rigid tapping (G33.1)", "NURBS_FEED": "a NURBS move (G5.2)",
                  "SPLINE_FEED": "a spline (G5/G5.1)"}
 
 
 @dataclass(frozen=True)
 class Move:
-    """One move: kind "traverse" (G0), "feed" (G1) or "arc" (G2/G3), the program line it comes from (1-based; 0 if
-    rs274 gave none), and its end point in machine axis positions: mm for X Y Z, degrees for A B C. It starts where
-    the move before it ends (the program's start for the first).
+    """One move: kind "traverse" (G0), "feed" (G1), "arc" (G2/G3) or "probe" (G38.x, only when asked for), the
+    program line it comes from (1-based; 0 if rs274 gave none), and its end point in machine axis positions: mm for
+    X Y Z, degrees for A B C. It starts where the move before it ends (the program's start for the first). `tool`:
+    the tool length offset (X Y Z, mm) in effect, included in the end point.
 
     An arc also has: `plane` ("XY", "XZ" or "YZ": G17, G18, G19), `centre` (X Y Z in mm, machine positions: the
     programmed centre with the plane's normal coordinate of the end point, converted like an end point), `frame`
@@ -80,13 +91,32 @@ class Move:
     centre: tuple = ()
     frame: tuple = ()
     rotation: int = 0
+    tool: tuple = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Event:
+    """What happens between moves: kind "comment", "message" (MSG), "stop" (M0), "optional stop" (M1), "dwell"
+    (G4; `text` the seconds) or "end" (M2/M30); its program line (0 if none), its text, and `at`: the number of
+    moves before it."""
+    kind: str
+    line: int
+    text: str
+    at: int
+
+
+#: Canonical commands that are events, by kind.
+_EVENTS = {"COMMENT": "comment", "MESSAGE": "message", "PROGRAM_STOP": "stop",
+           "OPTIONAL_PROGRAM_STOP": "optional stop", "DWELL": "dwell", "PROGRAM_END": "end"}
 
 
 @dataclass
 class Program:
-    """The interpreted program: its moves (G0, G1, G2/G3) in order and the interpreter's starting position."""
+    """The interpreted program: its moves (G0, G1, G2/G3; G38 when asked for) in order, the events between them and
+    the interpreter's starting position."""
     path: Path
     moves: list[Move] = field(default_factory=list)
+    events: list[Event] = field(default_factory=list)
     start: dict = field(default_factory=lambda: {a: 0.0 for a in AXES})
     units: list[str] = field(default_factory=list)          # length units the program used (mm, inch)
 
@@ -169,10 +199,11 @@ def run(path, rs274: str = RS274, var_file=None, timeout: float = TIMEOUT) -> tu
     return proc.stdout, lines
 
 
-def interpret(path, rs274: str = RS274, var_file=None, timeout: float = TIMEOUT) -> Program:
-    """Run the interpreter on a G-code file; its moves (G0, G1, G2/G3) in machine axis positions (mm, degrees)."""
+def interpret(path, rs274: str = RS274, var_file=None, timeout: float = TIMEOUT, probes: bool = False) -> Program:
+    """Run the interpreter on a G-code file; its moves (G0, G1, G2/G3; G38 with probes) in machine axis positions
+    (mm, degrees) and its events."""
     stdout, lines = run(path, rs274, var_file, timeout)
-    return parse_canon(stdout, path, lines)
+    return parse_canon(stdout, path, lines, probes)
 
 
 def canonical(stdout: str) -> list[tuple[str, str, int]]:
@@ -209,8 +240,9 @@ def _turn_xy(x: float, y: float, deg: float) -> tuple[float, float]:
     return x * math.cos(t) - y * math.sin(t), x * math.sin(t) + y * math.cos(t)
 
 
-def parse_canon(stdout: str, path, lines=()) -> Program:
-    """The moves (G0, G1, G2/G3) of rs274's canonical output (see interpret), in machine axis positions."""
+def parse_canon(stdout: str, path, lines=(), probes: bool = False) -> Program:
+    """The moves (G0, G1, G2/G3; G38 with probes) and events of rs274's canonical output (see interpret), in machine
+    axis positions."""
     path = Path(path)
     prog = Program(path)
     scale = 1.0                                   # mm per program length unit
@@ -257,16 +289,28 @@ def parse_canon(stdout: str, path, lines=()) -> Program:
             tool = conv(v[:6])
         elif name == "SELECT_PLANE":
             plane = args.strip().removeprefix("CANON_PLANE_")
-        elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
+        elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED") or (probes and name == _PROBE):
             pos = to_machine(_numbers(args, where)[:6])
-            prog.moves.append(Move("traverse" if name == "STRAIGHT_TRAVERSE" else "feed", line,
-                                   dict(zip(AXES, pos))))
+            kind = {"STRAIGHT_TRAVERSE": "traverse", "STRAIGHT_FEED": "feed", _PROBE: "probe"}[name]
+            prog.moves.append(Move(kind, line, dict(zip(AXES, pos)), tool=tuple(tool[:3])))
         elif name == "ARC_FEED":
-            prog.moves.append(_arc(_numbers(args, where), plane, line, where, text, to_machine, rot))
+            prog.moves.append(replace(_arc(_numbers(args, where), plane, line, where, text, to_machine, rot),
+                                      tool=tuple(tool[:3])))
+        elif name in _EVENTS:
+            prog.events.append(Event(_EVENTS[name], line, _event_text(name, args), len(prog.moves)))
         elif name in _OTHER_MOTION:
             raise InputError(f"{where}: {_OTHER_MOTION[name]} is not sampled; only moves G0, G1, G2 and G3 "
                              f"are{text}")
     return prog
+
+
+def _event_text(name: str, args: str) -> str:
+    """The text of an event: a comment or message without its quotes (a message without the blank after MSG,),
+    a dwell's seconds."""
+    text = args.strip()
+    if text.startswith('"') and text.endswith('"'):
+        text = text[1:-1]
+    return text.strip() if name == "MESSAGE" else text
 
 
 def _arc(vals, plane, line, where, text, to_machine, rot) -> Move:

@@ -23,6 +23,10 @@ readings are reported in. `fiveaxis.measurement.simulate` turns a plan into read
 - `tracker`: 1-D distances from 4 stations on the bed (setups in the machine frame: station offset and dead path)
   to the tool tip at random poses; machine frame.
 Units: mm, rad inside; the plan's setup truth (when simulated) in mm and rad.
+
+The instruments' geometry (`RTEST`, `PROBE`, `BALLBAR`, `INTERFEROMETER`, `TRACKER`: sizes, travels and the
+limits the measurement programs keep, mm and degrees) lives here only: the planner (`fiveaxis.planning.plan`), the
+programs' motion rules (`fiveaxis.planning.motion`) and their checker (`fiveaxis.planning.safety`) read it.
 """
 from __future__ import annotations
 
@@ -45,6 +49,96 @@ INTERFEROMETER_DWELL_S = 4.0
 INTERFEROMETER_OVERRUN_MM = 5.0
 
 
+# -- the instruments' geometry (mm, degrees) ---------------------------------------------------------------------
+@dataclass(frozen=True)
+class RTestGeometry:
+    """R-test: a sphere on a holder in the spindle (tool length = gauge line to the sphere centre), a nest of three
+    displacement sensors on the table around it. The sensors read +-travel_mm; a program keeps the sphere centre
+    within limit_mm of where the nest was mounted around it, and leaves the nest along the tool axis (retract_mm)."""
+    travel_mm: float = 2.0
+    limit_mm: float = 0.5
+    retract_mm: float = 50.0
+
+
+@dataclass(frozen=True)
+class ProbeGeometry:
+    """A touch probe on a sphere on the table (a reference sphere on a stem below it, along -z of the workpiece
+    frame), stylus: a ball on a straight shank along the tool axis. Probing: from clearance_mm off contact,
+    G38.2 towards the sphere centre at feed_mm_min, to overtravel_mm past the nominal contact, along the axis
+    between the table normal and the reversed tool axis and four directions cone_deg around it. Limits of a
+    program: the stylus (ball and shank) keeps clearance_limit_mm from the sphere and its stem outside probing
+    moves, and near_mm where a rotary axis moves or a G0 rapid runs (before any rotary move the stylus retracts
+    along the approach to where no orientation of the shank reaches within near_mm: `retract_radius_mm`)."""
+    sphere_radius_mm: float = 12.7          # a 25.4 mm sphere
+    stem_radius_mm: float = 5.0
+    stem_length_mm: float = 60.0
+    ball_radius_mm: float = 3.0             # a 6 mm stylus ball
+    shank_radius_mm: float = 2.25
+    shank_length_mm: float = 40.0           # ball centre to the probe body
+    clearance_mm: float = 5.0
+    overtravel_mm: float = 3.0
+    feed_mm_min: float = 100.0
+    cone_deg: float = 30.0
+    clearance_limit_mm: float = 2.0
+    near_mm: float = 10.0
+
+    @property
+    def contact_mm(self) -> float:
+        """Distance of the stylus ball's centre from the sphere centre at contact."""
+        return self.sphere_radius_mm + self.ball_radius_mm
+
+    @property
+    def retract_radius_mm(self) -> float:
+        """Distance of the ball centre from the sphere centre at which no orientation of the shank comes within
+        near_mm of the sphere: where the rotary axes may move."""
+        return self.sphere_radius_mm + self.shank_length_mm + self.shank_radius_mm + self.near_mm + 1.0
+
+
+@dataclass(frozen=True)
+class BallbarGeometry:
+    """A telescopic ballbar between a pivot on the table and a cup in the spindle (tool length: gauge line to the
+    tool ball's centre), ISO 230-4: bars of radii_mm, a circle measured at points_per_circle poses, the bar reads
+    +-travel_mm; a program keeps the bar within limit_mm of its mounted length, runs lead-in and lead-out arcs
+    of lead_deg on the circle, and leaves the tool cup along the tool axis (retract_mm)."""
+    radii_mm: tuple = (100.0, 150.0, 300.0)
+    points_per_circle: int = 24
+    travel_mm: float = 1.0
+    limit_mm: float = 0.5
+    lead_deg: float = 90.0
+    retract_mm: float = 50.0
+
+
+@dataclass(frozen=True)
+class InterferometerGeometry:
+    """A laser interferometer along a linear axis (ISO 230-2): the reflector on the spindle, the beam along the
+    axis; every target is approached in the run's direction after an overrun of overrun_mm (the targets stay that
+    far inside the stroke); a program keeps the reflector within limit_mm of the beam line and the rotary axes
+    within rotary_limit_deg while it is mounted."""
+    overrun_mm: float = 5.0
+    limit_mm: float = 0.5
+    rotary_limit_deg: float = 1e-3
+
+
+@dataclass(frozen=True)
+class TrackerGeometry:
+    """A laser tracker (or tracing interferometer) on the bed following a reflector on the tool tip (a cat's eye
+    facing out of the spindle along the tool axis): the line of sight must stay within acceptance_deg of the
+    reflector's axis while it is tracked, or the beam breaks; a program keeps it within limit_deg, a plan's poses
+    within plan_deg (room for the moves between them). Stations for plans: on the bed below the workspace,
+    below_mm under the lowest tool tip (`bed_stations`)."""
+    acceptance_deg: float = 60.0
+    limit_deg: float = 55.0
+    plan_deg: float = 50.0
+    below_mm: float = 150.0
+
+
+RTEST = RTestGeometry()
+PROBE = ProbeGeometry()
+BALLBAR = BallbarGeometry()
+INTERFEROMETER = InterferometerGeometry()
+TRACKER = TrackerGeometry()
+
+
 @dataclass
 class Plan:
     """What an instrument measures where (n rows)."""
@@ -62,6 +156,7 @@ class Plan:
     t: np.ndarray | None = None          # (n,) s: a cadence (scaled to the simulated duration), or absolute times
     notes: list = field(default_factory=list)
     t_absolute: bool = False             # t is when each pose was measured (a poses file), kept as it is
+    points: dict = field(default_factory=dict)   # setup id -> its nominal position (mm, in its setup_frame)
 
     @property
     def n(self) -> int:
@@ -207,6 +302,23 @@ def approach_directions(path: np.ndarray) -> np.ndarray:
     return out
 
 
+#: Ballbar circle planes: their names and the two coordinate axes (0 x, 1 y, 2 z) they span, in their order.
+CIRCLE_PLANES = (("XY", (0, 1)), ("YZ", (1, 2)), ("ZX", (2, 0)))
+
+
+def circle_directions(theta, plane, sense) -> np.ndarray:
+    """Unit vectors (m, k, 3) from the centres of m circles at angles theta (k,; rad): plane (m,) an index into
+    CIRCLE_PLANES, sense (m,) +1 counter-clockwise (from the plane's first axis towards its second), -1 clockwise."""
+    pairs = np.array([p for _, p in CIRCLE_PLANES])
+    plane, sense = np.atleast_1d(plane), np.atleast_1d(np.asarray(sense, float))
+    m, k = len(plane), len(theta)
+    u = np.zeros((m, k, 3))
+    idx = np.arange(m)[:, None]
+    u[idx, np.arange(k)[None, :], pairs[plane, 0][:, None]] = np.cos(sense[:, None] * theta)
+    u[idx, np.arange(k)[None, :], pairs[plane, 1][:, None]] = np.sin(sense[:, None] * theta)
+    return u
+
+
 def ballbar(model, n, rng, radius: float = 150.0, L: float | None = None, feed: float = BALLBAR_FEED) -> Plan:
     """ISO 230-4 circles in the XY, YZ and ZX planes, counter-clockwise then clockwise without moving the pivot
     (one setup per plane: the pivot's placement and the bar length); 1-D along the bar; times (s) at `feed` mm/min
@@ -220,17 +332,13 @@ def ballbar(model, n, rng, radius: float = 150.0, L: float | None = None, feed: 
     pivot = pivot[0]
     per = max(16, int(round(n / 6)))
     theta = np.linspace(0.0, 2 * math.pi, per, endpoint=False)
-    planes = {"XY": (0, 1), "YZ": (1, 2), "ZX": (2, 0)}
     poses, us, setups, dirs, times = [], [], [], [], []
     idx_lin = [model.variables.index(v) for v in lin]
     step_s = 2 * math.pi * radius / per / (feed / 60.0)
     clock = 0.0
-    for name, (a, b) in planes.items():
+    for p, (name, _) in enumerate(CIRCLE_PLANES):
         for sign in (1.0, -1.0):             # counter-clockwise, then clockwise
-            th = sign * theta
-            u = np.zeros((per, 3))
-            u[:, a] = np.cos(th)
-            u[:, b] = np.sin(th)
+            u = circle_directions(theta, p, sign)[0]
             q = linear_for_tip(model, np.tile(centre, (per, 1)), pivot + radius * u, L)
             if not within_strokes(model.machine, q).all():
                 raise InputError(f"instrument ballbar: a circle of radius {radius:g} mm in {name} leaves the strokes "
@@ -319,6 +427,25 @@ def station_positions(tip_m: np.ndarray, stations: int) -> np.ndarray:
     c, half = 0.5 * (lo + hi), 0.5 * (hi - lo) + 100.0
     corners = np.array([[1, 1, 1], [-1, 1, -1], [1, -1, -1], [-1, -1, 1], [0, 0, 1.5], [1.5, 0, 0]])[:stations]
     return c + 1.5 * corners * half
+
+
+def bed_stations(tip_m: np.ndarray, stations: int) -> np.ndarray:
+    """Tracker stations (stations, 3; mm, machine frame) a reflector looking down the tool axis can see: on the bed
+    below the box of tool-tip positions tip_m (n, 3), TRACKER.below_mm under its lowest point, at the corners of
+    its footprint shrunk to half (the lines of sight from a tip cross at many angles)."""
+    lo, hi = tip_m.min(axis=0), tip_m.max(axis=0)
+    c, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    corners = np.array([[1, 1], [-1, -1], [1, -1], [-1, 1], [0, 0], [1, 0]])[:stations]
+    xy = c[:2] + 0.5 * corners * half[:2]
+    return np.column_stack([xy, np.full(len(xy), lo[2] - TRACKER.below_mm)])
+
+
+def sight_angles(tip_m: np.ndarray, axis_m: np.ndarray, stations: np.ndarray) -> np.ndarray:
+    """Angles (n, s; deg) between the reflector's axis (the tool axis, n, 3, machine frame) and the line of sight
+    from the tool tip (n, 3) to each station (s, 3)."""
+    los = stations[None, :, :] - tip_m[:, None, :]
+    c = np.einsum("nsk,nk->ns", los, axis_m) / np.linalg.norm(los, axis=2) / np.linalg.norm(axis_m, axis=1)[:, None]
+    return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
 
 
 def tracker(model, n, rng, stations: int = 4) -> Plan:

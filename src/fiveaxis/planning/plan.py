@@ -32,15 +32,19 @@ Constraints per instrument (candidates):
 - rtest, probe-sphere: the tool tip held on a sphere at one of a few placements on the table (setups): the rotary
   positions are chosen, the linear axes follow by `kinematics.linear_for_tip`; poses outside the strokes are not
   candidates. R-test reads in the workpiece frame, the probe in the machine frame.
-- ballbar: circles (a candidate is a whole circle of POINTS_PER_CIRCLE poses, its own setup): a plane (XY, YZ or ZX
-  of the workpiece frame), a pivot, a radius of BALLBAR_RADII and the rotary positions it is run at, all within
-  the strokes; 1-D readings along the bar.
-- interferometer: targets along a few beam lines per linear axis (each line a setup: its dead path); 1-D along
-  the axis.
-- tracker: poses and the station that sees them (stations on the bed around the workspace, setups in the machine
-  frame); 1-D along the line of sight.
+- ballbar: circles (a candidate is a whole circle of BALLBAR.points_per_circle poses, its own setup): a plane (XY, YZ
+  or ZX of the program's coordinates: the workpiece frame for tcp programs, the machine frame for joint programs, so
+  that G2/G3 cut it), a pivot, a radius of BALLBAR.radii_mm and the rotary positions it is run at, the whole circle
+  within the strokes; 1-D readings along the bar.
+- interferometer: targets along a few beam lines per linear axis (each line a setup: its dead path), at least the
+  overrun inside the stroke; 1-D along the axis.
+- tracker: poses and a station their reflector (looking down the tool axis) sees within TRACKER.plan_deg
+  (stations on the bed below the workspace, setups in the machine frame); 1-D along the line of sight.
 Tool lengths: one (the machine's L0) or two given ones; every candidate exists at each length (separating angular
-from translational errors needs two). Units: mm, rad inside; degrees for rotary axes in files.
+from translational errors needs two). A plan is made for a program in a kinematics mode (`fiveaxis.linuxcnc.program`:
+joint or tcp): the candidates' poses are exactly what the program's words say (`program.quantize`: 1e-4 mm and
+deg), and every pose a candidate's motion visits is within the strokes (`fiveaxis.planning.motion`: probe cycles).
+Units: mm, rad inside; degrees for rotary axes in files.
 """
 from __future__ import annotations
 
@@ -61,8 +65,10 @@ from ..units import human
 from ..model import frames
 from ..measurement import instruments as ins
 from ..exceptions import InputError
+from ..linuxcnc.program import check_mode, default_mode, quantize
 from ..model.inverse import linear_for_tip, within_strokes
 from ..measurement.files import Measurements
+from . import motion
 
 #: Assumed noise of one reading: mm readings (tip components, 1-D) and tool-axis readings (rad).
 NOISE_MM = 1e-3
@@ -81,9 +87,10 @@ RIDGE = 1e-6
 EXCHANGE_PASSES = 4
 #: A swap must raise D by more than this to count as an improvement.
 EXCHANGE_TOL = 1e-9
-#: Ballbar circles: poses per circle and the bar lengths (radii, mm) of a standard kit.
-POINTS_PER_CIRCLE = 24
-BALLBAR_RADII = (100.0, 150.0, 300.0)
+#: Linear axes of sampled poses stay this far inside their strokes (mm; see _sample_poses).
+EDGE_MM = 1e-3
+#: A ballbar circle's whole path is tested against the strokes at this many points (and its lead arcs with it).
+CIRCLE_SAMPLES = 720
 #: Interferometer beam lines per linear axis; sphere placements (rtest, probe-sphere); tracker stations.
 LINES_PER_AXIS = 3
 SPHERES = {"rtest": 3, "probe-sphere": 2}
@@ -101,6 +108,12 @@ RIVAL_ROUNDS = 2
 UNIT_RANK_SAMPLE = 500
 #: The instruments a plan can be made for.
 PLANNERS = ("tip", "rtest", "probe-sphere", "ballbar", "interferometer", "tracker")
+
+
+#: The kinematics modes in words (the report).
+KINEMATICS_TEXT = {"joint": "identity kinematics: the words are the machine file's axis positions",
+                   "tcp": "TCP: the words are the tool tip in the workpiece frame and the rotary angles, as "
+                          "xyzac/xyzbc-trt-kins"}
 
 
 class TooFewPoses(InputError):
@@ -150,11 +163,15 @@ def _axes(model):
 
 
 def _sample_poses(model, n, rng, extreme, which=None) -> np.ndarray:
-    """Poses (n, nvar) with the axes `which` (indices; default all) sampled, the others at the centre pose."""
+    """Poses (n, nvar) with the axes `which` (indices; default all) sampled, the others at the centre pose. Linear
+    axes stay EDGE_MM inside their strokes: rounded to the program's words through the inverse kinematics (tcp
+    programs), a pose at a stroke's end could land a fraction of a micrometre outside."""
     q = np.tile(ins.centre_pose(model), (n, 1))
     for i in (range(len(model.variables)) if which is None else which):
         ax = model.machine.axis(model.variables[i])
-        q[:, i] = _sample(*ax.model_stroke, n, rng, extreme, zero=ax.type == "rotary")
+        lo, hi = ax.model_stroke
+        pad = 0.0 if ax.type == "rotary" else EDGE_MM
+        q[:, i] = _sample(lo + pad, hi - pad, n, rng, extreme, zero=ax.type == "rotary")
     return q
 
 
@@ -162,9 +179,23 @@ def _plan(instrument, poses, L, reads, **kw) -> ins.Plan:
     return ins.Plan(instrument, poses, np.asarray(L, float), True, reads, **kw)
 
 
+def _quantized(model, q, L, fixtures) -> np.ndarray:
+    """Poses as the program's words give them (kinematics mode of the plan)."""
+    return quantize(model, q, L, fixtures["kinematics"])
+
+
 def _tip_units(model, count, rng, extreme, L, fixtures):
     poses = _sample_poses(model, count, rng, extreme)
-    return _plan("tip", poses, np.full(count, L), "tip"), np.arange(count)
+    return _plan("tip", _quantized(model, poses, L, fixtures), np.full(count, L), "tip"), np.arange(count)
+
+
+def _probe_cycles_inside(model, q, L) -> np.ndarray:
+    """(n,) bool: every pose of the probing cycle of each pose (probe-sphere) within the strokes."""
+    if not len(q):
+        return np.zeros(0, bool)
+    cyc = motion.probe_cycles(model, q, L)
+    allq = np.concatenate([cyc["far"][:, None], cyc["up"][:, None], cyc["clear"], cyc["target"]], axis=1)
+    return within_strokes(model.machine, allq.reshape(-1, allq.shape[2])).reshape(len(q), -1).all(axis=1)
 
 
 def _sphere_units(model, count, rng, extreme, L, fixtures, instrument="rtest"):
@@ -175,8 +206,10 @@ def _sphere_units(model, count, rng, extreme, L, fixtures, instrument="rtest"):
         q = _sample_poses(model, 2 * count, rng, extreme, rot)
         s = rng.integers(0, len(spheres), len(q))
         target = np.array(spheres)[s]
-        q = linear_for_tip(model, q, target, L)
+        q = _quantized(model, linear_for_tip(model, q, target, L), L, fixtures)
         ok = within_strokes(model.machine, q)
+        if instrument == "probe-sphere":
+            ok[ok] = _probe_cycles_inside(model, q[ok], L)
         poses.append(q[ok])
         setup += [f"sphere{i + 1}" for i in s[ok]]
         if len(setup) >= count:
@@ -193,38 +226,47 @@ def _sphere_units(model, count, rng, extreme, L, fixtures, instrument="rtest"):
 
 
 def _ballbar_units(model, count, rng, extreme, L, fixtures):
-    """count circles of POINTS_PER_CIRCLE poses within the strokes, each its own setup."""
+    """count circles of BALLBAR.points_per_circle poses, each its own setup, the whole circle within the strokes.
+    The circle lies in a coordinate plane of the program's coordinates: the workpiece frame's (tcp) or the machine
+    frame's (joint: the bar directions u are then turned into the workpiece frame)."""
     lin, rot = _axes(model)
-    per = POINTS_PER_CIRCLE
+    geo = ins.BALLBAR
+    per = geo.points_per_circle
     theta = np.linspace(0.0, 2 * math.pi, per, endpoint=False)
-    planes = ((0, 1, "XY"), (1, 2, "YZ"), (2, 0, "ZX"))
+    dense = np.linspace(0.0, 2 * math.pi, CIRCLE_SAMPLES, endpoint=False)
+    names = [name for name, _ in ins.CIRCLE_PLANES]
+    machine_planes = fixtures["kinematics"] == "joint" and frames.has_workpiece_rotation(model.machine)
     found = []
     for _ in range(200):
         m = max(4 * count, 16)
         q0 = _sample_poses(model, m, rng, extreme)
         pivot, _ = model.ideal_tool(q0, L)
         plane = rng.integers(0, 3, m)
-        radius = np.array(BALLBAR_RADII)[rng.integers(0, len(BALLBAR_RADII), m)]
+        radius = np.array(geo.radii_mm)[rng.integers(0, len(geo.radii_mm), m)]
         if extreme:
-            radius = np.where(rng.random(m) < 0.5, max(BALLBAR_RADII), radius)
+            radius = np.where(rng.random(m) < 0.5, max(geo.radii_mm), radius)
         sense = np.where(rng.random(m) < 0.5, 1.0, -1.0)
-        u = np.zeros((m, per, 3))
-        a = np.array([planes[p][0] for p in plane])
-        b = np.array([planes[p][1] for p in plane])
-        idx = np.arange(m)
-        u[idx[:, None], np.arange(per)[None, :], a[:, None]] = np.cos(sense[:, None] * theta)
-        u[idx[:, None], np.arange(per)[None, :], b[:, None]] = np.sin(sense[:, None] * theta)
-        target = pivot[:, None, :] + radius[:, None, None] * u
-        q = np.repeat(q0, per, axis=0)
-        q = linear_for_tip(model, q, target.reshape(-1, 3), L)
+        u = ins.circle_directions(theta, plane, sense)
+        ud = ins.circle_directions(dense, plane, sense)
+        if machine_planes:
+            R = frames.workpiece_rotation(model.machine, q0)
+            u = np.einsum("mji,mkj->mki", R, u)
+            ud = np.einsum("mji,mkj->mki", R, ud)
+        q = _quantized(model, linear_for_tip(model, np.repeat(q0, per, axis=0),
+                                             (pivot[:, None, :] + radius[:, None, None] * u).reshape(-1, 3), L),
+                       L, fixtures)
         ok = within_strokes(model.machine, q).reshape(m, per).all(axis=1)
+        if ok.any():
+            qd = linear_for_tip(model, np.repeat(q0[ok], len(dense), axis=0),
+                                (pivot[ok][:, None, :] + radius[ok][:, None, None] * ud[ok]).reshape(-1, 3), L)
+            ok[ok] = within_strokes(model.machine, qd, margin=0.0).reshape(-1, len(dense)).all(axis=1)
         for j in np.flatnonzero(ok):
-            found.append((q[j * per:(j + 1) * per], u[j], planes[plane[j]][2], radius[j], pivot[j], sense[j]))
+            found.append((q[j * per:(j + 1) * per], u[j], names[plane[j]], radius[j], pivot[j], sense[j]))
         if len(found) >= count:
             break
     if len(found) < count:
         raise InputError(f"instrument ballbar: machine {model.machine.name}: too few circles of radius "
-                         f"{min(BALLBAR_RADII):g} to {max(BALLBAR_RADII):g} mm fit in the strokes ({len(found)} of "
+                         f"{min(geo.radii_mm):g} to {max(geo.radii_mm):g} mm fit in the strokes ({len(found)} of "
                          f"{count} candidates found)")
     found = found[:count]
     start = fixtures.setdefault("next_circle", 1)
@@ -238,7 +280,8 @@ def _ballbar_units(model, count, rng, extreme, L, fixtures):
         setups += [sid] * per
         dirs.append(ins.approach_directions(q[:, lin]))
         rot_txt = ", ".join(f"{names[i]} {math.degrees(q[0, i]):.4g} deg" for i in rot)
-        notes[sid] = (f"{plane} circle, radius {r:g} mm, {'ccw' if sense > 0 else 'cw'}, pivot at "
+        notes[sid] = (f"{plane} circle [{'machine' if machine_planes else 'workpiece'} frame], radius {r:g} mm, "
+                      f"{'ccw' if sense > 0 else 'cw'}, pivot at "
                       f"({pivot[0]:.3f}, {pivot[1]:.3f}, {pivot[2]:.3f}) mm (workpiece frame)"
                       + (f", {rot_txt}" if rot_txt else ""))
     D = np.vstack(dirs)
@@ -257,15 +300,18 @@ def _interferometer_units(model, count, rng, extreme, L, fixtures):
     q = np.array([lines[k][1] for k in pick])
     u = np.zeros((count, 3))
     setup = []
+    over = ins.INTERFEROMETER.overrun_mm
     for j, k in enumerate(pick):
         i = lines[k][0]
         ax = model.machine.axis(model.variables[i])
-        q[j, i] = _sample(*ax.model_stroke, 1, rng, extreme)[0]
+        lo, hi = ax.model_stroke
+        q[j, i] = _sample(lo + over, hi - over, 1, rng, extreme)[0]
         d = np.asarray(ax.direction, float)
         u[j] = d / np.linalg.norm(d)
         setup.append(lines[k][2])
     if frames.has_workpiece_rotation(model.machine):
         u = frames.to_workpiece(model.machine, q, u)
+    q = _quantized(model, q, L, fixtures)
     setup = np.array(setup, dtype=object)
     ids = dict.fromkeys(line[2] for line in lines)
     return _plan("interferometer", q, np.full(count, L), "line", u=u, setup=setup,
@@ -273,17 +319,35 @@ def _interferometer_units(model, count, rng, extreme, L, fixtures):
 
 
 def _tracker_units(model, count, rng, extreme, L, fixtures):
+    """count poses, each with a station its reflector sees within TRACKER.plan_deg (a random one of those that do);
+    poses no station sees are not candidates."""
     st = fixtures["stations"]
-    q = _sample_poses(model, count, rng, extreme)
+    found_q, found_k = [], []
+    for _ in range(50):
+        q = _quantized(model, _sample_poses(model, 2 * count, rng, extreme), L, fixtures)
+        tip, axis = model.ideal_tool(q, L)
+        if frames.has_workpiece_rotation(model.machine):
+            tip, axis = frames.to_machine(model.machine, q, tip), frames.to_machine(model.machine, q, axis)
+        seen = ins.sight_angles(tip, axis, st) <= ins.TRACKER.plan_deg
+        ok = seen.any(axis=1)
+        pick = np.array([rng.choice(np.flatnonzero(row)) for row in seen[ok]], dtype=int)
+        found_q.append(q[ok])
+        found_k.append(pick)
+        if sum(len(x) for x in found_k) >= count:
+            break
+    q, k = np.vstack(found_q)[:count], np.concatenate(found_k)[:count]
+    if len(q) < count:
+        raise InputError(f"instrument tracker: machine {model.machine.name}: too few poses whose reflector sees a "
+                         f"station ({len(q)} of {count} candidates found)")
     tip, _ = model.ideal_tool(q, L)
     tip_m = frames.to_machine(model.machine, q, tip) if frames.has_workpiece_rotation(model.machine) else tip
-    k = rng.integers(0, len(st), count)
     vec = tip_m - st[k]
     u = vec / np.linalg.norm(vec, axis=1)[:, None]
     setup = np.array([f"station{i + 1}" for i in k], dtype=object)
     ids = [f"station{i + 1}" for i in range(len(st))]
     return _plan("tracker", q, np.full(count, L), "line", u=u, setup=setup, frame="machine",
-                 setup_kind={s: "point" for s in ids}, setup_frame={s: "machine" for s in ids}), np.arange(count)
+                 setup_kind={s: "point" for s in ids}, setup_frame={s: "machine" for s in ids},
+                 points={s: st[i] for i, s in enumerate(ids)}), np.arange(count)
 
 
 _UNITS = {"tip": _tip_units, "rtest": _sphere_units, "probe-sphere": _sphere_units, "ballbar": _ballbar_units,
@@ -311,11 +375,13 @@ def check_host(machine, instrument: str) -> None:
         raise InputError(f"instrument interferometer: machine {name} has no linear axis to run the beam along")
 
 
-def _fixtures(model, instrument, rng) -> dict:
-    """What the candidates of an instrument share: sphere placements, beam lines, tracker stations (with notes)."""
-    out = {"notes": {}}
+def _fixtures(model, instrument, rng, mode: str) -> dict:
+    """What the candidates of an instrument share: sphere placements (at the words' resolution), beam lines, tracker
+    stations (with notes), and the kinematics mode of the program."""
+    out = {"notes": {}, "kinematics": mode}
     if instrument in SPHERES:
-        spheres = ins.sphere_positions(model, model.machine.tool_length, SPHERES[instrument])
+        spheres = [np.round(p, 4) for p in ins.sphere_positions(model, model.machine.tool_length,
+                                                                 SPHERES[instrument])]
         out["spheres"] = spheres
         for i, p in enumerate(spheres):
             out["notes"][f"sphere{i + 1}"] = (f"sphere at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) mm on the table "
@@ -340,7 +406,7 @@ def _fixtures(model, instrument, rng) -> dict:
         q = model.machine.random_poses(2000, rng)
         tip, _ = model.ideal_tool(q, model.machine.tool_length)
         tip_m = frames.to_machine(model.machine, q, tip) if frames.has_workpiece_rotation(model.machine) else tip
-        st = ins.station_positions(tip_m, STATIONS)
+        st = np.round(ins.bed_stations(tip_m, STATIONS), 1)
         out["stations"] = st
         for i, p in enumerate(st):
             out["notes"][f"station{i + 1}"] = (f"tracker station at ({p[0]:.1f}, {p[1]:.1f}, {p[2]:.1f}) mm on the "
@@ -360,16 +426,20 @@ def _concat_plans(parts) -> ins.Plan:
         kinds.update(p.setup_kind)
         fr.update(p.setup_frame)
     dirs = {k: np.concatenate([p.dirs[k] for p in parts]) for k in first.dirs}
+    points = {k: v for p in parts for k, v in p.points.items()}
     return ins.Plan(first.instrument, np.vstack([p.poses for p in parts]), cat("L"), True, first.reads, u=cat("u"),
-                    setup=cat("setup"), setup_kind=kinds, setup_frame=fr, dirs=dirs, frame=first.frame)
+                    setup=cat("setup"), setup_kind=kinds, setup_frame=fr, dirs=dirs, frame=first.frame,
+                    points=points)
 
 
-def pool(model, instrument: str, n_uniform: int, n_extreme: int, rng, lengths=None) -> Pool:
+def pool(model, instrument: str, n_uniform: int, n_extreme: int, rng, lengths=None, kinematics: str | None = None
+         ) -> Pool:
     """A candidate pool: n_uniform units drawn uniformly within the instrument's constraints and n_extreme that
-    favour the ends of the strokes, split over the tool lengths (mm; default the machine's L0)."""
+    favour the ends of the strokes, split over the tool lengths (mm; default the machine's L0), for a program in
+    kinematics mode `kinematics` (default: `program.default_mode`)."""
     check_host(model.machine, instrument)
     lengths = [model.machine.tool_length] if not lengths else list(lengths)
-    fixtures = _fixtures(model, instrument, rng)
+    fixtures = _fixtures(model, instrument, rng, kinematics or default_mode(model.machine))
     make = _UNITS[instrument]
     opts = {"instrument": instrument} if instrument in SPHERES else {}
     parts, units, uniform, offset = [], [], [], 0
@@ -412,7 +482,8 @@ def subplan(pool_: Pool, units) -> ins.Plan:
     return ins.Plan(p.instrument, p.poses[idx], p.L[idx], True, p.reads, u=pick(p.u), setup=setup,
                     setup_kind={s: k for s, k in p.setup_kind.items() if s in present},
                     setup_frame={s: f for s, f in p.setup_frame.items() if s in present},
-                    dirs={k: v[idx] for k, v in p.dirs.items()}, frame=p.frame)
+                    dirs={k: v[idx] for k, v in p.dirs.items()}, frame=p.frame,
+                    points={s: v for s, v in p.points.items() if s in present})
 
 
 def measurements(plan: ins.Plan, model, noise_mm: float = NOISE_MM, noise_rad: float = NOISE_RAD,
@@ -900,6 +971,7 @@ class PlanResult:
     passes: int
     seed: int
     notes: list = field(default_factory=list)
+    kinematics: str = "joint"      # the kinematics mode of the program the poses are made for (linuxcnc.program)
 
     @property
     def n(self) -> int:
@@ -952,9 +1024,10 @@ def min_poses(dsg: Design) -> int:
 
 def make(model, instrument: str, n: int, effects=(), lengths=None, seed: int = 0, noise_mm: float = NOISE_MM,
          noise_rad: float = NOISE_RAD, random_plans: int = RANDOM_PLANS, pool_units: int | None = None,
-         where: str = "effects") -> PlanResult:
+         where: str = "effects", kinematics: str | None = None) -> PlanResult:
     """Plan n poses of an instrument on a model (see the module docstring); effects: ids or records to be detected
-    (`where` names them in errors)."""
+    (`where` names them in errors); kinematics: the mode of the program the plan is for ("joint" or "tcp"; default
+    what `fiveaxis compensate` sets up for the machine, `linuxcnc.program.default_mode`)."""
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise InputError(f"number of poses: expected a positive whole number, got {n!r}")
     if n > MAX_POSES:
@@ -964,13 +1037,15 @@ def make(model, instrument: str, n: int, effects=(), lengths=None, seed: int = 0
         if not (math.isfinite(v) and v > 0):
             raise InputError(f"{what}: expected a positive, finite standard deviation, got {v}")
     check_host(model.machine, instrument)
+    kinematics = kinematics or default_mode(model.machine)
+    check_mode(model.machine, kinematics)
     lengths = parse_lengths(lengths)
     effs = resolve_effects(model, effects, where)
     rng = np.random.default_rng(seed)
-    per = POINTS_PER_CIRCLE if instrument == "ballbar" else 1
+    per = ins.BALLBAR.points_per_circle if instrument == "ballbar" else 1
     n_units = max(1, n // per)
     size = pool_units or min(max(POOL_PER_UNIT * n_units, POOL_MIN // per, POOL_MIN_UNITS), POOL_MAX // per)
-    pl = pool(model, instrument, size, size, rng, lengths)
+    pl = pool(model, instrument, size, size, rng, lengths, kinematics)
     dsg = design(model, pl, effs, model.machine.fixed, noise_mm, noise_rad)
     if dsg.ref.r == 0:
         raise InputError(f"instrument {instrument}: its data on {model.machine.name} determine none of the model's "
@@ -1021,7 +1096,7 @@ def make(model, instrument: str, n: int, effects=(), lengths=None, seed: int = 0
                      f"{', '.join(r.id for r in dsg.rivals)}")
     return PlanResult(model, instrument, plan, units, dsg, D, rank, rand_D, rand_rank, pred, effs, effect_std,
                       {s: t for s, t in pl.setup_notes.items() if plan.setup is not None and s in set(plan.setup)},
-                      lengths or [model.machine.tool_length], passes, seed, notes)
+                      lengths or [model.machine.tool_length], passes, seed, notes, kinematics)
 
 
 def _effect_hint(model) -> str:
@@ -1052,7 +1127,12 @@ def _measuring_order(dsg: Design, units) -> np.ndarray:
     for Lv in sorted(set(L)):
         for s in dict.fromkeys(setup[L == Lv]):
             idx = np.flatnonzero((L == Lv) & (setup == s))
-            out += [int(units[idx[i]]) for i in _nearest_path(pl.plan.poses[first[idx]])] if len(idx) else []
+            q = pl.plan.poses[first[idx]]
+            if pl.instrument == "interferometer":      # a beam line: one run upwards
+                order = list(np.lexsort(q.T[::-1]))
+            else:
+                order = _nearest_path(q)
+            out += [int(units[idx[i]]) for i in order] if len(idx) else []
     return np.array(out, dtype=int)
 
 
@@ -1144,9 +1224,10 @@ def worth(res: PlanResult) -> float | None:
 def to_json(res: PlanResult) -> dict:
     """The plan's summary (no poses): criterion, comparison, what it determines; mm, rad; no NaN or inf."""
     fin = (lambda x: x if x is not None and math.isfinite(x) else None)
-    per = POINTS_PER_CIRCLE if res.instrument == "ballbar" else 1
+    per = ins.BALLBAR.points_per_circle if res.instrument == "ballbar" else 1
     return {"machine": res.model.machine.name, "instrument": res.instrument, "n": res.n,
             "readings": int(res.design.k * len(res.units)), "seed": res.seed, "tool_lengths_mm": res.lengths,
+            "kinematics": res.kinematics,
             "noise_mm": res.design.ref.noise_mm, "noise_rad": res.design.ref.noise_rad,
             "effects": [e.id for e in res.effects],
             "criterion": {"D": fin(res.D), "rank": res.rank, "identifiable_directions": res.r,
@@ -1175,7 +1256,8 @@ def report(res: PlanResult) -> str:
              + (f", {res.design.ref.noise_rad * 1e6:g} urad" if res.plan.reads == "tip+axis" else "")
              + "; docs/plan.md)",
              f"    chosen from: {j['candidates']} candidates (greedy D-optimal selection, then "
-             f"{res.passes} exchange pass(es))"]
+             f"{res.passes} exchange pass(es))",
+             f"    program:     {res.kinematics} kinematics ({KINEMATICS_TEXT[res.kinematics]}; docs/plan.md)"]
     if res.random_D:
         lines.insert(2, f"    random plan: D = {_fmt_D(res.random_median, min(res.random_rank), res.r)} for "
                         f"{res.n} random poses (median of {len(res.random_D)})"
