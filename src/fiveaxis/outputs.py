@@ -4,7 +4,10 @@
   is flushed to disk and renamed over the target, so a reader sees the old file or the new one, never half.
 - Permissions: a new file gets 0666 less the umask (0644 usually), not the 0600 of the temporary file; a replaced
   file keeps its own mode.
-- Symbolic links are followed: the file the link points to is replaced, the link stays.
+- Symbolic links are followed: the file the link points to is replaced, the link stays. A dangling link (to a
+  file that does not exist) is followed only with force (it would create a file wherever it points; someone
+  else may have planted it in a shared folder); writers that replace their own earlier output regardless of
+  force (plots, generated modules) pass follow_dangling=False and never follow one.
 - No accident: an existing file is replaced only with force=True; a path under an existing file
   (`FILE/x.csv`), a folder as target or a folder we cannot write to is a one-line InputError naming the path.
 - Stale temporaries: a temporary file of ours left by a killed run (older than STALE_AFTER_S) in the folder we
@@ -46,10 +49,14 @@ def check_folder(folder) -> Path:
     return folder
 
 
-def target(path, force: bool = False) -> Path:
-    """The file a write to path replaces (symbolic links resolved), after the checks of the module docstring."""
+def target(path, force: bool = False, follow_dangling: bool | None = None) -> Path:
+    """The file a write to path replaces (symbolic links resolved), after the checks of the module docstring.
+    follow_dangling: whether a link to a missing file may be followed (default: force)."""
     path = Path(path)
     real = Path(os.path.realpath(path)) if path.is_symlink() else path
+    if path.is_symlink() and not real.exists() and not (force if follow_dangling is None else follow_dangling):
+        raise InputError(f"{path}: a symbolic link to {real}, which does not exist; not following it "
+                         f"(force=True replaces it)")
     if real.is_dir():
         raise InputError(f"{path}: is a folder (expected a file name)")
     check_folder(real.parent)
@@ -78,13 +85,14 @@ def clean_stale_temporaries(folder, max_age: float = STALE_AFTER_S) -> list[Path
     return removed
 
 
-def write_with(path, writer: Callable[[Path], None], force: bool = False) -> Path:
+def write_with(path, writer: Callable[[Path], None], force: bool = False,
+               follow_dangling: bool | None = None) -> Path:
     """Write a file atomically through writer(temporary path); returns the file written (links resolved).
 
     writer writes the whole content to the path it is given (e.g. `lambda tmp: df.to_csv(tmp)`); an exception
     in it leaves the old file untouched and no temporary behind."""
     path = Path(path)
-    real = target(path, force)
+    real = target(path, force, follow_dangling)
     folder = real.parent
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -108,15 +116,17 @@ def write_with(path, writer: Callable[[Path], None], force: bool = False) -> Pat
     return real
 
 
-def write_bytes(path, data: bytes, force: bool = False, only_if_changed: bool = False) -> bool:
+def write_bytes(path, data: bytes, force: bool = False, only_if_changed: bool = False,
+                follow_dangling: bool | None = None) -> bool:
     """Write bytes atomically; returns True if the file changed (only_if_changed: leave an identical file alone)."""
-    real = target(path, force)
+    real = target(path, force, follow_dangling)
     if only_if_changed and real.is_file() and real.read_bytes() == data:
         return False
-    write_with(path, lambda tmp: tmp.write_bytes(data), force)
+    write_with(path, lambda tmp: tmp.write_bytes(data), force, follow_dangling)
     return True
 
 
-def write_text(path, text: str, force: bool = False, only_if_changed: bool = False, encoding: str = "utf-8") -> bool:
+def write_text(path, text: str, force: bool = False, only_if_changed: bool = False, encoding: str = "utf-8",
+               follow_dangling: bool | None = None) -> bool:
     """Write text atomically (UTF-8); returns True if the file changed. See write_bytes."""
-    return write_bytes(path, text.encode(encoding), force, only_if_changed)
+    return write_bytes(path, text.encode(encoding), force, only_if_changed, follow_dangling)

@@ -560,7 +560,8 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
     dims = (["L"] if tab.tool_lengths is not None else []) + list(tab.variables)
     out = {
         "format": "fiveaxis compensation", "version": 1,
-        "machine": {"name": fm.machine, "file": fm.machine_file, "sha256": fm.machine_sha256},
+        "machine": {"name": fm.machine, "file": str(Path(comp.model.machine.path).resolve()),
+                    "sha256": fm.machine_sha256},
         "convention": fm.convention, "model_file": str(model_path), "tool_length_mm": comp.tool_length,
         "table": {"files": ["table.csv", "table.parquet"], "variables": list(tab.variables), "units": units,
                   "nodes": nodes, "size": int(tab.size), "interpolation": INTERPOLATION,

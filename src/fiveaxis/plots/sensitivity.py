@@ -35,7 +35,8 @@ def _save(fig, path: Path) -> Path:
     """Write fig as a PNG atomically (`fiveaxis.outputs`), replacing an earlier plot of that name."""
     from ..outputs import write_with
     try:
-        write_with(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight", pad_inches=0.25), force=True)
+        write_with(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight", pad_inches=0.25),
+                   force=True, follow_dangling=False)
     finally:
         _pyplot().close(fig)
     return Path(path)
