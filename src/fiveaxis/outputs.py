@@ -130,3 +130,49 @@ def write_text(path, text: str, force: bool = False, only_if_changed: bool = Fal
                follow_dangling: bool | None = None) -> bool:
     """Write text atomically (UTF-8); returns True if the file changed. See write_bytes."""
     return write_bytes(path, text.encode(encoding), force, only_if_changed, follow_dangling)
+
+
+def write_set(files, seal, seal_text: Callable[[dict], str], force: bool = False) -> list[Path]:
+    """Write several files as one set that a reader never sees mixed: files is [(path, writer)], seal the file
+    readers check first (e.g. a summary), whose text seal_text(hashes) gets {path: SHA-256 hex of what was
+    written} so that readers can check every file against it.
+
+    Every path is checked first (see target); each file is written to its temporary file and flushed; the old
+    seal is removed; the temporaries are renamed into place; the new seal is written last (atomically). A run
+    killed at any point leaves the old set with its seal, or files without a seal (readers refuse), or the new
+    set with its seal: never a seal that vouches for files it did not see written."""
+    import hashlib
+    items = [(Path(p), w) for p, w in files]
+    for p, _ in items + [(Path(seal), None)]:
+        target(p, force)
+    staged, hashes = [], {}
+    try:
+        for path, writer in items:
+            real = target(path, force)
+            real.parent.mkdir(parents=True, exist_ok=True)
+            mode = (os.stat(real).st_mode & 0o7777) if real.exists() else file_mode()
+            fd, tmp = tempfile.mkstemp(prefix=f".{real.name}.", suffix=".tmp", dir=str(real.parent))
+            os.close(fd)
+            staged.append((Path(tmp), real))
+            writer(Path(tmp))
+            with open(tmp, "rb") as fh:
+                digest = hashlib.sha256()
+                for block in iter(lambda: fh.read(1 << 20), b""):
+                    digest.update(block)
+                os.fsync(fh.fileno())
+            os.chmod(tmp, mode)
+            hashes[path] = digest.hexdigest()
+        seal_real = target(seal, force)
+        if seal_real.exists():
+            os.unlink(seal_real)
+        for tmp, real in staged:
+            os.replace(tmp, real)
+        staged = []
+    except OSError as exc:
+        raise InputError(f"{exc.filename or seal}: cannot write ({exc.strerror or exc})") from None
+    finally:
+        for tmp, _ in staged:
+            if tmp.exists():
+                tmp.unlink()
+    write_text(seal, seal_text(hashes), force=True)
+    return [p for p, _ in items] + [Path(seal)]

@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import plausible
 from ..exceptions import InputError
 
 #: Penalty on rotary corrections where the rotary joints hardly move the tool axis (dimensionless, see above).
@@ -278,6 +279,7 @@ def check_tool_lengths(lengths, key: str = "tool_lengths") -> np.ndarray:
     if np.any(np.diff(a) <= 0):
         raise InputError(f"{key}: expected ascending tool lengths in mm without duplicates, got "
                          f"{', '.join(f'{x:g}' for x in a)}")
+    plausible.check_tool_lengths(a, key)
     return a
 
 
@@ -533,11 +535,16 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
         raise InputError(f"damping: expected a number >= 0, got {damping}")
     lengths = None if tool_lengths is None else check_tool_lengths(tool_lengths)
     errors_fn = fitted_errors(fm, model)
+    grid = table_nodes(model.machine, dict(counts or {}), max_nodes)
+    plausible.check_errors(model, errors_fn, np.stack([m.ravel() for m in np.meshgrid(*grid, indexing="ij")], axis=1),
+                           getattr(fm, "source", "") or "fitted model")
     table, nodes = build_table(model, errors_fn, counts, max_nodes, None, damping, lengths)
     reversal = [v for v in model.variables if _token(model, v) in fm.reversal_variables()]
     lc = lx.fit(tip_error_function(model, errors_fn), model, comp_points or lx.COMP_POINTS, reversal=reversal)
     acc = account(model, errors_fn, table, lc, poses, seed, damping=damping)
-    return Compensation(fm, model, table, nodes, lc, acc, float(damping), float(model.machine.tool_length))
+    comp = Compensation(fm, model, table, nodes, lc, acc, float(damping), float(model.machine.tool_length))
+    plausible.check_compensation(comp, lx.files(lc))
+    return comp
 
 
 def _token(model, variable):
@@ -621,6 +628,11 @@ error_map.png  (with --plot) the predicted tool-tip error over the rotary axes.
 """
 
 
+#: The record of a compensate folder, written last, and its key of the other files' SHA-256.
+SUMMARY = "summary.json"
+MANIFEST = "files_sha256"
+
+
 def outputs(folder, plot: bool = False) -> list:
     """Paths compensate writes into folder."""
     from pathlib import Path
@@ -633,39 +645,84 @@ def outputs(folder, plot: bool = False) -> list:
 
 def write(comp: Compensation, folder, force: bool = False, plot: bool = False, model_path: str = "") -> list:
     """Write the table, summary.json, README.txt, linuxcnc/ (and error_map.png) into an existing folder; nothing
-    is replaced unless force (checked for every file before the first is written)."""
+    is replaced unless force (checked for every file before the first is written). The folder is written as one
+    set (fiveaxis.outputs.write_set): summary.json last, with the SHA-256 of every other file (files_sha256),
+    which every reader checks (read_summary): a run killed mid-way never leaves a mixed folder that is used."""
     import json
     from pathlib import Path
 
     from ..linuxcnc import configuration as lx
-    from ..measurement.files import write as write_frame
-    from ..outputs import target
+    from ..outputs import write_set
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"{folder}: output folder not found")
     lcdir = folder / "linuxcnc"
     lfiles = lx.files(comp.lc, f"fitted model {model_path}" if model_path else "")
-    paths = outputs(folder, plot) + [lcdir / n for n in lfiles]
-    for p in paths:
-        target(p, force)
-    lcdir.mkdir(exist_ok=True)
     frame = table_frame(comp.table)
-    written = [write_frame(frame, folder / "table.csv", force=force),
-               write_frame(frame, folder / "table.parquet", force=force)]
-    for name, text in lfiles.items():
-        written.append(_written(lcdir / name, text, force=force))
     has_L = comp.table.tool_lengths is not None
     lcol = ("L (the tool length, mm; the slowest-varying: each tool length is a contiguous block), " if has_L
             else "")
-    written.append(_written(folder / "README.txt", README.format(
-        interpolation=INTERPOLATION_L if has_L else INTERPOLATION, lcol=lcol), force=force))
+    readme = README.format(interpolation=INTERPOLATION_L if has_L else INTERPOLATION, lcol=lcol)
+
+    def text(t):
+        return lambda tmp: tmp.write_text(t, encoding="utf-8")
+    files = [(folder / "table.csv", lambda tmp: frame.to_csv(tmp, index=False, float_format="%.10g")),
+             (folder / "table.parquet", lambda tmp: frame.to_parquet(tmp, index=False))]
+    files += [(lcdir / name, text(t)) for name, t in lfiles.items()]
+    files.append((folder / "README.txt", text(readme)))
     if plot:
         from ..plots.compensation import error_map
-        written.append(error_map(comp.model, fitted_errors(comp.fm, comp.model), comp.table, comp.lc,
-                                 folder / "error_map.png"))
-    written.append(_written(folder / "summary.json", json.dumps(summary(comp, model_path), indent=1) + "\n",
-                              force=force))
-    return written
+        files.append((folder / "error_map.png", lambda tmp: error_map(
+            comp.model, fitted_errors(comp.fm, comp.model), comp.table, comp.lc, tmp)))
+    record = summary(comp, model_path)
+
+    def seal(hashes):
+        record[MANIFEST] = {p.relative_to(folder).as_posix(): h for p, h in hashes.items()}
+        return json.dumps(record, indent=1, allow_nan=False) + "\n"
+    return write_set(files, folder / SUMMARY, seal, force=force)
+
+
+def read_summary(folder) -> dict:
+    """The summary.json of a compensate folder, after checking that every file it vouches for (files_sha256) is
+    there as written: InputError naming the file otherwise (a run killed mid-way, a file edited or replaced)."""
+    import hashlib
+    import json
+    from pathlib import Path
+
+    from ..inputs import read_json
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(f"{folder}: compensation folder not found (write one with `fiveaxis compensate`)")
+    path = folder / SUMMARY
+    if not path.exists():
+        raise InputError(f"{path}: not found (a compensate output folder has summary.json; a run killed before "
+                         f"it finished leaves none: run compensate again)")
+    data = read_json(path, "the summary.json of `fiveaxis compensate`")
+    if not isinstance(data, dict):
+        raise InputError(f"{path}: expected a JSON object (the summary.json of `fiveaxis compensate`)")
+    mach = data.get("machine")
+    if not isinstance(mach, dict) or not all(isinstance(mach.get(k), str) for k in ("name", "sha256")):
+        raise InputError(f"{path}: key machine: expected {{\"name\": ..., \"sha256\": ...}} (strings)")
+    manifest = data.get(MANIFEST)
+    if not isinstance(manifest, dict) or not manifest or not all(isinstance(v, str) for v in manifest.values()):
+        raise InputError(f"{path}: key {MANIFEST}: missing (written by an older fiveaxis, or not by compensate): "
+                         f"run compensate again")
+    for rel, sha in manifest.items():
+        f = folder / rel
+        if ".." in Path(rel).parts or Path(rel).is_absolute():
+            raise InputError(f"{path}: key {MANIFEST}: {rel!r} is not a file of the folder")
+        try:
+            with open(f, "rb") as fh:
+                digest = hashlib.sha256()
+                for block in iter(lambda: fh.read(1 << 20), b""):
+                    digest.update(block)
+        except OSError as exc:
+            raise InputError(f"{f}: {exc.strerror or exc} (summary.json lists it: an incomplete compensation folder; "
+                             f"run compensate again)") from None
+        if digest.hexdigest() != sha:
+            raise InputError(f"{f}: not the file summary.json vouches for (its SHA-256 differs: a compensate run "
+                             f"killed mid-way, or the file edited); run compensate again")
+    return data
 
 
 def report(comp: Compensation, folder="") -> str:
@@ -711,29 +768,20 @@ def report(comp: Compensation, folder="") -> str:
 
 
 def load_table(folder, model) -> Table:
-    """The table of a `compensate` output folder, checked against the model's machine file (summary.json)."""
-    import json
+    """The table of a `compensate` output folder, checked against the model's machine file and against
+    summary.json's hashes (read_summary)."""
     from pathlib import Path
 
     from ..estimation.fitted_model import sha256
     folder = Path(folder)
-    if not folder.is_dir():
-        raise InputError(f"{folder}: compensation folder not found (write one with `fiveaxis compensate`)")
-    summ = folder / "summary.json"
-    try:
-        info = json.loads(summ.read_text(encoding="utf-8"))
-        name, sha = info["machine"]["name"], info["machine"]["sha256"]
-    except FileNotFoundError:
-        raise InputError(f"{summ}: not found (a compensate output folder has summary.json)") from None
-    except (ValueError, KeyError, TypeError):
-        raise InputError(f"{summ}: expected the JSON of `fiveaxis compensate` with machine.name and "
-                         f"machine.sha256") from None
+    info = read_summary(folder)
+    name, sha = info["machine"]["name"], info["machine"]["sha256"]
     machine = model.machine
     if name != machine.name or sha != sha256(machine.path):
         raise InputError(f"{folder}: compensation for machine '{name}' (sha256 {str(sha)[:12]}...), not for "
                          f"'{machine.name}' ({machine.path})")
     path = folder / "table.parquet"
-    if not path.exists():
+    if "table.parquet" not in info[MANIFEST]:
         path = folder / "table.csv"
     return read_table(path, machine)
 
@@ -745,10 +793,3 @@ def command_function(folder, model, table: Table | None = None):
     table = load_table(folder, model) if table is None else table
     L0 = model.machine.tool_length
     return lambda poses, L=None: compensated_commands(table, poses, L0 if L is None else L)
-
-
-def _written(path, text: str, force: bool = False) -> Path:
-    """Write a text file atomically (fiveaxis.outputs) and return its path."""
-    from ..outputs import write_text
-    write_text(path, text, force=force)
-    return Path(path)

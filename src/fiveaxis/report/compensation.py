@@ -10,10 +10,10 @@ file and the key.
 """
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
+from ..compensation.table import read_summary
 from ..exceptions import InputError
 
 SUMMARY = "summary.json"
@@ -34,11 +34,28 @@ def _stats(path, data, key) -> dict:
     return out
 
 
+def _list(path, data, key) -> list:
+    v = data.get(key, [])
+    if not isinstance(v, list):
+        raise InputError(f"{path}: {key}: expected a list")
+    return v
+
+
+def _dict(path, data, key) -> dict:
+    v = data.get(key, {})
+    if not isinstance(v, dict):
+        raise InputError(f"{path}: {key}: expected an object")
+    return v
+
+
 def _by_tool_length(path, data) -> list:
     """Rows of `predicted_by_tool_length` (a table with a tool-length dimension, `compensate --tool-lengths`):
     tool length (mm), whether it is a table node, and the tip error stages {max, rms, p95} (mm)."""
     rows = []
-    for i, entry in enumerate(data.get("predicted_by_tool_length") or []):
+    rows_in = data.get("predicted_by_tool_length") or []
+    if not isinstance(rows_in, list):
+        raise InputError(f"{path}: predicted_by_tool_length: expected a list")
+    for i, entry in enumerate(rows_in):
         key = f"predicted_by_tool_length[{i}]"
         L = entry.get("tool_length_mm") if isinstance(entry, dict) else None
         if isinstance(L, bool) or not isinstance(L, (int, float)) or not math.isfinite(L) or L <= 0:
@@ -62,17 +79,8 @@ def read(folder, machine_name: str | None = None) -> dict:
     """The compensation summary of a folder, checked; maps come back as {"caption", "file", "png": bytes}."""
     folder = Path(folder)
     path = folder / SUMMARY
-    if not folder.is_dir():
-        raise InputError(f"{folder}: compensation folder not found")
-    if not path.is_file():
-        raise InputError(f"{path}: not found (expected the folder written by `fiveaxis compensate MODEL -o DIR`)")
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: line {exc.lineno} column {exc.colno}: invalid JSON ({exc.msg})") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a UTF-8 text file") from None
-    if not isinstance(data, dict) or not isinstance(data.get("predicted_tip_error_mm"), dict):
+    data = read_summary(folder)                   # every file it vouches for checked against its SHA-256
+    if not isinstance(data.get("predicted_tip_error_mm"), dict):
         raise InputError(f"{path}: predicted_tip_error_mm: missing (expected the summary.json of `fiveaxis "
                          f"compensate`)")
     mach = data.get("machine")
@@ -86,13 +94,17 @@ def read(folder, machine_name: str | None = None) -> dict:
             stages.append(dict(_stats(path, tip, key), key=key, label=label))
     if not stages or stages[0]["key"] != "before":
         raise InputError(f"{path}: predicted_tip_error_mm.before: missing")
-    files = [str(f) for f in (data.get("table") or {}).get("files", [])]
+    table = data.get("table")
+    listed = table.get("files", []) if isinstance(table, dict) else None
+    if not isinstance(listed, list):
+        raise InputError(f"{path}: table.files: expected a list of file names")
+    files = [str(f) for f in listed]
     lc = folder / "linuxcnc"
     if lc.is_dir():
         files += [f"linuxcnc/{p.name}" for p in sorted(lc.iterdir())]
     out = {"folder": str(folder), "stages": stages, "files": files, "maps": [],
-           "by_tool_length": _by_tool_length(path, data), "warnings": [str(w) for w in data.get("warnings", [])],
-           "not_compensated": data.get("not_compensated", {}),
+           "by_tool_length": _by_tool_length(path, data), "warnings": [str(w) for w in _list(path, data, "warnings")],
+           "not_compensated": _dict(path, data, "not_compensated"),
            "method": "volumetric table solved on the exact model" + (" and LinuxCNC files" if lc.is_dir() else "")}
     f = folder / MAP[0]
     if f.is_file():
