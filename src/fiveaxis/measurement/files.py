@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError
+from .column_names import check as check_columns
 
 DEVIATIONS = ("dx", "dy", "dz")
 AXIS_DEVIATIONS = ("di", "dj", "dk")
@@ -323,6 +324,7 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
             raise InputError(f"unknown {what} '{value}' (expected one of: {', '.join(allowed)})")
     names, cols, lines, types = _read_table(path)
     variables = tuple(machine.variables)
+    warnings = check_columns(path, names, variables, READINGS + OPTIONAL)     # misspelled columns (issue 19)
     dir_cols = [c for c in cols if c.startswith("dir_")]
     for c in dir_cols:
         if c[4:] not in variables:
@@ -367,7 +369,6 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     for c in READINGS + DIRECTION + ("sigma", "sigma_axis"):
         if c in cols:
             data[c] = num(c, blank_ok=True)
-    warnings = []
     blank = lambda c: np.isnan(data[c]) if c in data else np.ones(n, bool)  # noqa: E731
     has_tip = ~np.all([blank(c) for c in DEVIATIONS], axis=0)
     has_axis = ~np.all([blank(c) for c in AXIS_DEVIATIONS], axis=0)
