@@ -12,6 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError
+from ..diagnosis import preconditions
+from ..estimation import design_size
 from ..measurement.instruments import NAMES as INSTRUMENTS
 from ..measurement.files import FRAMES, SETUP_KINDS
 
@@ -140,6 +142,7 @@ def _load(args):
         print(f"fiveaxis: warning: {w}", file=sys.stderr)
     added = F.machine_effects(model) + list(args.add)
     effects = F.resolve_effects(model, added)
+    design_size.check(model, meas, effects)          # before a design is built: memory of the setups' unknowns
     return model, meas, effects, _fixed(model, args.fix)
 
 
@@ -217,6 +220,7 @@ def run_diagnose(args) -> int:
     if args.top < 1:
         raise InputError(f"--top: expected a positive number, got {args.top}")
     model, meas, effects, fixed = _load(args)
+    preconditions.check(meas)                        # enough distinct poses for the cross-validation
     with _where_blocks(args) as in_blocks:
         dg = D.diagnose(model, meas, effects, top=args.top, fixed=fixed, in_blocks=in_blocks)
     if args.plot is not None:

@@ -39,6 +39,7 @@ import numpy as np
 
 from . import plausible
 from ..exceptions import InputError
+from ..guards import check_memory
 
 #: Penalty on rotary corrections where the rotary joints hardly move the tool axis (dimensionless, see above).
 DAMPING = 0.2
@@ -52,6 +53,8 @@ DEFAULT_LINEAR_NODES = 5
 DEFAULT_ROTARY_STEP_DEG = 10.0
 #: Tables larger than this many nodes are refused unless a larger limit is given.
 MAX_NODES = 200_000
+#: Memory per table node while it is solved and written (bytes; poses, corrections, errors, frames: an estimate).
+BYTES_PER_NODE = 4096
 CHUNK = 20_000
 #: Poses for the predicted error over the workspace.
 ACCOUNT_POSES = 4000
@@ -243,9 +246,9 @@ def default_counts(machine) -> dict:
     return out
 
 
-def table_nodes(machine, counts: dict, max_nodes: int | None = MAX_NODES) -> tuple:
-    """Node values per variable (mm, rad) for counts per axis name (others: the defaults); InputError for a count
-    below 2, an unknown axis or a table over max_nodes nodes."""
+def table_counts(machine, counts: dict, max_nodes: int | None = MAX_NODES) -> dict:
+    """Nodes per variable for counts per axis name (others: the defaults), nothing allocated; InputError for a
+    count below 2, an unknown axis, a table over max_nodes nodes or one whose arrays would not fit in memory."""
     unknown = sorted(set(counts) - set(machine.variables))
     if unknown:
         raise InputError(f"table counts: unknown axis {', '.join(unknown)} (expected one of: "
@@ -257,9 +260,16 @@ def table_nodes(machine, counts: dict, max_nodes: int | None = MAX_NODES) -> tup
                              f"nodes over the stroke), got {v}")
         full[k] = int(v)
     size = math.prod(full.values())
+    grid = " x ".join(str(full[v]) for v in machine.variables)
     if max_nodes is not None and size > max_nodes:
-        raise InputError(f"a table of {size} nodes ({' x '.join(str(full[v]) for v in machine.variables)}) is over "
-                         f"the size limit of {max_nodes} nodes")
+        raise InputError(f"a table of {size} nodes ({grid}) is over the size limit of {max_nodes} nodes")
+    check_memory(size * BYTES_PER_NODE, f"a table of {size} nodes ({grid})")
+    return full
+
+
+def table_nodes(machine, counts: dict, max_nodes: int | None = MAX_NODES) -> tuple:
+    """Node values per variable (mm, rad) for counts per axis name (others: the defaults); see table_counts."""
+    full = table_counts(machine, counts, max_nodes)
     return tuple(np.linspace(*machine.axis(v).model_stroke, full[v]) for v in machine.variables)
 
 
@@ -531,6 +541,8 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     check_model(fm, model)
     if poses < 1:
         raise InputError(f"poses for the account: expected a positive number, got {poses}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"seed: expected a whole number >= 0, got {seed!r}")
     if damping < 0 or not math.isfinite(damping):
         raise InputError(f"damping: expected a number >= 0, got {damping}")
     lengths = None if tool_lengths is None else check_tool_lengths(tool_lengths)

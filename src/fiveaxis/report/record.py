@@ -23,6 +23,8 @@ import numpy as np
 
 from ..model import iso_names as iso
 from ..exceptions import InputError
+from ..diagnosis import preconditions
+from ..estimation import design_size
 
 #: Rounds of diagnose -> add the top candidate, at most (as scripts/run-main.sh).
 MAX_ROUNDS = 4
@@ -310,6 +312,8 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
     comp = C.read(compensation, model.machine.name) if compensation is not None else None
     meas = read(data, model.machine, min_rows=2, frame=frame)
     effects = F.resolve_effects(model, F.machine_effects(model) + list(added))
+    design_size.check(model, meas, effects)
+    preconditions.check(meas)
     rounds, diags = [], []
     for k in range(1, max_rounds + 1):
         dg = D.diagnose(model, meas, effects, top=TOP)
