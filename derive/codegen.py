@@ -152,5 +152,5 @@ def generate(machine_ref, out_dir: Path | None = None, conventions=None, file_na
         text = render(model, source, source_label(machine))
         path = out_dir / (file_names or {}).get(conv, f"{module_name(machine.name, conv)}.py")
         results.append((path, outputs.write_text(path, text, force=True, only_if_changed=True,
-                                                        follow_dangling=False)))
+                                                 follow_links=False)))
     return results

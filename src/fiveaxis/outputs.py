@@ -7,7 +7,7 @@
 - Symbolic links are followed: the file the link points to is replaced, the link stays. A dangling link (to a
   file that does not exist) is followed only with force (it would create a file wherever it points; someone
   else may have planted it in a shared folder); writers that replace their own earlier output regardless of
-  force (plots, generated modules) pass follow_dangling=False and never follow one.
+  force (plots, generated modules) pass follow_links=False and never follow a link at all.
 - No accident: an existing file is replaced only with force=True; a path under an existing file
   (`FILE/x.csv`), a folder as target or a folder we cannot write to is a one-line InputError naming the path.
 - Stale temporaries: a temporary file of ours left by a killed run (older than STALE_AFTER_S) in the folder we
@@ -49,12 +49,15 @@ def check_folder(folder) -> Path:
     return folder
 
 
-def target(path, force: bool = False, follow_dangling: bool | None = None) -> Path:
+def target(path, force: bool = False, follow_links: bool | None = None) -> Path:
     """The file a write to path replaces (symbolic links resolved), after the checks of the module docstring.
-    follow_dangling: whether a link to a missing file may be followed (default: force)."""
+    follow_links: None follows a link to an existing file, and a dangling one only with force; False follows
+    none (for writers that replace their own earlier files whatever force says)."""
     path = Path(path)
     real = Path(os.path.realpath(path)) if path.is_symlink() else path
-    if path.is_symlink() and not real.exists() and not (force if follow_dangling is None else follow_dangling):
+    if path.is_symlink() and follow_links is False:
+        raise InputError(f"{path}: a symbolic link (to {real}); not writing through it (a file of ours goes here)")
+    if path.is_symlink() and not real.exists() and not force:
         raise InputError(f"{path}: a symbolic link to {real}, which does not exist; not following it "
                          f"(force=True replaces it)")
     if real.is_dir():
@@ -86,13 +89,13 @@ def clean_stale_temporaries(folder, max_age: float = STALE_AFTER_S) -> list[Path
 
 
 def write_with(path, writer: Callable[[Path], None], force: bool = False,
-               follow_dangling: bool | None = None) -> Path:
+               follow_links: bool | None = None) -> Path:
     """Write a file atomically through writer(temporary path); returns the file written (links resolved).
 
     writer writes the whole content to the path it is given (e.g. `lambda tmp: df.to_csv(tmp)`); an exception
     in it leaves the old file untouched and no temporary behind."""
     path = Path(path)
-    real = target(path, force, follow_dangling)
+    real = target(path, force, follow_links)
     folder = real.parent
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -117,19 +120,19 @@ def write_with(path, writer: Callable[[Path], None], force: bool = False,
 
 
 def write_bytes(path, data: bytes, force: bool = False, only_if_changed: bool = False,
-                follow_dangling: bool | None = None) -> bool:
+                follow_links: bool | None = None) -> bool:
     """Write bytes atomically; returns True if the file changed (only_if_changed: leave an identical file alone)."""
-    real = target(path, force, follow_dangling)
+    real = target(path, force, follow_links)
     if only_if_changed and real.is_file() and real.read_bytes() == data:
         return False
-    write_with(path, lambda tmp: tmp.write_bytes(data), force, follow_dangling)
+    write_with(path, lambda tmp: tmp.write_bytes(data), force, follow_links)
     return True
 
 
 def write_text(path, text: str, force: bool = False, only_if_changed: bool = False, encoding: str = "utf-8",
-               follow_dangling: bool | None = None) -> bool:
+               follow_links: bool | None = None) -> bool:
     """Write text atomically (UTF-8); returns True if the file changed. See write_bytes."""
-    return write_bytes(path, text.encode(encoding), force, only_if_changed, follow_dangling)
+    return write_bytes(path, text.encode(encoding), force, only_if_changed, follow_links)
 
 
 def write_set(files, seal, seal_text: Callable[[dict], str], force: bool = False) -> list[Path]:

@@ -307,6 +307,8 @@ def machine_from_text(text: str, path) -> Machine:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{path}: not valid TOML: {exc}") from None
+    except RecursionError:
+        raise InputError(f"{path}: not valid TOML: nested too deeply (expected a machine file)") from None
     return parse_machine(data, Path(path))
 
 

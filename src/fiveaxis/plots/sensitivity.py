@@ -36,7 +36,7 @@ def _save(fig, path: Path) -> Path:
     from ..outputs import write_with
     try:
         write_with(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight", pad_inches=0.25),
-                   force=True, follow_dangling=False)
+                   force=True, follow_links=False)
     finally:
         _pyplot().close(fig)
     return Path(path)
