@@ -20,6 +20,7 @@ from fiveaxis.model.error_model import load
 from fiveaxis.measurement.simulate import simulate
 from fiveaxis import outputs
 
+from adversarial import _edit as _set
 from conftest import run_cli
 from truth import truth_model
 
@@ -44,15 +45,6 @@ def _edited(fitted, tmp_path, edit) -> Path:
     path = tmp_path / "edited.json"
     path.write_text(json.dumps(data))
     return path
-
-
-def _set(*keys, value):
-    def edit(data):
-        d = data
-        for k in keys[:-1]:
-            d = d[k]
-        d[keys[-1]] = value
-    return edit
 
 
 @pytest.mark.parametrize("edit, needle", [
@@ -151,11 +143,7 @@ def test_a_write_killed_at_any_step_never_leaves_a_mixed_folder_that_is_used(two
     new = _set_from(d / "b")
     seen = set()
     for k in range(40):
-        folder = tmp_path / f"k{k}"
-        folder.mkdir()
-        for rel, data in a.items():
-            (folder / rel).parent.mkdir(parents=True, exist_ok=True)
-            (folder / rel).write_bytes(data)
+        folder = _filled(tmp_path / f"k{k}", a)
         steps = [0]
         real_replace, real_unlink = os.replace, os.unlink
 
@@ -184,6 +172,14 @@ def test_a_write_killed_at_any_step_never_leaves_a_mixed_folder_that_is_used(two
     assert done and seen >= {"old", "refused", "new"}, seen
 
 
+def _filled(folder: Path, files: dict) -> Path:
+    """folder with the files {relative path: bytes} of a complete set."""
+    for rel, data in files.items():
+        (folder / rel).parent.mkdir(parents=True, exist_ok=True)
+        (folder / rel).write_bytes(data)
+    return folder
+
+
 def _set_from(folder: Path) -> dict:
     return _snapshot(folder)
 
@@ -205,11 +201,7 @@ def test_kill_9_of_compensate_force(fitted, two_sets, tmp_path):
     model = load("li2018")
     outcomes = set()
     for attempt in range(3):
-        folder = tmp_path / f"run{attempt}"
-        folder.mkdir()
-        for rel, data in a.items():
-            (folder / rel).parent.mkdir(parents=True, exist_ok=True)
-            (folder / rel).write_bytes(data)
+        folder = _filled(tmp_path / f"run{attempt}", a)
         proc = subprocess.Popen([sys.executable, "-m", "fiveaxis.cli", "compensate", str(fitted), "-o", str(folder),
                                  "--force", "--nodes", "X=3,Y=2,Z=2", "--comp-points", "11", "--poses", "300"],
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
