@@ -244,3 +244,21 @@ def test_a_planted_or_stale_custom_effect_module_is_never_imported(tmp_path, mon
     assert eff.params == ("p1",)
     monkeypatch.setattr(provenance, "GENERATOR_VERSION", provenance.GENERATOR_VERSION + ".1")
     assert custom.effect_hash(machine, "ls") != h
+
+
+@pytest.mark.parametrize("content, needle", [
+    ('{"ex_x": 1e200}', "key ex_x: value of ex_x must be within +-1 rad"),
+    ('{"dx_x": -1e6}', "key dx_x: value of dx_x must be within +-1000 mm"),
+    ("", "empty (expected NAME=VALUE lines"),
+    ("  \n# only a comment\n", None),
+])
+def test_error_values_beyond_a_machine_tool_or_an_empty_file(tmp_path, capsys, content, needle):
+    """1e200 in --errors ended in "the position error overflows" without the file; an empty file meant the
+    machine file's values without a word."""
+    f = tmp_path / "e.json"
+    f.write_text(content)
+    rc, out, err = run_cli(capsys, "gsa", "--axis", "X=0", "--axis", "Y=0", "--errors", f)
+    if needle is None:
+        assert rc == 0, err
+        return
+    assert rc == 2 and str(f) in err and needle in err and err.count("\n") == 1, err

@@ -44,7 +44,12 @@ class ErrorValues:
         return "machine file defaults" if not self.sources else list(self.sources)
 
 
-def _number(raw, where: str, name: str) -> float:
+#: Largest error value accepted (mm for translations, rad for rotations): beyond, no machine tool; the products of
+#: the sensitivity integrals would overflow (1e200).
+MAX_VALUE = {"mm": 1e3, "rad": 1.0}
+
+
+def _number(raw, where: str, name: str, unit: str | None = None) -> float:
     if isinstance(raw, bool) or raw is None or isinstance(raw, (list, dict)):
         shown = json.dumps(raw)
         raise InputError(f"{where}: value of {name} must be a number (mm or rad), got {shown}")
@@ -54,6 +59,9 @@ def _number(raw, where: str, name: str) -> float:
         raise InputError(f"{where}: value of {name} must be a number (mm or rad), got {_short(raw)!r}") from None
     if not math.isfinite(v):
         raise InputError(f"{where}: value of {name} must be finite, got {_short(raw)!r}")
+    if unit is not None and abs(v) > MAX_VALUE[unit]:
+        raise InputError(f"{where}: value of {name} must be within +-{MAX_VALUE[unit]:g} {unit} (an error of a "
+                         f"machine tool), got {_short(raw)!r}")
     return v
 
 
@@ -72,7 +80,8 @@ class _Reader:
     def put(self, name, raw, where):
         from . import iso_names as iso
         name = iso.canonical(self.model, _short(str(name).strip(), 200), where=where)   # project or ISO 230 name
-        self.out.values[name] = _number(raw, where, name)
+        unit = "rad" if self.model.machine.is_angular(name) else "mm"
+        self.out.values[name] = _number(raw, where, name, unit)
 
     def spec(self, spec: str):
         spec = str(spec)
@@ -85,6 +94,8 @@ class _Reader:
         if not path.exists():
             raise InputError(f"{spec}: not NAME=VALUE and no such file")
         text = read_text(path, "NAME=VALUE lines, a JSON object or a fitted model file")
+        if not text.strip():
+            raise InputError(f"{path}: empty (expected NAME=VALUE lines, a JSON object or a fitted model file)")
         if text.lstrip()[:1] in ("{", "["):
             self.json_file(path, text)
         else:
