@@ -383,7 +383,7 @@ MEASUREMENT_FILES = {   # name -> (maker, content, expect)
     "d_x": ("csv-edit", ("meas.csv", _rename("dx", "d_x")), REFUSE),
     "Dz": ("csv-edit", ("meas.csv", _rename("dz", "Dz")), REFUSE),
     "dyy": ("csv-edit", ("meas.csv", _rename("dy", "dyy")), REFUSE),
-    "one row": ("csv-edit", ("meas.csv", lambda df: df.head(1).assign(sigma=0.001)), REFUSE),
+    "one row": ("csv-edit", ("meas.csv", lambda df: df.head(1).assign(sigma=0.001)), EITHER),
     "identical poses": ("csv-edit", ("meas.csv", _same_poses), EITHER),
     "4000 setups": ("csv-edit", ("meas.csv", _setups), REFUSE),
     "header only": ("csv-edit", ("meas.csv", lambda df: df.head(0)), REFUSE),

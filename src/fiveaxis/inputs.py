@@ -38,9 +38,7 @@ def read_bytes(path, what: str, max_bytes: int = MAX_BYTES) -> bytes:
         if stat.S_ISDIR(info.st_mode):
             raise InputError(f"{path}: is a folder (expected {what})")
         if not stat.S_ISREG(info.st_mode):
-            kind = ("a FIFO" if stat.S_ISFIFO(info.st_mode) else "a device" if stat.S_ISCHR(info.st_mode)
-                    or stat.S_ISBLK(info.st_mode) else "a socket" if stat.S_ISSOCK(info.st_mode) else "not a file")
-            raise InputError(f"{path}: {kind}, not a regular file (expected {what})")
+            raise InputError(f"{path}: {_kind(info.st_mode)}, not a regular file (expected {what})")
         if info.st_size > max_bytes:
             raise InputError(f"{path}: {_size(info.st_size)}, more than the {_size(max_bytes)} {what} may have")
         chunks, total = [], 0
@@ -58,6 +56,33 @@ def read_bytes(path, what: str, max_bytes: int = MAX_BYTES) -> bytes:
         return b"".join(chunks)
     finally:
         os.close(fd)
+
+
+def regular_file(path, what: str) -> Path:
+    """path, after checking (without blocking) that it is a regular file: a FIFO, a device, a socket or a folder
+    is a one-line InputError (a reader would block or read without end). For files read in pieces (measurements
+    of any size), where read_bytes' size bound does not apply."""
+    path = Path(path)
+    try:
+        info = os.stat(path)
+    except FileNotFoundError:
+        raise InputError(f"{path}: not found (expected {what})") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror or exc}; expected {what})") from None
+    if stat.S_ISDIR(info.st_mode):
+        raise InputError(f"{path}: is a folder (expected {what})")
+    if not stat.S_ISREG(info.st_mode):
+        raise InputError(f"{path}: {_kind(info.st_mode)}, not a regular file (expected {what})")
+    return path
+
+
+def _kind(mode: int) -> str:
+    """What a file that is not regular is, for a message."""
+    if stat.S_ISFIFO(mode):
+        return "a FIFO"
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "a device"
+    return "a socket" if stat.S_ISSOCK(mode) else "not a file"
 
 
 def read_text(path, what: str, max_bytes: int = MAX_BYTES) -> str:

@@ -40,6 +40,7 @@ import numpy as np
 from . import plausible
 from ..exceptions import InputError
 from ..guards import check_memory
+from ..inputs import read_json, regular_file
 
 #: Penalty on rotary corrections where the rotary joints hardly move the tool axis (dimensionless, see above).
 DAMPING = 0.2
@@ -380,8 +381,9 @@ def read_table(path, machine) -> Table:
 
     import pandas as pd
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise InputError(f"{path}: compensation table not found")
+    regular_file(path, "a compensation table (CSV or Parquet)")
     try:
         df = pd.read_parquet(path) if path.suffix.lower() in (".parquet", ".pq") else pd.read_csv(path)
     except Exception as exc:   # pandas/pyarrow raise many types for damaged files
@@ -701,7 +703,6 @@ def read_summary(folder) -> dict:
     import json
     from pathlib import Path
 
-    from ..inputs import read_json
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"{folder}: compensation folder not found (write one with `fiveaxis compensate`)")
@@ -724,7 +725,7 @@ def read_summary(folder) -> dict:
         if ".." in Path(rel).parts or Path(rel).is_absolute():
             raise InputError(f"{path}: key {MANIFEST}: {rel!r} is not a file of the folder")
         try:
-            with open(f, "rb") as fh:
+            with open(regular_file(f, "a file summary.json vouches for"), "rb") as fh:
                 digest = hashlib.sha256()
                 for block in iter(lambda: fh.read(1 << 20), b""):
                     digest.update(block)

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError
+from ..inputs import regular_file
 from .column_names import check as check_columns
 
 DEVIATIONS = ("dx", "dy", "dz")
@@ -322,7 +323,7 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     for what, value, allowed in (("setup kind", setup_kind, SETUP_KINDS), ("setup frame", setup_frame, FRAMES)):
         if value is not None and value not in allowed:
             raise InputError(f"unknown {what} '{value}' (expected one of: {', '.join(allowed)})")
-    names, cols, lines, types = _read_table(path)
+    names, cols, lines, types = _read_table(regular_file(path, "a measurement file") if path.exists() else path)
     variables = tuple(machine.variables)
     warnings = check_columns(path, names, variables, READINGS + OPTIONAL)     # misspelled columns (issue 19)
     dir_cols = [c for c in cols if c.startswith("dir_")]
