@@ -23,6 +23,7 @@ Each trial runs `python -m fiveaxis.cli ...` as a subprocess in its own folder, 
     python tests/adversarial.py                      # the full corpus (`make fuzz`), totals per class
     python tests/adversarial.py --pythonpath DIR     # the same against another tree (e.g. the base commit)
     python tests/adversarial.py --only lsa --list    # the trials of one command
+    python tests/adversarial.py --again results.json # the trials that were not ok in an earlier --json
 """
 from __future__ import annotations
 
@@ -397,7 +398,7 @@ MEASUREMENT_FILES = {   # name -> (maker, content, expect)
     "dev zero": ("symlink", "/dev/zero", REFUSE),
     "folder": ("folder", None, REFUSE),
     "parquet bool dx": ("parquet", ("meas.csv", lambda df: df.assign(dx=df["dx"] > 0)), REFUSE),
-    "parquet text X": ("parquet", ("meas.csv", lambda df: df.assign(X=df["X"].astype(str))), REFUSE),
+    "parquet text X": ("parquet", ("meas.csv", lambda df: df.assign(X=df["X"].astype(str))), EITHER),
     "parquet good": ("parquet", ("meas.csv", lambda df: df), OK),
     "radians": ("csv-edit", ("meas.csv", lambda df: df.assign(A=df["A"] / 57.3, B=df["B"] / 57.3)), EITHER),
     "negative L": ("csv-edit", ("meas.csv", lambda df: df.assign(L=-5.0)), REFUSE),
@@ -492,12 +493,14 @@ OPTION_TRIALS = [   # (command argv, expect, names)
         ("--nodes", "X=1e9"), ("--nodes", "X=1"), ("--nodes", "X=0"), ("--nodes", "Q=3"), ("--nodes", "X=2.5"),
         ("--nodes", "X=nan"), ("--nodes", "X"), ("--tool-lengths", "1e9,2e9"), ("--tool-lengths", "100,inf"),
         ("--tool-lengths", "200,100"), ("--tool-lengths", "100"), ("--tool-lengths", "0:100:5"),
-        ("--tool-lengths", "a,b"), ("--damping", "0"), ("--damping", "nan"), ("--damping", "-1"),
+        ("--tool-lengths", "a,b"), ("--damping", "nan"), ("--damping", "-1"),
         ("--damping", "inf"), ("--comp-points", "1"), ("--comp-points", "1000"), ("--poses", "0"),
         ("--poses", "-1"), ("--seed", "-1"), ("--max-nodes", "0"))],
     (["compensate", "{base}/model.json", "-o", "{out}", "--nodes", "X=1e9", "--max-nodes", "2000000000000"], REFUSE,
      ("--nodes", "memory")),
-    *[(["plan", "-o", "{out}/p.csv", o, v], REFUSE, (o,)) for o, v in (
+    (["compensate", "{base}/model.json", "-o", "{out}", "--damping", "0", "--nodes", "X=2,Y=2,Z=2"], EITHER,
+     ("damping",)),
+    *[(["plan", "--n", "10", "-o", "{out}/p.csv", o, v], REFUSE, (o,)) for o, v in (
         ("--n", "0"), ("--n", "-1"), ("--n", "100000000"), ("--seed", "-1"), ("--noise", "nan"), ("--noise", "0"),
         ("--feed", "0"), ("--feed", "inf"), ("--dwell", "-1"), ("--dwell", "nan"), ("--effects", "zz:x1"),
         ("--tool-lengths", "nan"), ("--tool-lengths", "-5"), ("--tool-lengths", "1e9"))],
@@ -685,6 +688,8 @@ def _prepare(trial: Trial, tdir: Path, base: Path, marker: Path) -> dict:
         elif case == "under a file":
             (tdir / "FILE").write_text("x")
             o = tdir / "FILE" / name
+            if "{o}" not in " ".join(trial.argv):     # the command writes into the folder {out}: put that there
+                values["out"] = tdir / "FILE" / "out"
         elif case == "a folder":
             o.mkdir()
             (o / "keep").write_text("x")
@@ -898,11 +903,16 @@ def main(argv=None) -> int:
     ap.add_argument("--pythonpath", default=None, help="PYTHONPATH of the code under test (default: installed)")
     ap.add_argument("--python", default=sys.executable)
     ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("--only", default=None, help="only trials whose id contains this")
+    ap.add_argument("--only", action="append", default=None, help="only trials whose id contains this (repeatable)")
+    ap.add_argument("--again", type=Path, default=None,
+                    help="only the trials that were not ok in a results file of --json (ids as they are now)")
     ap.add_argument("--list", action="store_true", help="list the trials and exit")
     ap.add_argument("--json", type=Path, default=None, help="also write the results as JSON")
     args = ap.parse_args(argv)
-    selected = [t for t in trials() if args.only is None or args.only in t.id]
+    selected = [t for t in trials() if args.only is None or any(o in t.id for o in args.only)]
+    if args.again is not None:
+        bad = {r["id"] for r in json.loads(args.again.read_text()) if r["class"] != "ok"}
+        selected = [t for t in selected if t.id in bad]
     if args.list:
         for t in selected:
             print(f"{t.command:11s} {t.expect:7s} {t.id}")

@@ -15,7 +15,8 @@ from ..exceptions import InputError
 from ..diagnosis import preconditions
 from ..estimation import design_size
 from ..measurement.instruments import NAMES as INSTRUMENTS
-from ..measurement.files import FRAMES, SETUP_KINDS
+from ..measurement.files import (FRAMES, MAX_AXIS_DEVIATION, MAX_DEVIATION_MM, MAX_TOOL_LENGTH_MM,
+                                 SETUP_KINDS)
 
 
 def _common(p, file_arg=True):
@@ -251,8 +252,9 @@ def run_simulate(args) -> int:
             lo, hi = (float(x) for x in args.tool_lengths.split(","))
         except ValueError:
             raise InputError(f"--tool-lengths: expected MIN,MAX in mm, got {args.tool_lengths!r}") from None
-        if not (lo == lo and hi == hi and 0 <= lo <= hi < float("inf")):
-            raise InputError(f"--tool-lengths: expected finite 0 <= MIN <= MAX, got {args.tool_lengths!r}")
+        if not (lo == lo and hi == hi and 0 <= lo <= hi <= MAX_TOOL_LENGTH_MM):
+            raise InputError(f"--tool-lengths: expected 0 <= MIN <= MAX <= {MAX_TOOL_LENGTH_MM:g} mm, got "
+                             f"{args.tool_lengths!r}")
         lengths = (lo, hi)
     if not (args.duration > 0 and args.duration < float("inf")):
         raise InputError(f"--duration: expected a positive, finite time in s, got {args.duration}")
@@ -293,6 +295,7 @@ def run_simulate(args) -> int:
                    instrument=args.instrument, with_axis=args.with_axis, noise_axis=args.noise_axis, plan=plan,
                    setup_scale=args.setup_scale, errors=errors, setup_kind=args.setup_kind, commands=commands)
     meas = sim.meas
+    _check_simulated(meas)
     if commands is not None:
         from ..compensation.table import length_warning
         warn = length_warning(table, meas.L)
@@ -311,6 +314,22 @@ def run_simulate(args) -> int:
           f"hidden effects: {hidden}, {len(meas.setups)} setup(s), seed {args.seed}{comp}{rms}", file=sys.stderr)
     print(f"fiveaxis: wrote {truth_path}: the true values", file=sys.stderr)
     return 0
+
+
+def _check_simulated(meas) -> None:
+    """Simulated readings must be what a measurement file may hold (fiveaxis.measurement.files' bounds): huge
+    --effect or --error values, or tool lengths, would write a file nothing reads back."""
+    for what, values, limit, unit in (("tool-tip deviation", meas.d, MAX_DEVIATION_MM, "mm"),
+                                      ("deviation along u", meas.du, MAX_DEVIATION_MM, "mm"),
+                                      ("tool-axis deviation", meas.dv, MAX_AXIS_DEVIATION, "")):
+        if values is None:
+            continue
+        v = np.abs(np.asarray(values, float))
+        seen = v[~np.isnan(v)]
+        if len(seen) and not (np.all(np.isfinite(seen)) and float(np.max(seen)) <= limit):
+            raise InputError(f"the simulated {what} reaches {float(np.max(seen)):.3g} {unit}, beyond the {limit:g} "
+                             f"{unit} a measurement of a machine tool may hold: the --effect, --error or "
+                             f"--tool-lengths values are not physical")
 
 
 def _plan_from_file(args, model, lengths):

@@ -645,6 +645,13 @@ error_map.png  (with --plot) the predicted tool-tip error over the rotary axes.
 #: The record of a compensate folder, written last, and its key of the other files' SHA-256.
 SUMMARY = "summary.json"
 MANIFEST = "files_sha256"
+#: The keys of summary.json a reader checks before using any (key, type, required); the numbers inside are
+#: checked where they are read (fiveaxis.report.compensation).
+SUMMARY_SCHEMA = (("machine", dict, True), ("table", dict, True), ("predicted_tip_error_mm", dict, True),
+                  ("predicted_axis_error_rad", dict, False), ("linuxcnc", dict, False),
+                  ("not_compensated", dict, False), ("warnings", list, False),
+                  ("predicted_by_tool_length", list, False), (MANIFEST, dict, True))
+_KIND_NAMES = {dict: "an object", list: "a list"}
 
 
 def outputs(folder, plot: bool = False) -> list:
@@ -713,8 +720,15 @@ def read_summary(folder) -> dict:
     data = read_json(path, "the summary.json of `fiveaxis compensate`")
     if not isinstance(data, dict):
         raise InputError(f"{path}: expected a JSON object (the summary.json of `fiveaxis compensate`)")
+    for key, kind, required in SUMMARY_SCHEMA:
+        if key not in data:
+            if required:
+                raise InputError(f"{path}: key {key}: missing (expected the summary.json of `fiveaxis compensate`)")
+            continue
+        if not isinstance(data[key], kind):
+            raise InputError(f"{path}: key {key}: expected {_KIND_NAMES[kind]}, got {type(data[key]).__name__}")
     mach = data.get("machine")
-    if not isinstance(mach, dict) or not all(isinstance(mach.get(k), str) for k in ("name", "sha256")):
+    if not all(isinstance(mach.get(k), str) for k in ("name", "sha256")):
         raise InputError(f"{path}: key machine: expected {{\"name\": ..., \"sha256\": ...}} (strings)")
     manifest = data.get(MANIFEST)
     if not isinstance(manifest, dict) or not manifest or not all(isinstance(v, str) for v in manifest.values()):

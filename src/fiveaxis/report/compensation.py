@@ -34,28 +34,11 @@ def _stats(path, data, key) -> dict:
     return out
 
 
-def _list(path, data, key) -> list:
-    v = data.get(key, [])
-    if not isinstance(v, list):
-        raise InputError(f"{path}: {key}: expected a list")
-    return v
-
-
-def _dict(path, data, key) -> dict:
-    v = data.get(key, {})
-    if not isinstance(v, dict):
-        raise InputError(f"{path}: {key}: expected an object")
-    return v
-
-
 def _by_tool_length(path, data) -> list:
     """Rows of `predicted_by_tool_length` (a table with a tool-length dimension, `compensate --tool-lengths`):
     tool length (mm), whether it is a table node, and the tip error stages {max, rms, p95} (mm)."""
     rows = []
-    rows_in = data.get("predicted_by_tool_length") or []
-    if not isinstance(rows_in, list):
-        raise InputError(f"{path}: predicted_by_tool_length: expected a list")
-    for i, entry in enumerate(rows_in):
+    for i, entry in enumerate(data.get("predicted_by_tool_length") or []):       # a list (read_summary)
         key = f"predicted_by_tool_length[{i}]"
         L = entry.get("tool_length_mm") if isinstance(entry, dict) else None
         if isinstance(L, bool) or not isinstance(L, (int, float)) or not math.isfinite(L) or L <= 0:
@@ -103,8 +86,8 @@ def read(folder, machine_name: str | None = None) -> dict:
     if lc.is_dir():
         files += [f"linuxcnc/{p.name}" for p in sorted(lc.iterdir())]
     out = {"folder": str(folder), "stages": stages, "files": files, "maps": [],
-           "by_tool_length": _by_tool_length(path, data), "warnings": [str(w) for w in _list(path, data, "warnings")],
-           "not_compensated": _dict(path, data, "not_compensated"),
+           "by_tool_length": _by_tool_length(path, data), "warnings": [str(w) for w in data.get("warnings", [])],
+           "not_compensated": data.get("not_compensated", {}),
            "method": "volumetric table solved on the exact model" + (" and LinuxCNC files" if lc.is_dir() else "")}
     f = folder / MAP[0]
     if f.is_file():
