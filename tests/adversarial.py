@@ -444,6 +444,8 @@ SUMMARY_FILES = {   # report --compensation DIR with a malformed summary.json
     "warnings dict": ("json-edit", ("comp/summary.json", lambda d: dict(d, warnings={"a": 1})), REFUSE),
     "fifo": ("fifo", None, REFUSE),
 }
+#: Damage in numbers only the report reads: `simulate --compensation` (the table, checked by its hash) may go on.
+SUMMARY_REPORT_ONLY = {"stats string"}
 
 
 # -- options out of range (no file) ----------------------------------------------------------------------------------------
@@ -600,8 +602,9 @@ def trials() -> list[Trial]:
                                       "{out}/r.html", "--no-sensitivity", "--rounds", "1"]),
                           ("simulate", ["simulate", "--n", "10", "--compensation", "{out}/comp", "-o",
                                         "{out}/s.csv"])):
-            out.append(Trial(f"{cmd} --compensation summary: {name}", cmd, argv, expect, ("summary.json",),
-                             ("summary:" + maker, content)))
+            out.append(Trial(f"{cmd} --compensation summary: {name}", cmd, argv,
+                             EITHER if cmd == "simulate" and name in SUMMARY_REPORT_ONLY else expect,
+                             ("summary.json",), ("summary:" + maker, content)))
     for argv, expect, names in OPTION_TRIALS:
         out.append(Trial(" ".join(argv)[:110], argv[0], argv, expect, names))
     for cmd, (argv, name, by_design) in WRITERS.items():
