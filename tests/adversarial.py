@@ -906,6 +906,7 @@ def main(argv=None) -> int:
     ap.add_argument("--pythonpath", default=None, help="PYTHONPATH of the code under test (default: installed)")
     ap.add_argument("--python", default=sys.executable)
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--timeout", type=float, default=TIMEOUT, help=f"seconds per trial (default {TIMEOUT:g})")
     ap.add_argument("--only", action="append", default=None, help="only trials whose id contains this (repeatable)")
     ap.add_argument("--again", type=Path, default=None,
                     help="only the trials that were not ok in a results file of --json (ids as they are now)")
@@ -921,6 +922,9 @@ def main(argv=None) -> int:
             print(f"{t.command:11s} {t.expect:7s} {t.id}")
         print(f"{len(selected)} trials", file=sys.stderr)
         return 0
+    for t in selected:
+        if not t.kill:
+            t.timeout = args.timeout
     import tempfile
     work = args.work or Path(tempfile.mkdtemp(prefix="fiveaxis-adversarial-"))
     runner = Runner(work, args.python, args.pythonpath)
