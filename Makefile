@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 MACHINE ?= li2018
 
-.PHONY: install system-deps warm run test test-fast test-linuxcnc derive bench lint clean
+.PHONY: install system-deps warm run test test-fast test-linuxcnc fuzz derive bench lint clean
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -56,6 +56,12 @@ test-fast: install warm
 test-linuxcnc: install
 	@scripts/linuxcnc-deps.sh; rc=$$?; if [ $$rc -eq 77 ]; then exit 0; elif [ $$rc -ne 0 ]; then exit $$rc; fi; \
 	$(BIN)/python -m pytest -q --linuxcnc tests/test_linuxcnc.py tests/test_linuxcnc_kins.py
+
+## the adversarial corpus (tests/adversarial.py): every command under hostile files, absurd numbers, symbolic
+## links and kill -9, each trial a subprocess under a memory limit and a timeout; prints the totals per class
+## (the suite runs a fast subset). FUZZ_ARGS: e.g. --only gsa, --jobs 1, --pythonpath OTHER_TREE.
+fuzz: install system-deps
+	nice $(BIN)/python tests/adversarial.py $(FUZZ_ARGS)
 
 ## regenerate the kernels in generated/ from machines/ and print Table 2 (time is printed per machine)
 derive: install

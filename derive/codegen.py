@@ -151,5 +151,6 @@ def generate(machine_ref, out_dir: Path | None = None, conventions=None, file_na
         model = derive_model(machine, conv)
         text = render(model, source, source_label(machine))
         path = out_dir / (file_names or {}).get(conv, f"{module_name(machine.name, conv)}.py")
-        results.append((path, outputs.write_text(path, text, force=True, only_if_changed=True)))
+        results.append((path, outputs.write_text(path, text, force=True, only_if_changed=True,
+                                                 follow_links=False)))
     return results

@@ -95,5 +95,5 @@ def render(machine, name: str, effect_hash: str) -> str:
 
 def generate_effect(machine, name: str, path: Path, effect_hash: str) -> Path:
     """Write the numba module of a custom effect to path (atomically); the runtime chooses path and hash."""
-    outputs.write_text(Path(path), render(machine, name, effect_hash), force=True)
+    outputs.write_text(Path(path), render(machine, name, effect_hash), force=True, follow_links=False)
     return Path(path)

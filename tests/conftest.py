@@ -70,19 +70,24 @@ def rs274():
 def pytest_addoption(parser):
     parser.addoption("--linuxcnc", action="store_true",
                      help="run the tests against the real LinuxCNC (make test-linuxcnc)")
+    parser.addoption("--fuzz", action="store_true",
+                     help="run the full adversarial corpus (tests/adversarial.py; make fuzz)")
 
 
 def pytest_configure(config):
     config.addinivalue_line("markers", "linuxcnc: runs the real LinuxCNC (only with --linuxcnc: make test-linuxcnc)")
+    config.addinivalue_line("markers", "fuzz: the full adversarial corpus (only with --fuzz: make fuzz)")
 
 
 def pytest_collection_modifyitems(config, items):
-    if config.getoption("--linuxcnc"):
-        return
-    skip = pytest.mark.skip(reason="runs the real LinuxCNC: make test-linuxcnc")
-    for item in items:
-        if "linuxcnc" in item.keywords:
-            item.add_marker(skip)
+    for option, keyword, reason in (("--linuxcnc", "linuxcnc", "runs the real LinuxCNC: make test-linuxcnc"),
+                                    ("--fuzz", "fuzz", "the full adversarial corpus: make fuzz")):
+        if config.getoption(option):
+            continue
+        skip = pytest.mark.skip(reason=reason)
+        for item in items:
+            if keyword in item.keywords:
+                item.add_marker(skip)
 
 
 def one_line_error(tmp_path, df, evaluate, match):

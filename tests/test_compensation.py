@@ -78,7 +78,7 @@ def test_model_file_policy_undetermined_is_minimum_norm(fitted):
 
 
 @pytest.mark.parametrize("content, match", [
-    ("not json", "not a fitted-model JSON"),
+    ("not json", "invalid JSON .*expected a fitted-model JSON"),
     ('{"format": "something else"}', "key 'format'"),
     ('{"format": "fiveaxis fitted model", "version": 1}', "missing key 'machine'"),
 ])

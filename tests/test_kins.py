@@ -17,7 +17,6 @@ from fiveaxis.exceptions import InputError
 from fiveaxis.linuxcnc import kinematics as K
 from fiveaxis.linuxcnc import volumetric as VOL
 from fiveaxis.model.error_model import load
-from fiveaxis.outputs import write_folder
 
 @pytest.fixture(scope="module", params=SHIPPED)
 def machine_case(request, tmp_path_factory):
@@ -187,27 +186,3 @@ def test_configuration_files(tmp_path):
                             "$ halcmd show pin fiveaxis_kins"]
     assert "(-650, 650)" in str(VOL.world_limits(load("ac_trunnion"))[0]).replace(".0", "")
 
-
-def test_folder_is_written_whole_or_not_at_all(tmp_path, monkeypatch):
-    target = tmp_path / "volumetric"
-    write_folder(target, {"a.txt": "one", "b.txt": "two"})
-    assert sorted(os.listdir(target)) == ["a.txt", "b.txt"]
-    with pytest.raises(InputError, match="exists"):
-        write_folder(target, {"a.txt": "new"})
-    calls = []
-    real = os.replace
-
-    def interrupted(src, dst):
-        calls.append((src, dst))
-        if len(calls) == 2:                        # between moving the old folder aside and the new one in
-            raise KeyboardInterrupt
-        return real(src, dst)
-    import fiveaxis.outputs as outputs
-    monkeypatch.setattr(outputs.os, "replace", interrupted)
-    with pytest.raises(KeyboardInterrupt):
-        write_folder(target, {"a.txt": "new", "c.txt": "three"}, force=True)
-    monkeypatch.undo()
-    assert sorted(os.listdir(target)) == ["a.txt", "b.txt"] and (target / "a.txt").read_text() == "one"
-    assert os.listdir(tmp_path) == ["volumetric"]
-    write_folder(target, {"a.txt": "new"}, force=True)
-    assert os.listdir(target) == ["a.txt"] and os.listdir(tmp_path) == ["volumetric"]

@@ -117,6 +117,10 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("fiveaxis: interrupted", file=sys.stderr)
         return 130
+    except MemoryError:              # a resource, not a bug: say so on one line (sizes are guarded before work)
+        print(f"fiveaxis: error: {args.command}: out of memory (the run needs more memory than this process may "
+              f"use; make it smaller)", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

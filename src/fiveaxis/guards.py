@@ -8,6 +8,7 @@ argument (`max_size={n}`) unless the caller passes the command-line spelling (e.
 from __future__ import annotations
 
 import math
+import os
 
 from .exceptions import InputError
 
@@ -46,3 +47,48 @@ def check_size(count, what: str, max_size=None, how: str = "max_size={n}", detai
 def _fmt_arg(count) -> str:
     """The smallest limit that admits count, as one would type it."""
     return str(int(count)) if count < 10 ** 15 else f"{float(count):.3g}"
+
+
+def available_memory() -> int:
+    """Bytes of memory available to a new allocation: Linux MemAvailable (else the physical memory), and no more
+    than the address-space limit of this process (ulimit -v) leaves beyond what it already maps."""
+    avail = 2 ** 63
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    avail = int(line.split()[1]) * 1024
+                    break
+    except OSError:
+        try:
+            avail = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        except (ValueError, OSError, AttributeError):
+            pass
+    try:
+        import resource                          # POSIX only
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if soft != resource.RLIM_INFINITY:
+            with open("/proc/self/status") as fh:
+                used = next((int(line.split()[1]) * 1024 for line in fh if line.startswith("VmSize:")), 0)
+            avail = min(avail, max(0, soft - used))
+    except (ImportError, OSError, ValueError):
+        pass
+    return avail
+
+
+#: A run may plan to use at most this share of the available memory (the rest: Python, copies, other programs).
+MEMORY_SHARE = 0.5
+
+
+def check_memory(nbytes, what: str, detail: str = "") -> None:
+    """Raise InputError when an allocation of nbytes (an estimate) would not fit in MEMORY_SHARE of the available
+    memory: one line with the size, how it arises and what is available."""
+    avail = available_memory()
+    if nbytes > MEMORY_SHARE * avail:
+        extra = f" ({detail})" if detail else ""
+        raise InputError(f"{what} would need about {_bytes(nbytes)} of memory{extra}, more than "
+                         f"{MEMORY_SHARE:.0%} of the {_bytes(avail)} available")
+
+
+def _bytes(n) -> str:
+    return f"{n / 1e9:.3g} GB" if n >= 1e8 else f"{n / 1e6:.3g} MB"

@@ -91,12 +91,14 @@ def run_compensate(args) -> int:
         if out.exists():
             raise InputError(f"-o {out}: exists and is not a folder")
         out.mkdir()
+    if args.seed < 0:
+        raise InputError(f"--seed: expected a whole number >= 0, got {args.seed}")
     counts = _counts(args.nodes)
     limit = args.max_nodes if args.max_nodes is not None else C.MAX_NODES
     if limit < 1:
         raise InputError(f"--max-nodes: expected a positive number, got {limit}")
     try:
-        size = math.prod(len(a) for a in C.table_nodes(model.machine, counts, None))
+        size = math.prod(C.table_counts(model.machine, counts, None).values())
     except InputError as exc:
         raise InputError(f"--nodes: {exc}") from None
     lengths = _tool_lengths(args.tool_lengths)

@@ -12,8 +12,11 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError
+from ..diagnosis import preconditions
+from ..estimation import design_size
 from ..measurement.instruments import NAMES as INSTRUMENTS
 from ..model.columns import FRAMES, SETUP_KINDS
+from ..measurement.files import MAX_AXIS_DEVIATION, MAX_DEVIATION_MM, MAX_TOOL_LENGTH_MM
 
 
 def _common(p, file_arg=True):
@@ -148,6 +151,7 @@ def _load(args):
         print(f"fiveaxis: warning: {w}", file=sys.stderr)
     added = machine_effects(model) + list(args.add)
     effects = resolve_effects(model, added)
+    design_size.check(model, meas, effects)          # before a design is built: memory of the setups' unknowns
     return model, meas, effects, _fixed(model, args.fix)
 
 
@@ -228,6 +232,7 @@ def run_diagnose(args) -> int:
     if args.top < 1:
         raise InputError(f"--top: expected a positive number, got {args.top}")
     model, meas, effects, fixed = _load(args)
+    preconditions.check(meas)                        # enough distinct poses for the cross-validation
     with _where_blocks(args) as in_blocks:
         dg = D.diagnose(model, meas, effects, top=args.top, fixed=fixed, in_blocks=in_blocks)
     if args.plot is not None:
@@ -259,8 +264,9 @@ def run_simulate(args) -> int:
             lo, hi = (float(x) for x in args.tool_lengths.split(","))
         except ValueError:
             raise InputError(f"--tool-lengths: expected MIN,MAX in mm, got {args.tool_lengths!r}") from None
-        if not (lo == lo and hi == hi and 0 <= lo <= hi < float("inf")):
-            raise InputError(f"--tool-lengths: expected finite 0 <= MIN <= MAX, got {args.tool_lengths!r}")
+        if not (lo == lo and hi == hi and 0 <= lo <= hi <= MAX_TOOL_LENGTH_MM):
+            raise InputError(f"--tool-lengths: expected 0 <= MIN <= MAX <= {MAX_TOOL_LENGTH_MM:g} mm, got "
+                             f"{args.tool_lengths!r}")
         lengths = (lo, hi)
     if not (args.duration > 0 and args.duration < float("inf")):
         raise InputError(f"--duration: expected a positive, finite time in s, got {args.duration}")
@@ -316,6 +322,7 @@ def run_simulate(args) -> int:
                    setup_scale=args.setup_scale, errors=errors, setup_kind=args.setup_kind, commands=commands,
                    options=options)
     meas = sim.meas
+    _check_simulated(meas)
     if table is not None:
         from ..compensation.table import length_warning
         warn = length_warning(table, meas.L)
@@ -334,6 +341,22 @@ def run_simulate(args) -> int:
           f"hidden effects: {hidden}, {len(meas.setups)} setup(s), seed {args.seed}{comp}{rms}", file=sys.stderr)
     print(f"fiveaxis: wrote {truth_path}: the true values", file=sys.stderr)
     return 0
+
+
+def _check_simulated(meas) -> None:
+    """Simulated readings must be what a measurement file may hold (fiveaxis.measurement.files' bounds): huge
+    --effect or --error values, or tool lengths, would write a file nothing reads back."""
+    for what, values, limit, unit in (("tool-tip deviation", meas.d, MAX_DEVIATION_MM, "mm"),
+                                      ("deviation along u", meas.du, MAX_DEVIATION_MM, "mm"),
+                                      ("tool-axis deviation", meas.dv, MAX_AXIS_DEVIATION, "")):
+        if values is None:
+            continue
+        v = np.abs(np.asarray(values, float))
+        seen = v[~np.isnan(v)]
+        if len(seen) and not (np.all(np.isfinite(seen)) and float(np.max(seen)) <= limit):
+            raise InputError(f"the simulated {what} reaches {float(np.max(seen)):.3g} {unit}, beyond the {limit:g} "
+                             f"{unit} a measurement of a machine tool may hold: the --effect, --error or "
+                             f"--tool-lengths values are not physical")
 
 
 def _plan_from_file(args, model, lengths):

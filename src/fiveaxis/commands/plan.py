@@ -104,7 +104,7 @@ def run_plan(args) -> int:
     from ..model.machine import load_machine
     from ..measurement.files import write
     from ..linuxcnc.program import check_mode, default_mode
-    from ..outputs import write_text
+    from ..outputs import target, write_text
     if args.check is not None:
         return run_check(args)
     for opt, given in (("--poses", args.poses), ("--tool-length", args.tool_length)):
@@ -119,8 +119,7 @@ def run_plan(args) -> int:
     if gcode.resolve() == args.output.resolve():
         raise InputError(f"{gcode}: the G-code program and the poses would be the same file (give --gcode FILE)")
     for path in (args.output, gcode):
-        if path.exists() and not args.force:
-            raise InputError(f"{path}: exists; not overwriting it (use --force to replace it)")
+        target(path, args.force)                   # exists, a dangling link, under a file: refused before work
     if args.n < 1 or args.n > P.MAX_POSES:
         raise InputError(f"--n {args.n}: expected 1 to {P.MAX_POSES} poses (planning chooses the few poses machine "
                          f"time allows; for more, simulate an instrument's standard plan)")
@@ -159,7 +158,7 @@ def run_plan(args) -> int:
         raise InputError(f"the program for this plan would not keep the instrument safe; nothing written: "
                          f"{safety.first_problem(chk)}")
     path = write(P.to_frame(res), args.output, force=args.force)
-    write_text(gcode, text, force=True)
+    write_text(gcode, text, force=args.force)
     print(f"fiveaxis: wrote {path}: {res.n} poses ({instrument}, {res.plan.frame} frame); "
           f"`fiveaxis simulate --poses {path} --machine {args.machine}` simulates them", file=sys.stderr)
     print(f"fiveaxis: wrote {gcode}: the G-code program (LinuxCNC, {mode} kinematics, G21 G90; checked: "

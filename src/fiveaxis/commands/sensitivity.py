@@ -257,6 +257,8 @@ def run_gsa(args) -> int:
     from ..sensitivity import paper as presets
     from ..sensitivity.experiments import scenario_errors
     from ..sensitivity.indices import CHUNK, gsil
+    if args.rot_count < 1:                        # checked even without --compensate: no option is taken unread
+        raise InputError(f"--rot-count: expected at least 1 point per rotary axis, got {args.rot_count}")
     model = _model(args)
     grid, source, L0d, LEd = _grid(args, model)
     model, ev, L0, LE = _setup(args, L0d, LEd)
@@ -380,6 +382,11 @@ def run_lsa(args) -> int:
     from ..sensitivity import paper as presets
     from ..sensitivity.indices import DEFAULT_ORDER, lsil
     from ..guards import check_size
+    for option, value in (("--step-mm", args.step_mm), ("--step-deg", args.step_deg)):
+        if not (value > 0 and math.isfinite(value)):   # checked even without a G-code path: none taken unread
+            raise InputError(f"{option}: expected a positive, finite sampling step, got {value}")
+    if args.positions < 1:
+        raise InputError(f"--positions: expected at least 1, got {args.positions}")
     model = _model(args)
     cone = args.cone
     path_given = args.toolpath is not None or args.pose is not None

@@ -31,16 +31,27 @@ the table's lengths the edge length's values are held (clamped) and `length_warn
 """
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from . import plausible, prediction
+from ..effects.families import TIME, profile_knots, var_token
+from ..estimation.fitted_model import check_model, errors_at, sha256
 from ..exceptions import InputError
+from ..guards import check_memory
+from ..inputs import read_json, regular_file
+from ..linuxcnc import configuration as lx
+from ..linuxcnc import kinematics as lk
+from ..linuxcnc.configuration import MAX_COMP_POINTS, comp_nodes, linuxcnc_commands
 from ..linuxcnc.kinematics import axis_jacobian
+from ..linuxcnc.volumetric import files as volumetric_files
 from ..model.inverse import iterate
-from . import prediction
+from ..outputs import write_set, write_text
 
 #: Penalty on rotary corrections where the rotary joints hardly move the tool axis (dimensionless, see above).
 DAMPING = 0.2
@@ -54,6 +65,8 @@ DEFAULT_LINEAR_NODES = 5
 DEFAULT_ROTARY_STEP_DEG = 10.0
 #: Tables larger than this many nodes are refused unless a larger limit is given.
 MAX_NODES = 200_000
+#: Memory per table node while it is solved and written (bytes; poses, corrections, errors, frames: an estimate).
+BYTES_PER_NODE = 4096
 CHUNK = 20_000
 #: Poses for the predicted error over the workspace.
 ACCOUNT_POSES = 4000
@@ -88,7 +101,6 @@ def tip_error_function(model, errors_fn, L=None):
 
 def fitted_errors(fm, model, t=None):
     """errors_fn of a FittedModel: (positions, dirs) -> (E, dL) (time effects at t, default t = 0)."""
-    from ..estimation.fitted_model import errors_at
 
     def errors_fn(positions, dirs=None):
         return errors_at(fm, model, positions, t=t, dirs=dirs)
@@ -234,9 +246,9 @@ def default_counts(machine) -> dict:
     return out
 
 
-def table_nodes(machine, counts: dict, max_nodes: int | None = MAX_NODES) -> tuple:
-    """Node values per variable (mm, rad) for counts per axis name (others: the defaults); InputError for a count
-    below 2, an unknown axis or a table over max_nodes nodes."""
+def table_counts(machine, counts: dict, max_nodes: int | None = MAX_NODES) -> dict:
+    """Nodes per variable for counts per axis name (others: the defaults), nothing allocated; InputError for a
+    count below 2, an unknown axis, a table over max_nodes nodes or one whose arrays would not fit in memory."""
     unknown = sorted(set(counts) - set(machine.variables))
     if unknown:
         raise InputError(f"table counts: unknown axis {', '.join(unknown)} (expected one of: "
@@ -248,9 +260,16 @@ def table_nodes(machine, counts: dict, max_nodes: int | None = MAX_NODES) -> tup
                              f"nodes over the stroke), got {v}")
         full[k] = int(v)
     size = math.prod(full.values())
+    grid = " x ".join(str(full[v]) for v in machine.variables)
     if max_nodes is not None and size > max_nodes:
-        raise InputError(f"a table of {size} nodes ({' x '.join(str(full[v]) for v in machine.variables)}) is over "
-                         f"the size limit of {max_nodes} nodes")
+        raise InputError(f"a table of {size} nodes ({grid}) is over the size limit of {max_nodes} nodes")
+    check_memory(size * BYTES_PER_NODE, f"a table of {size} nodes ({grid})")
+    return full
+
+
+def table_nodes(machine, counts: dict, max_nodes: int | None = MAX_NODES) -> tuple:
+    """Node values per variable (mm, rad) for counts per axis name (others: the defaults); see table_counts."""
+    full = table_counts(machine, counts, max_nodes)
     return tuple(np.linspace(*machine.axis(v).model_stroke, full[v]) for v in machine.variables)
 
 
@@ -270,6 +289,7 @@ def check_tool_lengths(lengths, key: str = "tool_lengths") -> np.ndarray:
     if np.any(np.diff(a) <= 0):
         raise InputError(f"{key}: expected ascending tool lengths in mm without duplicates, got "
                          f"{', '.join(f'{x:g}' for x in a)}")
+    plausible.check_tool_lengths(a, key)
     return a
 
 
@@ -356,12 +376,12 @@ def table_frame(table: Table):
 def read_table(path, machine) -> Table:
     """A table file (CSV or Parquet, as table_frame writes it) for a machine; InputError if it is not a full grid
     of the machine's variables (and of the tool length, mm, when it has an L column)."""
-    from pathlib import Path
 
     import pandas as pd
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise InputError(f"{path}: compensation table not found")
+    regular_file(path, "a compensation table (CSV or Parquet)")
     try:
         df = pd.read_parquet(path) if path.suffix.lower() in (".parquet", ".pq") else pd.read_csv(path)
     except Exception as exc:   # pandas/pyarrow raise many types for damaged files
@@ -425,7 +445,6 @@ def account(model, errors_fn, table: Table | None, lc=None, n: int = ACCOUNT_POS
     "max_iterations"} of the LinuxCNC kinematics module (compensation.kinematics.predicted): the stage
     `after_kinematics_module`. band: None, or band(q, dirs, L, tip stages, axis stages) -> the prediction's
     uncertainty (compensation.prediction.band), under `uncertainty`."""
-    from ..linuxcnc.configuration import linuxcnc_commands
     q, dirs, Ls, P0, V0, at = _random_poses(model, errors_fn, n, seed, L)
     P, V = at(q)
     tips, axes = {"before": P - P0}, {"before": V - V0}
@@ -528,21 +547,23 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     """The volumetric table, LinuxCNC's parameters and the predicted error account for a fitted model.
     tool_lengths: None (a table for the machine's tool length L0 only, no L column) or at least 2 ascending tool
     lengths (mm): the table gets a tool-length dimension with nodes there (see the module docstring)."""
-    from ..linuxcnc import configuration as lx
-    from ..estimation.fitted_model import check_model
     check_model(fm, model)
     if poses < 1:
         raise InputError(f"poses for the account: expected a positive number, got {poses}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"seed: expected a whole number >= 0, got {seed!r}")
     if damping < 0 or not math.isfinite(damping):
         raise InputError(f"damping: expected a number >= 0, got {damping}")
     lengths = None if tool_lengths is None else check_tool_lengths(tool_lengths)
     errors_fn = fitted_errors(fm, model)
+    grid = table_nodes(model.machine, dict(counts or {}), max_nodes)
+    plausible.check_errors(model, errors_fn, np.stack([m.ravel() for m in np.meshgrid(*grid, indexing="ij")], axis=1),
+                           getattr(fm, "source", "") or "fitted model")
     table, nodes = build_table(model, errors_fn, counts, max_nodes, None, damping, lengths)
     reversal = [v for v in model.variables if _token(model, v) in fm.reversal_variables()]
     points = comp_points or lx.COMP_POINTS
     lc = lx.fit(tip_error_function(model, errors_fn), model, points, reversal=reversal,
                 nodes=profile_nodes(fm, model, points))
-    from ..linuxcnc import kinematics as lk
     from . import kinematics as ck          # below this module's functions: imported here (it imports them)
     values, text, note = None, "", lk.unsupported(model.machine) or ""
     if not note:
@@ -551,8 +572,10 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     band = (lambda q, dirs, Ls, tips, axes: prediction.band(fm, model, q, dirs, Ls, tips, axes,
                                                             fm.fit.get("noise_mm")))
     acc = account(model, errors_fn, table, lc, poses, seed, damping=damping, module=module, band=band)
-    return Compensation(fm, model, table, nodes, lc, acc, float(damping), float(model.machine.tool_length),
+    comp = Compensation(fm, model, table, nodes, lc, acc, float(damping), float(model.machine.tool_length),
                         values, text, note)
+    plausible.check_compensation(comp, lx.files(lc))
+    return comp
 
 
 def profile_nodes(fm, model, points: int) -> dict:
@@ -560,8 +583,6 @@ def profile_nodes(fm, model, points: int) -> dict:
     which the fitted model has per-position profiles (`<param>:<var>k<spacing>`): their knots within the stroke
     and the stroke's ends, so that LinuxCNC's linear interpolation between the file's lines is the profile itself;
     where other effects also vary along that joint (polynomials, periods), `points` evenly spaced positions too."""
-    from ..effects.families import profile_knots
-    from ..linuxcnc.configuration import MAX_COMP_POINTS, comp_nodes
     out = {}
     for v in model.variables:
         tok = _token(model, v)
@@ -581,14 +602,11 @@ def profile_nodes(fm, model, points: int) -> dict:
 
 
 def _token(model, variable):
-    from ..effects.families import var_token
     return var_token(model.machine, variable)
 
 
 def summary(comp: Compensation, model_path: str = "") -> dict:
     """The record of summary.json: explicit keys, mm, rad and degrees as the keys say; no NaN, no null numbers."""
-    from ..linuxcnc import configuration as lx
-    from ..effects.families import TIME
     fm, tab = comp.fm, comp.table
     units = {v: ("deg" if r else "mm") for v, r in zip(tab.variables, tab.rotary)}
     nodes = {}
@@ -600,7 +618,8 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
     dims = (["L"] if tab.tool_lengths is not None else []) + list(tab.variables)
     out = {
         "format": "fiveaxis compensation", "version": 1,
-        "machine": {"name": fm.machine, "file": fm.machine_file, "sha256": fm.machine_sha256},
+        "machine": {"name": fm.machine, "file": str(Path(comp.model.machine.path).resolve()),
+                    "sha256": fm.machine_sha256},
         "convention": fm.convention, "model_file": str(model_path), "tool_length_mm": comp.tool_length,
         "table": {"files": ["table.csv", "table.parquet"], "variables": list(tab.variables), "units": units,
                   "nodes": nodes, "size": int(tab.size), "interpolation": INTERPOLATION,
@@ -652,8 +671,6 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
 
 def module_summary(comp: Compensation) -> dict:
     """summary.json's `kinematics_module`: the LinuxCNC kinematics module written to linuxcnc/volumetric/."""
-    from ..linuxcnc import kinematics as lk
-    from ..linuxcnc.volumetric import files as volumetric_files
     if comp.module is None:
         return {"folder": None, "note": comp.module_note}
     v, acc = comp.module, comp.account.get("kinematics_module", {})
@@ -700,9 +717,20 @@ error_map.png  (with --plot) the predicted tool-tip error over the rotary axes.
 """
 
 
+#: The record of a compensate folder, written last, and its key of the other files' SHA-256.
+SUMMARY = "summary.json"
+MANIFEST = "files_sha256"
+#: The keys of summary.json a reader checks before using any (key, type, required); the numbers inside are
+#: checked where they are read (fiveaxis.report.compensation).
+SUMMARY_SCHEMA = (("machine", dict, True), ("table", dict, True), ("predicted_tip_error_mm", dict, True),
+                  ("predicted_axis_error_rad", dict, False), ("linuxcnc", dict, False),
+                  ("not_compensated", dict, False), ("warnings", list, False),
+                  ("predicted_by_tool_length", list, False), (MANIFEST, dict, True))
+_KIND_NAMES = {dict: "an object", list: "a list"}
+
+
 def outputs(folder, plot: bool = False) -> list:
     """Paths compensate writes into folder."""
-    from pathlib import Path
     folder = Path(folder)
     out = [folder / n for n in ("table.csv", "table.parquet", "summary.json", "README.txt")]
     if plot:
@@ -711,48 +739,89 @@ def outputs(folder, plot: bool = False) -> list:
 
 
 def write(comp: Compensation, folder, force: bool = False, figure=None, model_path: str = "") -> list:
-    """Write the table, summary.json, README.txt, linuxcnc/ (and error_map.png, drawn by figure(comp, path) ->
-    path when given: `fiveaxis.plots.compensation.figure`) into an existing folder; nothing is replaced unless force
-    (checked for every file before the first is written)."""
-    import json
-    from pathlib import Path
+    """Write the table, summary.json, README.txt, linuxcnc/ (with the kinematics module's files in
+    linuxcnc/volumetric/ where there is one) and error_map.png (drawn by figure(comp, path) when given:
+    `fiveaxis.plots.compensation.figure`) into an existing folder; nothing is replaced unless force (checked for
+    every file before the first is written). The folder is written as one set (fiveaxis.outputs.write_set):
+    summary.json last, with the SHA-256 of every other file (files_sha256), which every reader checks
+    (read_summary): a run killed mid-way never leaves a mixed folder that is used."""
 
-    from ..linuxcnc import configuration as lx
-    from ..measurement.files import write as write_frame
-    from ..outputs import target
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"{folder}: output folder not found")
     lcdir = folder / "linuxcnc"
     lfiles = lx.files(comp.lc, f"fitted model {model_path}" if model_path else "")
-    paths = outputs(folder, figure is not None) + [lcdir / n for n in lfiles]
-    for p in paths:
-        target(p, force)
-    vol = volumetric_folder(folder)
-    if comp.module is not None and vol.exists() and not force:
-        raise InputError(f"{vol}: exists; not overwriting it (force=True replaces it)")
-    lcdir.mkdir(exist_ok=True)
     frame = table_frame(comp.table)
-    written = [write_frame(frame, folder / "table.csv", force=force),
-               write_frame(frame, folder / "table.parquet", force=force)]
-    for name, text in lfiles.items():
-        written.append(_written(lcdir / name, text, force=force))
-    if comp.module is not None:
-        from ..linuxcnc.volumetric import files as volumetric_files
-        from ..outputs import write_folder
-        source = f"fitted model {model_path}" if model_path else ""
-        written.append(write_folder(vol, volumetric_files(comp.model, comp.module, comp.module_source, source),
-                                    force=force))
     has_L = comp.table.tool_lengths is not None
     lcol = ("L (the tool length, mm; the slowest-varying: each tool length is a contiguous block), " if has_L
             else "")
-    written.append(_written(folder / "README.txt", README.format(
-        interpolation=INTERPOLATION_L if has_L else INTERPOLATION, lcol=lcol), force=force))
+    readme = README.format(interpolation=INTERPOLATION_L if has_L else INTERPOLATION, lcol=lcol)
+
+    def text(t):
+        return lambda tmp: tmp.write_text(t, encoding="utf-8")
+    files = [(folder / "table.csv", lambda tmp: frame.to_csv(tmp, index=False, float_format="%.10g")),
+             (folder / "table.parquet", lambda tmp: frame.to_parquet(tmp, index=False))]
+    files += [(lcdir / name, text(t)) for name, t in lfiles.items()]
+    files.append((folder / "README.txt", text(readme)))
+    if comp.module is not None:
+        source = f"fitted model {model_path}" if model_path else ""
+        vol = volumetric_folder(folder)
+        files += [(vol / name, text(t)) for name, t in
+                  volumetric_files(comp.model, comp.module, comp.module_source, source).items()]
     if figure is not None:
-        written.append(figure(comp, folder / "error_map.png"))
-    written.append(_written(folder / "summary.json", json.dumps(summary(comp, model_path), indent=1) + "\n",
-                              force=force))
-    return written
+        files.append((folder / "error_map.png", lambda tmp: figure(comp, tmp)))
+    record = summary(comp, model_path)
+
+    def seal(hashes):
+        record[MANIFEST] = {p.relative_to(folder).as_posix(): h for p, h in hashes.items()}
+        return json.dumps(record, indent=1, allow_nan=False) + "\n"
+    return write_set(files, folder / SUMMARY, seal, force=force)
+
+
+def read_summary(folder) -> dict:
+    """The summary.json of a compensate folder, after checking that every file it vouches for (files_sha256) is
+    there as written: InputError naming the file otherwise (a run killed mid-way, a file edited or replaced)."""
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(f"{folder}: compensation folder not found (write one with `fiveaxis compensate`)")
+    path = folder / SUMMARY
+    if not path.exists():
+        raise InputError(f"{path}: not found (a compensate output folder has summary.json; a run killed before "
+                         f"it finished leaves none: run compensate again)")
+    data = read_json(path, "the summary.json of `fiveaxis compensate`")
+    if not isinstance(data, dict):
+        raise InputError(f"{path}: expected a JSON object (the summary.json of `fiveaxis compensate`)")
+    for key, kind, required in SUMMARY_SCHEMA:
+        if key not in data:
+            if required:
+                raise InputError(f"{path}: key {key}: missing (expected the summary.json of `fiveaxis compensate`)")
+            continue
+        if not isinstance(data[key], kind):
+            raise InputError(f"{path}: key {key}: expected {_KIND_NAMES[kind]}, got {type(data[key]).__name__}")
+    mach = data.get("machine")
+    if not all(isinstance(mach.get(k), str) for k in ("name", "sha256")):
+        raise InputError(f"{path}: key machine: expected {{\"name\": ..., \"sha256\": ...}} (strings)")
+    manifest = data.get(MANIFEST)
+    if not isinstance(manifest, dict) or not manifest or not all(isinstance(v, str) for v in manifest.values()):
+        raise InputError(f"{path}: key {MANIFEST}: missing (written by an older fiveaxis, or not by compensate): "
+                         f"run compensate again")
+    for rel, sha in manifest.items():
+        f = folder / rel
+        if ".." in Path(rel).parts or Path(rel).is_absolute():
+            raise InputError(f"{path}: key {MANIFEST}: {rel!r} is not a file of the folder")
+        try:
+            with open(regular_file(f, "a file summary.json vouches for"), "rb") as fh:
+                digest = hashlib.sha256()
+                for block in iter(lambda: fh.read(1 << 20), b""):
+                    digest.update(block)
+        except OSError as exc:
+            raise InputError(f"{f}: {exc.strerror or exc} (summary.json lists it: an incomplete compensation folder; "
+                             f"run compensate again)") from None
+        if digest.hexdigest() != sha:
+            raise InputError(f"{f}: not the file summary.json vouches for (its SHA-256 differs: a compensate run "
+                             f"killed mid-way, or the file edited); run compensate again")
+    return data
 
 
 def report(comp: Compensation, folder="") -> str:
@@ -809,29 +878,18 @@ def report(comp: Compensation, folder="") -> str:
 
 
 def load_table(folder, model) -> Table:
-    """The table of a `compensate` output folder, checked against the model's machine file (summary.json)."""
-    import json
-    from pathlib import Path
+    """The table of a `compensate` output folder, checked against the model's machine file and against
+    summary.json's hashes (read_summary)."""
 
-    from ..estimation.fitted_model import sha256
     folder = Path(folder)
-    if not folder.is_dir():
-        raise InputError(f"{folder}: compensation folder not found (write one with `fiveaxis compensate`)")
-    summ = folder / "summary.json"
-    try:
-        info = json.loads(summ.read_text(encoding="utf-8"))
-        name, sha = info["machine"]["name"], info["machine"]["sha256"]
-    except FileNotFoundError:
-        raise InputError(f"{summ}: not found (a compensate output folder has summary.json)") from None
-    except (ValueError, KeyError, TypeError):
-        raise InputError(f"{summ}: expected the JSON of `fiveaxis compensate` with machine.name and "
-                         f"machine.sha256") from None
+    info = read_summary(folder)
+    name, sha = info["machine"]["name"], info["machine"]["sha256"]
     machine = model.machine
     if name != machine.name or sha != sha256(machine.path):
         raise InputError(f"{folder}: compensation for machine '{name}' (sha256 {str(sha)[:12]}...), not for "
                          f"'{machine.name}' ({machine.path})")
     path = folder / "table.parquet"
-    if not path.exists():
+    if "table.parquet" not in info[MANIFEST]:
         path = folder / "table.csv"
     return read_table(path, machine)
 
@@ -850,13 +908,10 @@ def load_linuxcnc(folder, model):
     compensation files (linuxcnc/joint<N>-<axis>.comp, read as LinuxCNC reads them) and, for a trunnion, the
     kinematics pins, the workpiece origin (G54) and the tool length of summary.json; checked against the model's
     machine file."""
-    import json
-    from pathlib import Path
 
-    from ..linuxcnc import configuration as lx
     folder = Path(folder)
     load_table(folder, model)                     # the folder belongs to this machine file (summary.json)
-    info = json.loads((folder / "summary.json").read_text(encoding="utf-8")).get("linuxcnc", {})
+    info = read_summary(folder).get("linuxcnc", {})
     machine = model.machine
     variables = tuple(model.variables)
     rotary = tuple(machine.axis(v).type == "rotary" for v in variables)
@@ -888,7 +943,6 @@ def linuxcnc_function(folder, model):
     """(poses, L=None, dirs=None) -> the positions the axes go to under LinuxCNC with the files of a compensate
     output folder (kinematics, then the compensation files' forward or reverse trims by the approach direction:
     dirs {axis: (n,) +1/-1}, missing axes forward), mm and rad."""
-    from ..linuxcnc.configuration import linuxcnc_commands
     lc = load_linuxcnc(folder, model)
 
     def commands(poses, L=None, dirs=None):
@@ -903,6 +957,5 @@ def linuxcnc_function(folder, model):
 
 def _written(path, text: str, force: bool = False) -> Path:
     """Write a text file atomically (fiveaxis.outputs) and return its path."""
-    from ..outputs import write_text
     write_text(path, text, force=force)
     return Path(path)

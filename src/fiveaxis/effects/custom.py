@@ -7,6 +7,7 @@ expressions: x y z (mm), A B (rad), t (s); parameters p1, p2, ... enter linearly
 from __future__ import annotations
 
 import hashlib
+import re
 import sys
 from dataclasses import dataclass
 
@@ -18,11 +19,22 @@ from ..model.error_model import _import_file, cache_dir
 
 
 def effect_hash(machine, name: str) -> str:
-    """Cache key of a custom effect: its definition, the variable order and the template."""
+    """Cache key of a custom effect: its definition, the variable order, the template, the generator version and
+    the SymPy version (an upgrade of either derives it anew)."""
     spec = machine.effects[name]
-    text = "\0".join([name, spec["error"], spec["expr"], " ".join(machine.expression_variables)])
+    text = "\0".join([name, spec["error"], spec["expr"], " ".join(machine.expression_variables),
+                      provenance.GENERATOR_VERSION, provenance.sympy_version() or ""])
     template = provenance.TEMPLATES / "effects" / "effect.py.j2"
     return hashlib.sha256(text.encode() + b"\0" + template.read_bytes()).hexdigest()
+
+
+def _header_is(path, h: str) -> bool:
+    """True if the cached module at path carries the effect hash h (read from its text, without running it)."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return False
+    return re.search(rf'^EFFECT_HASH = "{h}"$', text, flags=re.M) is not None
 
 
 @dataclass
@@ -73,8 +85,8 @@ def load_custom(machine, name: str) -> CustomEffect:
     if name not in machine.effects:
         raise InputError(f"{machine.path}: no custom effect '{name}' (expected a table [effects.{name}])")
     h = effect_hash(machine, name)
-    path = cache_dir() / f"effect_{name}_{h[:16]}.py"
-    if not path.exists():
+    path = private_folder(cache_dir()) / f"effect_{name}_{h[:16]}.py"     # a module from there is imported
+    if not _header_is(path, h):                 # missing, damaged or foreign: never imported
         print(f"fiveaxis: deriving custom effect '{name}' of {machine.path} into {path.parent}", file=sys.stderr)
         from fiveaxis_derive.effects import generate_effect   # the user asked for a new effect: derive it
         generate_effect(machine, name, path, h)

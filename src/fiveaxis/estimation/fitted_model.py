@@ -12,7 +12,7 @@ combinations the data determines, listed under `combinations`).
 
 The file is JSON, mm and rad, with the unit in every key that holds a number:
     {"format": "fiveaxis fitted model", "version": 1,
-     "machine": {"name", "file", "sha256"}, "convention",
+     "machine": {"name", "file" (relative to the model file's folder), "sha256"}, "convention",
      "errors_mm_rad": {name: value, ... all errors},  "error_units": {name: "mm" | "rad"},
      "std_mm_rad": {name: standard uncertainty, ... determined parameters only},
      "undetermined": [names], "policy": "...", "combinations": [{"formula", "terms", "value_mm_rad", "std_mm_rad"}],
@@ -27,6 +27,11 @@ machine's parameters (errors, then effect coefficients; zero along what the data
 `undetermined_directions_mm_rad` spans the changes of those parameters the data cannot see (the fit's null space,
 setup placements taken out): what a compensation's prediction cannot know (compensation.prediction). Both are
 optional (model files written before them have neither).
+
+The machine file is read back only as a regular `.toml` file of at most 1 MB (MAX_MACHINE_BYTES), named by
+`machine.file` relative to the model file's folder, or the shipped machine of the same name; its SHA-256 must be
+`machine.sha256` before it is parsed. Anything else (an absolute path, `/dev/zero`, a FIFO, another file) is a
+one-line InputError saying which file and why.
 
 Effects (`fiveaxis.effects.families`: one interface for all kinds; each record is rebuilt from its id and evaluated through
 it). A polynomial effect `<param>:<var><deg>` adds c * u^deg to param, u = (var - centre) / half_range (model units:
@@ -44,6 +49,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -51,9 +57,10 @@ import numpy as np
 
 from ..effects import families as fx
 from ..exceptions import InputError
+from ..inputs import read_bytes, read_json
+from ..model.machine import MACHINES_DIR, MAX_MACHINE_BYTES, machine_from_text
 from ..outputs import write_text
 from ..model import error_model
-from ..model.machine import MACHINES_DIR
 from ..effects.custom import load_custom
 
 FORMAT = "fiveaxis fitted model"
@@ -103,6 +110,7 @@ class FittedModel:
     parameter_names: tuple = ()     # the machine's parameters of the two arrays below: errors, effect coefficients
     covariance: np.ndarray | None = None    # (p, p) mm, rad: the fit's covariance (0 along undetermined directions)
     undetermined_basis: np.ndarray | None = None   # (k, p): orthonormal rows spanning the undetermined changes
+    source: str = ""                # the model file this record was read from ("" for a fit's own record)
 
     @property
     def effect_ids(self) -> tuple[str, ...]:
@@ -225,17 +233,45 @@ def check_model(fm: FittedModel, model, where: str = "model file") -> None:
         raise InputError(f"{where}: errors_mm_rad: the error names differ from the model's")
 
 
+def checked_machine_file(fm: FittedModel, where: str = "model file") -> Path:
+    """The machine file a model file names, checked (see the module docstring): `machine.file` relative to the
+    model file's folder, else the shipped machine of the same name; a regular .toml file of at most
+    MAX_MACHINE_BYTES whose SHA-256 is machine.sha256. InputError saying which file and why otherwise."""
+    named = Path(fm.machine_file)
+    folder = Path(fm.source).parent if fm.source else Path.cwd()
+    why = []
+    candidates = []
+    if named.is_absolute():
+        why.append(f"{named} is an absolute path (a model file names its machine file relative to its own folder)")
+    else:
+        candidates.append(folder / named)
+    shipped = MACHINES_DIR / f"{fm.machine}.toml"
+    if fm.machine and "/" not in fm.machine and shipped.is_file():
+        candidates.append(shipped)
+    for path in candidates:
+        if path.suffix != ".toml" or Path(os.path.realpath(path)).suffix != ".toml":
+            why.append(f"{path}: expected a .toml machine file")
+            continue
+        if not path.exists():
+            why.append(f"{path}: not found")
+            continue
+        try:
+            data = read_bytes(path, "a machine file (TOML)", MAX_MACHINE_BYTES)
+        except InputError as exc:
+            why.append(str(exc))
+            continue
+        if hashlib.sha256(data).hexdigest() != fm.machine_sha256:
+            why.append(f"{path}: not the machine file the model was fitted for (its SHA-256 differs)")
+            continue
+        return path
+    raise InputError(f"{where}: machine.file: {'; '.join(why) or 'no machine file'}; give it as machine=...")
+
+
 def load_model(fm: FittedModel, where: str = "model file"):
-    """The kernels of the machine file the model was fitted for (checked against its SHA-256): machine.file, or a
-    shipped machine of the same name (a model file moved to another checkout)."""
-    path = Path(fm.machine_file)
-    if not path.exists():
-        shipped = MACHINES_DIR / f"{fm.machine}.toml"
-        if not shipped.exists():
-            raise InputError(f"{where}: machine.file: {path} not found (the model was fitted for that machine "
-                             f"file; give it as machine=...)")
-        path = shipped
-    model = error_model.load(str(path), fm.convention)
+    """The kernels of the machine file the model was fitted for (checked_machine_file: checked before it is parsed)."""
+    path = checked_machine_file(fm, where)
+    model = error_model.load(machine_from_text(read_bytes(path, "a machine file (TOML)", MAX_MACHINE_BYTES).decode("utf-8"),
+                                   path), fm.convention)
     check_model(fm, model, where)
     return model
 
@@ -318,7 +354,8 @@ def _clean(x):
     return x
 
 
-def to_json(fm: FittedModel) -> dict:
+def to_json(fm: FittedModel, folder=None) -> dict:
+    """The JSON record of a model file; folder: where the file goes (machine.file is written relative to it)."""
     scales = {}
     for tok, sc in fm.scales.items():
         unit = _SCALE_UNIT[sc.unit]
@@ -339,7 +376,7 @@ def to_json(fm: FittedModel) -> dict:
             rec["std_mm_rad"] = sd
         effects.append(rec)
     out = {"format": FORMAT, "version": VERSION,
-           "machine": {"name": fm.machine, "file": fm.machine_file, "sha256": fm.machine_sha256},
+           "machine": {"name": fm.machine, "file": _relative(fm.machine_file, folder), "sha256": fm.machine_sha256},
            "convention": fm.convention,
            "errors_mm_rad": dict(fm.errors), "error_units": dict(fm.error_units),
            "std_mm_rad": dict(fm.std), "undetermined": list(fm.undetermined), "policy": fm.policy,
@@ -354,9 +391,20 @@ def to_json(fm: FittedModel) -> dict:
     return _clean(out)
 
 
+def _relative(machine_path: str, folder) -> str:
+    """machine_path relative to folder (POSIX separators), as machine.file is written."""
+    if folder is None:
+        return machine_path
+    path = Path(machine_path)
+    if not path.is_absolute() and path.parts and path.parts[0] != "..":
+        return path.as_posix()
+    return Path(os.path.relpath(Path(machine_path).resolve(), Path(folder).resolve())).as_posix()
+
+
 def save(fm: FittedModel, path, force: bool = False) -> Path:
-    """Write the model file (JSON, mm and rad) atomically; an existing file only with force."""
-    write_text(path, json.dumps(to_json(fm), indent=1) + "\n", force=force)
+    """Write the model file (JSON, mm and rad) atomically; an existing file only with force. machine.file is
+    written relative to the model file's folder."""
+    write_text(path, json.dumps(to_json(fm, Path(path).parent), indent=1) + "\n", force=force)
     return Path(path)
 
 
@@ -377,10 +425,7 @@ def load(path) -> FittedModel:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: model file not found")
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"{path}: not a fitted-model JSON file ({str(exc).splitlines()[0]})") from None
+    data = read_json(path, "a fitted-model JSON file (`fiveaxis fit ... -o`)")
     w = str(path)
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise InputError(f"{w}: key 'format': expected \"{FORMAT}\" (write one with `fiveaxis fit ... -o`)")
@@ -444,7 +489,7 @@ def load(path) -> FittedModel:
     fit = data.get("fit", {}) if isinstance(data.get("fit", {}), dict) else {}
     names, cov, basis = _uncertainty(data, w)
     return FittedModel(name, mfile, sha, conv, errors, units, undetermined, std, tuple(effects), scales, combos,
-                       fit, str(data.get("policy", POLICY)), names, cov, basis)
+                       fit, str(data.get("policy", POLICY)), names, cov, basis, str(path))
 
 
 def _matrix(block, key, rows, cols, where) -> np.ndarray:

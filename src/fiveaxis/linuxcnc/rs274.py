@@ -17,6 +17,14 @@ subroutines and loops are the interpreter's. What this module does with the cano
   number as an N word (an existing N word is replaced; N words have no effect on motion), which gives the line
   of every canonical command and of a rejected block.
 * Rejected programs: rs274's message and the line, as a one-line InputError (`prog.ngc: line 3: rs274: ...`).
+* Safety: rs274 runs Python comments and expands subroutine names like a shell, so a program is made inert first
+  (`fiveaxis.linuxcnc.inert`: comments dropped, code-running ones refused, subroutines only from the program
+  itself). rs274 then runs in a temporary folder with a clean environment: HOME and TMPDIR in that folder (rs274
+  truncates `$HOME/.tool.mmap`, the live tool table of a LinuxCNC running for the same user), no PYTHON*
+  variables, no INI file (so no Python plugin, no remapped codes), LC_ALL=C (a decimal comma would misread
+  every number); a parameter file (`var_file`) is copied there (rs274 rewrites the file it is given). Its
+  resources are bounded (`Limits`): CPU time (an endless loop), the size of the canonical output (a loop that
+  prints without end), memory and wall-clock time; exceeding one is a one-line InputError naming the limit.
 
 * Arcs (G2/G3, helices, P turns, R format, any other axis words): this build prints
   `ARC_FEED(first_end, second_end, first_centre, second_centre, rotation, normal_end, a, b, c)` (no U V W), in
@@ -46,13 +54,17 @@ from __future__ import annotations
 import math
 import os
 import re
+import resource
 import shutil
+import signal
 import subprocess
 import tempfile
+import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..exceptions import InputError
+from .inert import inert, split_lines
 
 #: The standalone interpreter of LinuxCNC (Debian package linuxcnc-uspace).
 RS274 = "/usr/bin/rs274"
@@ -60,8 +72,28 @@ RS274 = "/usr/bin/rs274"
 AXES = ("X", "Y", "Z", "A", "B", "C")
 LINEAR = ("X", "Y", "Z")
 MM_PER_INCH = 25.4
-#: Seconds rs274 may take before the run is abandoned (a program with an endless loop).
-TIMEOUT = 300.0
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Resource bounds of one rs274 run. CPU seconds: cpu_base_s + cpu_per_line_s per program line (rs274 takes
+    about 25 us of CPU per line of a plain program; an endless loop stops at the bound); wall-clock seconds:
+    wall_factor times that plus wall_extra_s (a loaded machine); output_bytes: the canonical commands printed
+    (about 80 bytes each); memory_bytes: rs274's address space."""
+    cpu_base_s: float = 5.0
+    cpu_per_line_s: float = 5e-5
+    wall_factor: float = 3.0
+    wall_extra_s: float = 10.0
+    output_bytes: int = 128 * 2 ** 20
+    memory_bytes: int = 2 ** 30
+
+    def cpu_s(self, n_lines: int) -> float:
+        return self.cpu_base_s + self.cpu_per_line_s * n_lines
+
+
+LIMITS = Limits()
+#: Name of the program in rs274's temporary folder: not a possible O-word name, so no `o<...> call` opens it.
+PROGRAM_NAME = "input program.ngc"
 
 _LINE = re.compile(r"^\s*\d+\s+N(\d+|\.\.\.\.\.)\s*([A-Z_0-9]+)\((.*)\)\s*$")
 _NUM = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?(?:nan|inf)", re.IGNORECASE)
@@ -129,7 +161,7 @@ def available(rs274: str = RS274) -> bool:
 def tag_lines(text: str) -> str:
     """The program with every line tagged by its number as an N word (see the module docstring)."""
     out = []
-    for i, line in enumerate(text.splitlines(), 1):
+    for i, line in enumerate(split_lines(text), 1):
         bare = line.strip()
         if not bare or bare.startswith("%"):
             out.append(line)
@@ -170,10 +202,60 @@ def _clip(s: str, n: int = 80) -> str:
     return s if len(s) <= n else s[:n] + "..."
 
 
-def run(path, rs274: str = RS274, var_file=None, timeout: float = TIMEOUT) -> tuple[str, list[str]]:
-    """The one place that runs LinuxCNC's interpreter: `rs274 -g` on a G-code file (its lines tagged with their
-    numbers, so that every canonical command names the line it comes from). Returns (the canonical commands rs274
-    printed, the program's lines); a program it rejects is an InputError with its message and the line."""
+def _environment(home: str) -> dict:
+    """The clean environment of an rs274 run (see the module docstring)."""
+    return {"PATH": "/usr/bin:/bin", "HOME": home, "TMPDIR": home, "LC_ALL": "C", "LANG": "C",
+            "PYTHONNOUSERSITE": "1", "PYTHONDONTWRITEBYTECODE": "1"}
+
+
+def _mb(n: float) -> str:
+    return f"{n / 2 ** 20:g} MB"
+
+
+def _bounded(cmd, cwd: str, out_path: Path, err_path: Path, cpu_s: float, limits: Limits):
+    """Run cmd with stdout and stderr into files, under the CPU, output-size, memory and wall-clock bounds; returns
+    (return code, which bound stopped it or None). The output is watched (rs274's embedded Python ignores SIGXFSZ,
+    so a file-size limit alone only makes its writes fail while it loops on)."""
+    wall = limits.wall_factor * cpu_s + limits.wall_extra_s
+    deadline = time.monotonic() + wall
+    stopped = None
+    with open(out_path, "wb") as out, open(err_path, "wb") as err:
+        proc = subprocess.Popen(cmd, cwd=cwd, stdout=out, stderr=err, stdin=subprocess.DEVNULL,
+                                env=_environment(cwd), start_new_session=True)
+        try:
+            for which, soft, hard in ((resource.RLIMIT_CPU, math.ceil(cpu_s), math.ceil(cpu_s) + 2),
+                                      (resource.RLIMIT_FSIZE, limits.output_bytes, limits.output_bytes),
+                                      (resource.RLIMIT_AS, limits.memory_bytes, limits.memory_bytes),
+                                      (resource.RLIMIT_CORE, 0, 0)):
+                resource.prlimit(proc.pid, which, (soft, hard))
+        except (ProcessLookupError, OSError):
+            pass                                       # it ended already
+        while True:
+            try:
+                rc = proc.wait(timeout=0.2)
+                break
+            except subprocess.TimeoutExpired:
+                if max(out_path.stat().st_size, err_path.stat().st_size) >= limits.output_bytes:
+                    stopped = f"the output limit of {_mb(limits.output_bytes)} of canonical commands"
+                elif time.monotonic() > deadline:
+                    stopped = f"the wall-clock limit of {wall:g} s"
+                if stopped:
+                    os.killpg(proc.pid, signal.SIGKILL)
+                    return proc.wait(), stopped
+    if max(out_path.stat().st_size, err_path.stat().st_size) >= limits.output_bytes:
+        return rc, f"the output limit of {_mb(limits.output_bytes)} of canonical commands"
+    if rc in (-signal.SIGXCPU, -signal.SIGKILL):
+        return rc, f"the CPU-time limit of {math.ceil(cpu_s):g} s"
+    if rc < 0:
+        return rc, f"signal {-rc} (memory limit {_mb(limits.memory_bytes)}?)"
+    return rc, None
+
+
+def run(path, rs274: str = RS274, var_file=None, limits: Limits = LIMITS) -> tuple[str, list[str]]:
+    """The one place that runs LinuxCNC's interpreter: `rs274 -g` on a G-code file, made inert first and run in a
+    clean temporary folder under resource bounds (see the module docstring), its lines tagged with their numbers
+    so that every canonical command names the line it comes from. Returns (the canonical commands rs274 printed,
+    the program's lines); a program it rejects is an InputError with its message and the line."""
     path = Path(path)
     if not available(rs274):
         raise InputError(f"{path}: G-code needs LinuxCNC's interpreter {rs274} (Debian package linuxcnc-uspace: "
@@ -182,27 +264,33 @@ def run(path, rs274: str = RS274, var_file=None, timeout: float = TIMEOUT) -> tu
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a UTF-8 text file (expected a G-code program)") from None
-    lines = text.splitlines()
-    cmd = [rs274, "-g"]
-    if var_file is not None:
-        cmd += ["-v", str(Path(var_file).resolve())]
+    program = inert(text, path)
+    lines = split_lines(text)
+    cpu_s = limits.cpu_s(len(lines))
     with tempfile.TemporaryDirectory(prefix="fiveaxis-rs274-") as cwd:     # rs274 may write files next to it
-        tagged = Path(cwd) / "program.ngc"         # a file, not stdin: from stdin rs274 goes on after an error
-        tagged.write_text(tag_lines(text), encoding="utf-8")
-        try:
-            proc = subprocess.run(cmd + [str(tagged)], capture_output=True, text=True, cwd=cwd,
-                                  timeout=timeout, errors="replace", stdin=subprocess.DEVNULL)
-        except subprocess.TimeoutExpired:
-            raise InputError(f"{path}: rs274 did not finish within {timeout:g} s (an endless loop?)") from None
-    if proc.returncode != 0:
-        raise _rejected(path, proc.stderr, lines)
-    return proc.stdout, lines
+        cmd = [rs274, "-g"]
+        if var_file is not None:                    # a copy: rs274 rewrites the parameter file it is given
+            copy = Path(cwd) / "parameters.var"
+            shutil.copyfile(var_file, copy)
+            cmd += ["-v", str(copy)]
+        tagged = Path(cwd) / PROGRAM_NAME          # a file, not stdin: from stdin rs274 goes on after an error
+        tagged.write_text(tag_lines(program), encoding="utf-8")
+        out_path, err_path = Path(cwd) / "canon.out", Path(cwd) / "canon.err"
+        rc, stopped = _bounded(cmd + [str(tagged)], cwd, out_path, err_path, cpu_s, limits)
+        if stopped:
+            raise InputError(f"{path}: rs274 was stopped at {stopped} for a program of {len(lines)} lines (an "
+                             f"endless loop?)")
+        stdout = out_path.read_text(encoding="utf-8", errors="replace")
+        stderr = err_path.read_text(encoding="utf-8", errors="replace")
+    if rc != 0:
+        raise _rejected(path, stderr, lines)
+    return stdout, lines
 
 
-def interpret(path, rs274: str = RS274, var_file=None, timeout: float = TIMEOUT, probes: bool = False) -> Program:
-    """Run the interpreter on a G-code file; its moves (G0, G1, G2/G3; G38 with probes) in machine axis positions
-    (mm, degrees) and its events."""
-    stdout, lines = run(path, rs274, var_file, timeout)
+def interpret(path, rs274: str = RS274, var_file=None, limits: Limits = LIMITS, probes: bool = False) -> Program:
+    """Run the interpreter on a G-code file (made inert first, under `limits`); its moves (G0, G1, G2/G3; G38 with
+    probes) in machine axis positions (mm, degrees) and its events."""
+    stdout, lines = run(path, rs274, var_file, limits)
     return parse_canon(stdout, path, lines, probes)
 
 

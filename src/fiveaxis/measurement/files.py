@@ -27,6 +27,8 @@ import numpy as np
 from ..exceptions import InputError
 from ..model.columns import (AXIS_DEVIATIONS, BY_NAME, COLUMNS, DEVIATIONS, DIRECTION, DIRECTION_PREFIX, FRAMES, LINE,
                              READINGS, SETUP_KINDS)
+from ..inputs import regular_file
+from .column_names import check as check_columns
 
 #: A rotary column "looks like radians" when every |value| is at most this (degrees would be tiny angles) while
 #: the axis' stroke reaches beyond RADIAN_STROKE degrees.
@@ -355,7 +357,7 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     for what, value, allowed in (("setup kind", setup_kind, SETUP_KINDS), ("setup frame", setup_frame, FRAMES)):
         if value is not None and value not in allowed:
             raise InputError(f"unknown {what} '{value}' (expected one of: {', '.join(allowed)})")
-    names, cols, lines, types = _read_table(path)
+    names, cols, lines, types = _read_table(regular_file(path, "a measurement file") if path.exists() else path)
     variables = tuple(machine.variables)
     _check_header(path, cols, variables, readings_required)
     nrows = len(cols[names[0]]) if names else 0
@@ -367,7 +369,8 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     keep = np.flatnonzero(filled)
     if not len(keep):
         raise InputError(f"{path}: no data rows (expected one row per measured pose under the header)")
-    f = _File(path, cols, lines, types, keep, machine, variables, readings_required, [], {})
+    warnings = check_columns(path, names, variables, tuple(c.name for c in COLUMNS))     # misspelled columns
+    f = _File(path, cols, lines, types, keep, machine, variables, readings_required, warnings, {})
     for column in COLUMNS:                               # the table's columns, one loop
         if column.name in cols:
             f.data[column.name] = f.cells(column)

@@ -9,7 +9,8 @@ from pathlib import Path
 
 from .. import outputs
 from ..exceptions import InputError
-from .machine import Machine, parse_machine
+from ..inputs import read_text
+from .machine import MAX_MACHINE_BYTES, Machine, parse_machine
 
 COMMENT = "Effects added to the geometric model (fiveaxis model add)"
 
@@ -44,7 +45,7 @@ def write_model_effects(machine: Machine, effects, output=None, force: bool = Fa
     output None rewrites the machine file itself (a symbolic link is followed: its target is rewritten, the
     link stays); otherwise output is a new file, replaced only with force=True."""
     source = Path(machine.path)
-    text = source.read_text(encoding="utf-8")
+    text = read_text(source, "a machine file (TOML)", MAX_MACHINE_BYTES)
     if output is not None and Path(output).resolve() == source.resolve():
         raise InputError(f"{output}: is the machine file itself (in_place=True rewrites it)")
     target = source if output is None else Path(output)

@@ -23,7 +23,7 @@ import numpy as np
 from . import provenance
 from ..exceptions import InputError
 from .machine import Machine, data_dir, load_machine, module_name
-from .numba_cache import ensure_writable
+from .numba_cache import ensure_writable, private_folder
 from .iso_names import canonical_keys
 
 
@@ -89,7 +89,7 @@ def _cached_module(machine: Machine, convention: str, derive: bool) -> ModuleTyp
     generator, SymPy): a template change gives a new name, and a file whose hashes do not match is derived anew."""
     key = _expected_hash(machine, convention) or _sha256(machine.path)
     name = f"{module_name(machine.name, convention)}_{key[:16]}"
-    path = cache_dir() / f"{name}.py"
+    path = private_folder(cache_dir()) / f"{name}.py"          # a module from there is imported: ours alone
     if not _header_is_current(path, machine, convention):
         if not derive:
             raise InputError(f"{machine.path}: no generated kernels for this machine file (run `fiveaxis derive "

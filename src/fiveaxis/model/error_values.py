@@ -5,8 +5,10 @@
 * `NAME=VALUE` (mm for translations, rad for rotations);
 * a text file of `NAME=VALUE` or `NAME VALUE` lines (`#` comments);
 * a JSON object `{NAME: VALUE, ...}`;
-* a fitted model file (`fiveaxis fit ... -o model.json`): a JSON object with "machine", "convention" and an
-  "errors_mm_rad" table (the full error vector; used when present) or a "parameters" table
+* a fitted model file (`fiveaxis fit ... -o model.json`): a JSON object with "machine" (a name, or the record
+  {"name", "file", "sha256"} that `fit -o` writes: name and SHA-256 must be those of the machine file of the run),
+  "convention" and an "errors_mm_rad" table (the full error vector; used when present; the coefficients of its
+  "effects" are reported as left out) or a "parameters" table
   {NAME: {"value": number or null, "std": ...}}. A model fitted for another machine, or under another
   convention (the same name then means a different error), is refused. In a "parameters" table, null marks a
   parameter the data could not determine: that error keeps its previous value (the machine file's unless an
@@ -19,6 +21,7 @@ an InputError naming the file and the line or key.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from dataclasses import dataclass, field
@@ -26,6 +29,7 @@ from pathlib import Path
 
 from ..exceptions import InputError
 from . import iso_names as iso
+from ..inputs import read_text
 
 
 @dataclass
@@ -41,7 +45,12 @@ class ErrorValues:
         return "machine file defaults" if not self.sources else list(self.sources)
 
 
-def _number(raw, where: str, name: str) -> float:
+#: Largest error value accepted (mm for translations, rad for rotations): beyond, no machine tool; the products of
+#: the sensitivity integrals would overflow (1e200).
+MAX_VALUE = {"mm": 1e3, "rad": 1.0}
+
+
+def _number(raw, where: str, name: str, unit: str | None = None) -> float:
     if isinstance(raw, bool) or raw is None or isinstance(raw, (list, dict)):
         shown = json.dumps(raw)
         raise InputError(f"{where}: value of {name} must be a number (mm or rad), got {shown}")
@@ -51,6 +60,9 @@ def _number(raw, where: str, name: str) -> float:
         raise InputError(f"{where}: value of {name} must be a number (mm or rad), got {_short(raw)!r}") from None
     if not math.isfinite(v):
         raise InputError(f"{where}: value of {name} must be finite, got {_short(raw)!r}")
+    if unit is not None and abs(v) > MAX_VALUE[unit]:
+        raise InputError(f"{where}: value of {name} must be within +-{MAX_VALUE[unit]:g} {unit} (an error of a "
+                         f"machine tool), got {_short(raw)!r}")
     return v
 
 
@@ -68,7 +80,8 @@ class _Reader:
 
     def put(self, name, raw, where):
         name = iso.canonical(self.model, _short(str(name).strip(), 200), where=where)   # project or ISO 230 name
-        self.out.values[name] = _number(raw, where, name)
+        unit = "rad" if self.model.machine.is_angular(name) else "mm"
+        self.out.values[name] = _number(raw, where, name, unit)
 
     def spec(self, spec: str):
         spec = str(spec)
@@ -78,12 +91,11 @@ class _Reader:
             self.out.sources.append(spec)
             return
         path = Path(spec)
-        if not path.is_file():
+        if not path.exists():
             raise InputError(f"{spec}: not NAME=VALUE and no such file")
-        try:
-            text = path.read_text(encoding="utf-8")
-        except UnicodeDecodeError:
-            raise InputError(f"{path}: not a UTF-8 text file (expected NAME=VALUE lines or a JSON object)") from None
+        text = read_text(path, "NAME=VALUE lines, a JSON object or a fitted model file")
+        if not text.strip():
+            raise InputError(f"{path}: empty (expected NAME=VALUE lines, a JSON object or a fitted model file)")
         if text.lstrip()[:1] in ("{", "["):
             self.json_file(path, text)
         else:
@@ -120,7 +132,9 @@ class _Reader:
 
     def model_file(self, path, data):
         machine = data.get("machine")
-        if machine is not None and machine != self.model.machine.name:
+        if isinstance(machine, dict):                 # a model file of `fit -o`: {"name", "file", "sha256"}
+            self.fitted_machine(path, machine)
+        elif machine is not None and machine != self.model.machine.name:
             raise InputError(f"{path}: key machine: a model of {_short(machine)!r}, not of {self.model.machine.name}")
         conv = data.get("convention")
         if conv is not None and conv != self.model.convention:
@@ -132,6 +146,10 @@ class _Reader:
                 raise InputError(f"{path}: key errors_mm_rad: expected an object {{name: value}}")
             for name, raw in table.items():
                 self.put(name, raw, f"{path}: key errors_mm_rad.{_short(name)}")
+            effects = data.get("effects", [])
+            for e in effects if isinstance(effects, list) else ():
+                coefs = e.get("coefficients_mm_rad") if isinstance(e, dict) else None
+                self.out.left_out.extend(str(n) for n in (coefs if isinstance(coefs, dict) else ()))
             return
         table = data["parameters"]
         if not isinstance(table, dict):
@@ -148,6 +166,21 @@ class _Reader:
                 self.out.kept.append(name)
                 continue
             self.put(name, entry["value"], f"{where}.value")
+
+
+    def fitted_machine(self, path, machine: dict):
+        """The "machine" record of a `fit -o` model file must name this machine file (name and SHA-256)."""
+        machine_now = self.model.machine
+        name, sha = machine.get("name"), machine.get("sha256")
+        if name != machine_now.name:
+            raise InputError(f"{path}: key machine.name: a model of {_short(name)!r}, not of {machine_now.name}")
+        if not isinstance(sha, str):
+            raise InputError(f"{path}: key machine.sha256: expected the SHA-256 of the machine file (a string)")
+        now = hashlib.sha256(Path(machine_now.path).read_bytes()).hexdigest()
+        if sha != now:
+            raise InputError(f"{path}: key machine.sha256: fitted for another version of the machine file "
+                             f"({_short(machine.get('file'))}, sha256 {sha[:12]}...), not for {machine_now.path} "
+                             f"(sha256 {now[:12]}...)")
 
 
 def read(model, specs=()) -> ErrorValues:

@@ -16,9 +16,12 @@ from pathlib import Path
 from . import effect_ids, expressions
 from .columns import DIRECTION_PREFIX, RESERVED
 from ..exceptions import InputError
+from ..inputs import read_text
 from importlib.resources import files
 import numpy as np
 
+#: Largest machine file read (bytes): a real one is a few kB.
+MAX_MACHINE_BYTES = 2 ** 20
 #: Kinds of position-independent error: small rotation about or translation along a local axis.
 PIGE_KINDS = ("rx", "ry", "rz", "tx", "ty", "tz")
 #: Kinds that shift the axis LINE of a rotary axis along a local axis by d: T(d) R(q) T(-d) (rotary axes only).
@@ -272,19 +275,42 @@ def resolve(name_or_path: str | Path) -> Path:
     if not _MODULE_NAME_RE.fullmatch(str(name_or_path)) or not candidate.exists():
         known = ", ".join(sorted(q.stem for q in MACHINES_DIR.glob("*.toml")))
         raise InputError(f"unknown machine '{_short(str(name_or_path))}' (expected a .toml path or one of: {known})")
+    _check_not_shadowed(name_or_path, candidate)
     return candidate
+
+
+def _check_not_shadowed(name: str, shipped: Path) -> None:
+    """A machine named (not a path) is this installation's shipped file; when the folder the command runs in is a
+    checkout (a copy, run with another checkout's installation) whose machines/<name>.toml differs, the user
+    means that file: refuse rather than silently use the installed one and its committed kernels."""
+    local = Path("machines") / f"{name}.toml"
+    try:
+        if not local.is_file() or local.samefile(shipped) or local.stat().st_size > MAX_MACHINE_BYTES:
+            return
+        differs = local.read_bytes() != shipped.read_bytes()
+    except OSError:
+        return
+    if differs:
+        raise InputError(f"machine '{name}': this installation's {shipped} is not ./{local}, which differs (a "
+                         f"copy of a checkout run with another one's installation?); give the file you mean as a "
+                         f"path, e.g. ./{local}")
 
 
 def load_machine(name_or_path: str | Path) -> Machine:
     """Read and check a machine file; any problem is an InputError naming the file and the key."""
     path = resolve(name_or_path)
+    return machine_from_text(read_text(path, "a machine file (TOML)", MAX_MACHINE_BYTES), path)
+
+
+def machine_from_text(text: str, path) -> Machine:
+    """A machine file's text, read from path, parsed and checked (see load_machine)."""
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{path}: not valid TOML: {exc}") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a UTF-8 text file") from None
-    return parse_machine(data, path)
+    except RecursionError:
+        raise InputError(f"{path}: not valid TOML: nested too deeply (expected a machine file)") from None
+    return parse_machine(data, Path(path))
 
 
 def _fail(path, key, msg):

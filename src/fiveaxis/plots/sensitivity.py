@@ -35,7 +35,8 @@ def _colours(n: int):
 def _save(fig, path: Path) -> Path:
     """Write fig as a PNG atomically (`fiveaxis.outputs`), replacing an earlier plot of that name."""
     try:
-        write_with(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight", pad_inches=0.25), force=True)
+        write_with(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight", pad_inches=0.25),
+                   force=True, follow_links=False)
     finally:
         _pyplot().close(fig)
     return Path(path)

@@ -12,10 +12,10 @@ file and the key.
 """
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
+from ..compensation.table import read_summary
 from ..exceptions import InputError
 
 SUMMARY = "summary.json"
@@ -40,7 +40,7 @@ def _by_tool_length(path, data) -> list:
     """Rows of `predicted_by_tool_length` (a table with a tool-length dimension, `compensate --tool-lengths`):
     tool length (mm), whether it is a table node, and the tip error stages {max, rms, p95} (mm)."""
     rows = []
-    for i, entry in enumerate(data.get("predicted_by_tool_length") or []):
+    for i, entry in enumerate(data.get("predicted_by_tool_length") or []):       # a list (read_summary)
         key = f"predicted_by_tool_length[{i}]"
         L = entry.get("tool_length_mm") if isinstance(entry, dict) else None
         if isinstance(L, bool) or not isinstance(L, (int, float)) or not math.isfinite(L) or L <= 0:
@@ -91,17 +91,8 @@ def read(folder, machine_name: str | None = None) -> dict:
     """The compensation summary of a folder, checked; maps come back as {"caption", "file", "png": bytes}."""
     folder = Path(folder)
     path = folder / SUMMARY
-    if not folder.is_dir():
-        raise InputError(f"{folder}: compensation folder not found")
-    if not path.is_file():
-        raise InputError(f"{path}: not found (expected the folder written by `fiveaxis compensate MODEL -o DIR`)")
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: line {exc.lineno} column {exc.colno}: invalid JSON ({exc.msg})") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a UTF-8 text file") from None
-    if not isinstance(data, dict) or not isinstance(data.get("predicted_tip_error_mm"), dict):
+    data = read_summary(folder)                   # every file it vouches for checked against its SHA-256
+    if not isinstance(data.get("predicted_tip_error_mm"), dict):
         raise InputError(f"{path}: predicted_tip_error_mm: missing (expected the summary.json of `fiveaxis "
                          f"compensate`)")
     mach = data.get("machine")
@@ -117,7 +108,11 @@ def read(folder, machine_name: str | None = None) -> dict:
                                range_k2=_range(path, unc, key)))
     if not stages or stages[0]["key"] != "before":
         raise InputError(f"{path}: predicted_tip_error_mm.before: missing")
-    files = [str(f) for f in (data.get("table") or {}).get("files", [])]
+    table = data.get("table")
+    listed = table.get("files", []) if isinstance(table, dict) else None
+    if not isinstance(listed, list):
+        raise InputError(f"{path}: table.files: expected a list of file names")
+    files = [str(f) for f in listed]
     lc = folder / "linuxcnc"
     if lc.is_dir():
         files += [f"linuxcnc/{p.name}" for p in sorted(lc.iterdir())]

@@ -37,6 +37,8 @@ from ..sensitivity.grid import Grid
 from ..sensitivity.indices import gsil
 from . import compensation as C
 from . import figures, iso230
+from ..diagnosis import preconditions
+from ..estimation import design_size
 
 #: Rounds of diagnose -> add the top candidate, at most (as scripts/run-main.sh).
 MAX_ROUNDS = 4
@@ -237,6 +239,8 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
     comp = C.read(compensation, model.machine.name) if compensation is not None else None
     meas = read(data, model.machine, min_rows=2, frame=frame)
     effects = resolve_effects(model, machine_effects(model) + list(added))
+    design_size.check(model, meas, effects)
+    preconditions.check(meas)
     rounds, diags = [], []
     for k in range(1, max_rounds + 1):
         dg = D.diagnose(model, meas, effects, top=TOP)

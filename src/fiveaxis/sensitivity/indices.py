@@ -39,6 +39,8 @@ DEFAULT_ORDER = 8
 REL_TINY = 1e-12
 #: Poses per chunk: bounded memory (~100 MB of pose and index arrays per chunk) whatever the grid size.
 CHUNK = 1 << 20
+#: Largest tool length (mm): beyond, no tool (and the products of the integrals overflow).
+MAX_TOOL_LENGTH_MM = 1e5
 #: Poses of a large grid on which the order-n vs order-2n convergence check is made.
 CHECK_SAMPLE = 4096
 
@@ -47,8 +49,9 @@ def quadrature(L0: float, LE: float, order: int) -> tuple[np.ndarray, np.ndarray
     """Gauss-Legendre nodes (tool lengths, mm) and weights (mm) on [L0 - LE, L0]."""
     if not (isinstance(LE, (int, float)) and math.isfinite(LE) and LE > 0):
         raise InputError(f"LE: the effective cutting length must be a positive number of mm, got {LE}")
-    if not (math.isfinite(L0) and L0 > 0):
-        raise InputError(f"L0: the tool length must be a positive number of mm, got {L0}")
+    if not (math.isfinite(L0) and 0 < L0 <= MAX_TOOL_LENGTH_MM):
+        raise InputError(f"L0: the tool length must be a positive number of mm up to {MAX_TOOL_LENGTH_MM:g}, got "
+                         f"{L0}")
     if LE > L0:
         raise InputError(f"the effective cutting length LE = {LE:g} mm is longer than the tool length L0 = {L0:g} "
                          f"mm: the cutting edge would reach behind the gauge line (tool lengths L0 - LE = "

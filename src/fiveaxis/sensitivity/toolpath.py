@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError
+from ..inputs import regular_file
 from .grid import PoseList
 from ..guards import check_size
 from ..linuxcnc.rs274 import AXES
@@ -93,6 +94,8 @@ def read_csv(path, machine, max_rows: int | None = None) -> Toolpath:
     """A toolpath CSV (see the module docstring); max_rows: refuse longer files (fiveaxis.guards)."""
     path = Path(path)
     variables = machine.variables
+    if path.exists():
+        regular_file(path, "a toolpath CSV")              # a FIFO or a device would block or never end
     try:
         with open(path, newline="", encoding="utf-8") as f:
             reader = csv.reader(f)

@@ -1,0 +1,114 @@
+"""What may be written for a controller: finite, plausible numbers only, or nothing (issue 19, point 5).
+
+A compensation goes into a machine that moves: a NaN in a comp file, a correction of a kilometre or a table that
+makes the tool tip worse than no compensation must never reach it. `check_errors` refuses a fitted model whose
+error values are not those of a machine tool (before any work); `check_compensation` refuses a result that is
+not finite, not plausible or worse than no compensation (before anything is written). Each is a one-line
+InputError saying what, where and the bound. The bounds are data (LIMITS), one checking loop each.
+
+Units: mm and rad in the model; the comp files are in machine units (mm, degrees).
+"""
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+
+from ..exceptions import InputError
+
+#: Bounds, with why. A real machine's geometric errors are micrometres and microradians; location errors of axes
+#: (the machine file's nominal geometry being off) a few mm at most.
+LIMITS = {
+    "error_mm": (10.0, "any translation error of a machine tool"),
+    "error_rad": (0.05, "any angular error of a machine tool (2.9 degrees)"),
+    "tool_length_change_mm": (10.0, "any change of the tool length an effect can make"),
+    "correction_mm": (50.0, "any correction a linear axis needs"),
+    "correction_rad": (0.2, "any correction a rotary axis needs (11 degrees)"),
+    "tool_length_mm": (5000.0, "any tool length"),
+    "worse_factor": (1.0, "the table's RMS tool-tip error over the no-compensation RMS"),
+}
+
+HINT = ("refused: nothing is written for the controller (a model file edited by hand, a fit that failed, or the "
+        "machine file's nominal geometry far off?)")
+
+
+#: A number that is not finite, as Python or C print it, in a file's text.
+NOT_FINITE = re.compile(r"(?<![A-Za-z])[-+]?(nan|inf|infinity)(?![A-Za-z])", re.IGNORECASE)
+
+
+def _pose(model, q) -> str:
+    """A pose for people: mm for linear axes, degrees for rotary ones."""
+    return " ".join(f"{v}={math.degrees(x):.4g}deg" if model.machine.axis(v).type == "rotary" else f"{v}={x:.6g}mm"
+                    for v, x in zip(model.variables, q))
+
+
+def check_tool_lengths(lengths, key: str) -> None:
+    """InputError unless every tool length (mm) is at most LIMITS["tool_length_mm"]."""
+    limit, what = LIMITS["tool_length_mm"]
+    a = np.asarray(lengths, float)
+    if np.any(np.abs(a) > limit):
+        raise InputError(f"{key}: {float(np.max(np.abs(a))):g} mm: more than {limit:g} mm, beyond {what}")
+
+
+def check_errors(model, errors_fn, poses, where: str = "fitted model") -> None:
+    """The fitted errors at poses (n, nvar; mm, rad: e.g. the table's nodes) must be finite and within the
+    bounds of a machine tool's errors (LIMITS); InputError naming the error, its value and the pose otherwise."""
+    E, dL = errors_fn(poses, None)
+    E = np.atleast_2d(np.asarray(E, float))
+    dL = np.broadcast_to(np.asarray(dL, float), (len(poses),))
+    angular = np.array([model.machine.is_angular(n) for n in model.errors])
+    checks = [(E[:, ~angular], [n for n, a in zip(model.errors, angular) if not a], "error_mm", "mm"),
+              (E[:, angular], [n for n, a in zip(model.errors, angular) if a], "error_rad", "rad"),
+              (dL[:, None], ["L"], "tool_length_change_mm", "mm")]
+    for values, names, key, unit in checks:
+        if values.size == 0:
+            continue
+        limit, what = LIMITS[key]
+        bad = ~np.isfinite(values) | (np.abs(values) > limit)
+        if np.any(bad):
+            i, j = np.argwhere(bad)[0]
+            raise InputError(f"{where}: {names[j]} = {values[i, j]:.3g} {unit} at {_pose(model, poses[i])}: more "
+                             f"than {limit:g} {unit}, beyond {what}; {HINT}")
+
+
+def check_compensation(comp, texts: dict) -> None:
+    """A Compensation (fiveaxis.compensation.table) and the texts of its LinuxCNC files: every number finite,
+    corrections within LIMITS, the table not worse than no compensation; InputError otherwise."""
+    tab, model = comp.table, comp.model
+    hint = HINT if comp.damping > 0 else ("refused: nothing is written for the controller (damping 0 leaves the "
+                                          "corrections unbounded near singular poses: use damping > 0)")
+    c = tab.c.reshape(-1, len(tab.variables))
+    for j, (v, rotary) in enumerate(zip(tab.variables, tab.rotary)):
+        key, unit = ("correction_rad", "rad") if rotary else ("correction_mm", "mm")
+        limit, what = LIMITS[key]
+        col = c[:, j]
+        bad = ~np.isfinite(col) | (np.abs(col) > limit)
+        if np.any(bad):
+            i = int(np.flatnonzero(bad)[0])
+            raise InputError(f"compensation table: c_{v} = {col[i]:.3g} {unit} at "
+                             f"{_pose(model, tab.poses()[i])}: more than {limit:g} {unit}, "
+                             f"beyond {what}; {hint}")
+    for comp_file in comp.lc.comps:
+        limit = LIMITS["correction_rad" if comp_file.unit == "deg" else "correction_mm"][0]
+        limit = math.degrees(limit) if comp_file.unit == "deg" else limit
+        for trims in (comp_file.forward, comp_file.reverse):
+            if not np.all(np.isfinite(trims)) or np.max(np.abs(trims)) > limit:
+                raise InputError(f"LinuxCNC comp file of {comp_file.variable}: a trim of "
+                                 f"{float(np.max(np.abs(trims))):.3g} {comp_file.unit} is not finite or beyond "
+                                 f"{limit:g} {comp_file.unit}; {HINT}")
+    for name, text in texts.items():
+        numbers = "\n".join(line for line in text.splitlines() if not line.lstrip().startswith("#"))
+        if NOT_FINITE.search(numbers):
+            raise InputError(f"LinuxCNC file {name}: holds a number that is not finite; {HINT}")
+    tip = comp.account["tip_error_mm"]
+    limit, what = LIMITS["worse_factor"]
+    before, after = tip["before"]["rms"], tip["after_table"]["rms"]
+    if not (math.isfinite(before) and math.isfinite(after)):
+        raise InputError(f"predicted tool-tip error: not finite (before {before:g} mm, after the table {after:g} mm)"
+                         f"; {HINT}")
+    if after > limit * before and after > 1e-6:
+        raise InputError(f"the table would make the tool tip worse than no compensation: RMS {1e3 * after:.4g} um "
+                         f"after it against {1e3 * before:.4g} um without (damping {comp.damping:g}: rotary "
+                         f"corrections near singular poses need damping > 0); refused: nothing is written for the "
+                         f"controller")
