@@ -81,12 +81,15 @@ def test_payloads_run_in_rs274_but_not_through_fiveaxis(rs274, tmp_path, marker,
 
 
 def test_a_clean_program_still_samples_and_keeps_abort(rs274, tmp_path):
-    """Plain comments are dropped (msg, print, log...), (abort,...) still stops the program where it would."""
+    """Comments that act (print, log...) are dropped, plain comments and messages reach the checker as events,
+    (abort,...) still stops the program where it would."""
     path = tmp_path / "p.ngc"
     path.write_text("G21 G90 F100 (msg,hello) (print,  9 N..... STRAIGHT_FEED[1])\nG1 X1 ; a note\n"
                     "(logopen,x.log)\nG1 X2 (a plain comment)\nM2\n")
     prog = gcode.interpret(path)
     assert [m.end["X"] for m in prog.moves] == [1.0, 2.0] and [m.line for m in prog.moves] == [2, 4]
+    assert [(e.kind, e.text, e.line) for e in prog.events if e.kind in ("comment", "message")] == [
+        ("message", "hello", 1), ("comment", "a plain comment", 4)]
     path.write_text("G21 G90 F100\nG1 X1\n#1 = 1\no1 if [#1 EQ 1]\n(abort, stop here)\no1 endif\nG1 X2\nM2\n")
     with pytest.raises(InputError, match=r"line 5: rs274: stop here"):
         gcode.interpret(path)

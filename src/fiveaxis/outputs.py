@@ -55,11 +55,11 @@ def target(path, force: bool = False, follow_links: bool | None = None) -> Path:
     none (for writers that replace their own earlier files whatever force says)."""
     path = Path(path)
     real = Path(os.path.realpath(path)) if path.is_symlink() else path
-    if path.is_symlink() and follow_links is False:
-        raise InputError(f"{path}: a symbolic link (to {real}); not writing through it (a file of ours goes here)")
     if path.is_symlink() and not real.exists() and not force:
         raise InputError(f"{path}: a symbolic link to {real}, which does not exist; not following it "
                          f"(force=True replaces it)")
+    if path.is_symlink() and follow_links is False:
+        raise InputError(f"{path}: a symbolic link (to {real}); not writing through it (a file of ours goes here)")
     if real.is_dir():
         raise InputError(f"{path}: is a folder (expected a file name)")
     check_folder(real.parent)

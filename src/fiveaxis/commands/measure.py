@@ -15,8 +15,7 @@ from ..exceptions import InputError
 from ..diagnosis import preconditions
 from ..estimation import design_size
 from ..measurement.instruments import NAMES as INSTRUMENTS
-from ..model.columns import FRAMES, SETUP_KINDS
-from ..measurement.files import MAX_AXIS_DEVIATION, MAX_DEVIATION_MM, MAX_TOOL_LENGTH_MM
+from ..model.columns import FRAMES, MAX_AXIS_DEVIATION, MAX_DEVIATION_MM, MAX_TOOL_LENGTH_MM, SETUP_KINDS
 
 
 def _common(p, file_arg=True):

@@ -248,7 +248,8 @@ def default_counts(machine) -> dict:
 
 def table_counts(machine, counts: dict, max_nodes: int | None = MAX_NODES) -> dict:
     """Nodes per variable for counts per axis name (others: the defaults), nothing allocated; InputError for a
-    count below 2, an unknown axis, a table over max_nodes nodes or one whose arrays would not fit in memory."""
+    count below 2, an unknown axis, a table over max_nodes nodes or one whose arrays would not fit in memory
+    (max_nodes None: the counts only, for a caller that sizes the table with more dimensions first)."""
     unknown = sorted(set(counts) - set(machine.variables))
     if unknown:
         raise InputError(f"table counts: unknown axis {', '.join(unknown)} (expected one of: "
@@ -263,7 +264,8 @@ def table_counts(machine, counts: dict, max_nodes: int | None = MAX_NODES) -> di
     grid = " x ".join(str(full[v]) for v in machine.variables)
     if max_nodes is not None and size > max_nodes:
         raise InputError(f"a table of {size} nodes ({grid}) is over the size limit of {max_nodes} nodes")
-    check_memory(size * BYTES_PER_NODE, f"a table of {size} nodes ({grid})")
+    if max_nodes is not None:
+        check_memory(size * BYTES_PER_NODE, f"a table of {size} nodes ({grid})")
     return full
 
 

@@ -16,6 +16,7 @@ import numpy as np
 from ..model import provenance
 from ..exceptions import InputError
 from ..model.error_model import _import_file, cache_dir
+from ..model.numba_cache import private_folder
 
 
 def effect_hash(machine, name: str) -> str:

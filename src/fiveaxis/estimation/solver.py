@@ -230,11 +230,13 @@ def groups_and_combinations(idf: Identifiability, theta, cov, names, priority=No
 
 
 def _leads(B: np.ndarray, priority, k: int) -> list[int]:
-    """k columns of B (k, n) that are independent, chosen in order of priority (then by size): greedy
-    Gram-Schmidt on the columns."""
-    order = sorted(range(B.shape[1]), key=lambda j: (priority[j], -np.linalg.norm(B[:, j])))
+    """k columns of B (k, n) that are independent, chosen in order of priority, then by size (to 6 digits: sizes
+    equal but for rounding, as two designs of the same data give them, tie), then by position: greedy Gram-Schmidt
+    on the columns."""
+    size = np.linalg.norm(B, axis=0)
+    scale = np.max(size)
+    order = sorted(range(B.shape[1]), key=lambda j: (priority[j], -round(float(size[j] / scale), 6), j))
     chosen, basis = [], np.zeros((B.shape[0], 0))
-    scale = np.max(np.linalg.norm(B, axis=0))
     for j in order:
         x = B[:, j] - basis @ (basis.T @ B[:, j])
         if np.linalg.norm(x) > 1e-6 * scale:

@@ -21,7 +21,10 @@ the line:
 * comments are read as rs274 reads them: `(` to the next `)` (a `(` inside one, or one never closed, is refused,
   as rs274 refuses it), `;` to the end of the line outside parentheses;
 * a comment LinuxCNC runs as Python (`py,`, `pyrun,`, `pyreload`; also with blanks before the comma) is refused;
-* every other comment is dropped, but `(abort,...)`, kept as written (it stops the program, as on the controller);
+* a comment that acts otherwise (`log...`, `print,`, `debug,`) or follows `;` is dropped; plain comments,
+  `(msg,...)` and `(abort,...)` are kept as written: rs274 reports them as COMMENT and MESSAGE lines (events the
+  measuring-program checker reads, one line each: a comment cannot hold a line feed), and abort stops the program
+  as on the controller;
 * an O-word name (`o<NAME>`) holds letters, digits, `_`, `.` and `-` only (nothing a shell would expand);
 * `o... call` must call a subroutine the program defines (`o... sub`): rs274 never opens another file; a computed
   call `o[...] call` is refused.
@@ -35,8 +38,8 @@ from ..exceptions import InputError
 #: Comments LinuxCNC runs as Python (lowercased text after leading blanks; blanks before the comma are not run by
 #: this build, refused all the same).
 PYTHON_COMMENT = re.compile(r"py(run)?\s*,|pyreload")
-#: The one acting comment kept: it stops the program with its message.
-KEPT_COMMENT = re.compile(r"abort\s*,")
+#: Comments that act on a controller or write into rs274's output (lowercased text after leading blanks): dropped.
+ACTING_COMMENT = re.compile(r"(log\w*|print|debug)\s*(,|$)")
 #: An O-word at the start of a line (after block delete and an N word), blanks removed and lowercased as rs274
 #: reads it: its name (<NAME>, a number, or a computed [expression]) and the keyword after it.
 O_WORD = re.compile(r"/?(?:n[0-9.]*)?o(?:<([^>]*)>|([0-9]+)|(\[[^\]]*\]))([a-z]*)")
@@ -64,7 +67,11 @@ def _comments(line: str, where: str) -> tuple[str, list[str]]:
     while i < len(line):
         c = line[i]
         if c == ";":
-            comments.append(line[i + 1:])
+            comments.append(None)                   # a ';' comment: nothing rs274 reports (';py,' refused below)
+            if PYTHON_COMMENT.match(line[i + 1:].lstrip().lower()):
+                raise InputError(f"{where}: a Python comment ({_clip(line[i + 1:].strip())}): LinuxCNC would run "
+                                 f"it as Python code; fiveaxis does not give it to rs274 (remove it to sample the "
+                                 f"path)")
             break
         if c == "(":
             end = line.find(")", i + 1)
@@ -107,11 +114,11 @@ def inert(text: str, path) -> str:
         code, comments = _comments(line, where)
         kept = []
         for comment in comments:
-            low = comment.lstrip().lower()
+            low = "" if comment is None else comment.lstrip().lower()
             if PYTHON_COMMENT.match(low):
                 raise InputError(f"{where}: a Python comment ({_clip(comment.strip())}): LinuxCNC would run it as "
                                  f"Python code; fiveaxis does not give it to rs274 (remove it to sample the path)")
-            if KEPT_COMMENT.match(low):
+            if comment is not None and not ACTING_COMMENT.match(low):
                 kept.append(f"({comment})")
         bare = re.sub(r"\s+", "", code).lower()
         m = O_WORD.match(bare)

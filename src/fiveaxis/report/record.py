@@ -138,9 +138,8 @@ def _fit_record(model, j: dict, groups_advice) -> dict:
                        "determined": p["determined"], "note": p.get("note", "")})
     combos = []
     for c in j["combinations"]:
-        first = next(iter(c["terms"]))
-        value, unit = people(c["value"], j["parameters"][first]["unit"])
-        std, _ = people(c["std"], j["parameters"][first]["unit"])
+        value, unit = people(c["value"], c["unit"])
+        std, _ = people(c["std"], c["unit"])
         combos.append({"formula": c["formula"], "formula_iso": _iso_formula(model, c["terms"]), "value": value,
                        "u_k2": 2 * std, "unit": unit, "note": c.get("note", "")})
     quantities = []

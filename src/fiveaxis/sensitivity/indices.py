@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..exceptions import InputError
+from ..model.columns import MAX_TOOL_LENGTH_MM     # beyond, no tool (and the integrals' products overflow)
 from .grid import Grid, GridAxis
 from ..progress import bar
 from ..guards import check_size
@@ -39,8 +40,6 @@ DEFAULT_ORDER = 8
 REL_TINY = 1e-12
 #: Poses per chunk: bounded memory (~100 MB of pose and index arrays per chunk) whatever the grid size.
 CHUNK = 1 << 20
-#: Largest tool length (mm): beyond, no tool (and the products of the integrals overflow).
-MAX_TOOL_LENGTH_MM = 1e5
 #: Poses of a large grid on which the order-n vs order-2n convergence check is made.
 CHECK_SAMPLE = 4096
 
