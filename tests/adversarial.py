@@ -82,6 +82,9 @@ def make_base(base: Path, run) -> None:
         (["compensate", "{base}/model.json", "-o", "{base}/comp", "--nodes", "X=2,Y=2,Z=2", "--poses", "200",
           "--comp-points", "9"], "comp/summary.json"),
         (["plan", "--n", "12", "-o", "{base}/plan.csv"], "plan.csv"),
+        (["simulate", "--instrument", "interferometer", "--n", "200", "--seed", "3", "--effect", "dx_x:x1=0.005",
+          "-o", "{base}/iso2.csv"], "iso2.csv"),
+        (["simulate", "--instrument", "ballbar", "--n", "200", "--seed", "4", "-o", "{base}/iso4.csv"], "iso4.csv"),
     ]
     (base / "comp").mkdir(exist_ok=True)
     for argv, made in steps:
@@ -421,6 +424,20 @@ POSE_FILES = {   # simulate --poses: a file of poses
     "empty": ("text", "", REFUSE), "fifo": ("fifo", None, REFUSE), "dev zero": ("symlink", "/dev/zero", REFUSE),
     "binary": ("bytes", bytes(range(256)) * 16, REFUSE), "good": ("copy", "{base}/plan.csv", OK),
 }
+ISO_FILES = {   # iso230-2 / iso230-4: hostile variants of an interferometer's and a ballbar's files ({which} the base)
+    "NaN du": ("csv-edit", ("{which}.csv", _cell("du", "nan")), REFUSE),
+    "1e300 du": ("csv-edit", ("{which}.csv", _cell("du", 1e300)), REFUSE),
+    "no du": ("csv-edit", ("{which}.csv", lambda df: df.drop(columns=["du"])), REFUSE),
+    "direction zero": ("csv-edit", ("{which}.csv", lambda df: df.assign(ux=0.0, uy=0.0, uz=0.0)), REFUSE),
+    "tip readings": ("copy", "{base}/meas.csv", REFUSE),
+    "one row": ("csv-edit", ("{which}.csv", lambda df: df.head(1)), REFUSE),
+    "text X": ("csv-edit", ("{which}.csv", _cell("X", "x")), REFUSE),
+    "empty": ("text", "", REFUSE), "fifo": ("fifo", None, REFUSE), "dev zero": ("symlink", "/dev/zero", REFUSE),
+    "binary": ("bytes", bytes(range(256)) * 16, REFUSE),
+    "rounded": ("csv-edit", ("{which}.csv", lambda df: df.round(4)), OK),
+    "good": ("copy", "{base}/{which}.csv", OK),
+}
+ISO_COMMANDS = {"iso230-2": ("iso2", ["iso230-2", "{f}"]), "iso230-4": ("iso4", ["iso230-4", "{f}", "--rounds", "1"])}
 TOOLPATH_CSV = {   # lsa --toolpath X.csv
     "NaN": ("text", "X,Y,Z,A,B\n0,0,0,0,0\nnan,0,0,0,0\n", REFUSE),
     "1e300": ("text", "X,Y,Z,A,B\n0,0,0,0,0\n1e300,0,0,0,0\n", REFUSE),
@@ -468,6 +485,12 @@ OPTION_TRIALS = [   # (command argv, expect, names)
                                                  ("--segments", "-1"), ("--normal-mode", "2"),
                                                  ("--surface", "sphere:nan,0,0"), ("--surface", "bogus:1"))],
     (["lsa", "--pose", "X=1e300,Y=0,Z=0,A=0,B=0"], REFUSE, ("--pose",)),
+    *[(["iso230-2", "{base}/iso2.csv", o, v], REFUSE, (o,)) for o, v in (
+        ("--tolerance", "0"), ("--tolerance", "-1"), ("--tolerance", "nan"), ("--u-device", "-1"),
+        ("--u-device", "inf"), ("--temperature-deviation", "nan"), ("--expansion-ppm-per-K", "1e300"),
+        ("--misalignment", "-1"), ("--drift", "nan"), ("--frame", "sideways"))],
+    *[(["iso230-4", "{base}/iso4.csv", o, v], REFUSE, (o,)) for o, v in (
+        ("--rounds", "-1"), ("--rounds", "x"), ("--feed", "0"), ("--feed", "nan"), ("--feed", "-5"))],
     (["lsa", "--pose", "X=nan,Y=0,Z=0,A=0,B=0"], REFUSE, ("--pose",)),
     (["lsa", "--pose", "X=0,Y=0"], REFUSE, ("--pose",)),
     (["lsa", "--pose", "X=0,Y=0,Z=0,A=0,B=0,nx=0,ny=0,nz=0"], REFUSE, ("--pose", "normal")),
@@ -545,6 +568,7 @@ WRITERS = {
     "compensate": (["compensate", "{base}/model.json", "-o", "{out}", "--nodes", "X=2,Y=2,Z=2", "--poses", "200",
                     "--comp-points", "9"], "table.csv", ()),
     "derive": (["derive", "{base}/planar.toml", "--out", "{out}"], "planar.py", ("exists",)),
+    "iso230-2 --plot": (["iso230-2", "{base}/iso2.csv", "--plot", "{out}"], "iso230-2_X_laser-X.png", ("exists",)),
 }
 OUTPUT_CASES = ("dangling link", "link to a file", "under a file", "a folder", "exists")
 #: kill -9 while writing: (id, argv, reader argv, files that must come from one run); killed the moment a file in
@@ -593,6 +617,12 @@ def trials() -> list[Trial]:
     for name, (maker, content, expect) in POSE_FILES.items():
         out.append(Trial(f"simulate --poses: {name}", "simulate", ["simulate", "--poses", "{f}", "-o", "{out}/s.csv"],
                          expect, ("{f}", "column", "row"), (maker, content), suffix=".csv"))
+    for name, (maker, content, expect) in ISO_FILES.items():
+        for cmd, (which, argv) in ISO_COMMANDS.items():
+            what = (content[0].format(which=which), content[1]) if maker == "csv-edit" else \
+                content.replace("{which}", which) if isinstance(content, str) else content
+            out.append(Trial(f"{cmd} measurements: {name}", cmd, argv, expect, ("{f}", "column", "row", "du"),
+                             (maker, what), suffix=".csv"))
     for name, (maker, content, expect) in TOOLPATH_CSV.items():
         out.append(Trial(f"lsa toolpath csv: {name}", "lsa", ["lsa", "--toolpath", "{f}"], expect,
                          ("{f}", "row", "column"), (maker, content), suffix=".csv"))
