@@ -115,7 +115,7 @@ def test_lead_screw_profile_offered_and_residual_at_the_noise(model, lead_screw)
     assert first.missing_effect and "dx_x:xr" in {i for c in first.candidates for i in (c["id"], *c["aliases"])}
     dg = D.diagnose(model, meas, ["dx_x:xr"], top=3)
     top = dg.candidates[0]
-    assert dg.missing_effect and top["id"] == "dx_x:xk100" and top["family"] == "custom"
+    assert dg.missing_effect and top["id"] == "dx_x:xk100" and top["family"] == "profile"
     assert len(top["coefficients"]) == 9 and top["rms_mm"] <= 1.25 * NOISE
     after = D.diagnose(model, meas, ["dx_x:xr", "dx_x:xk100"], top=3)
     assert after.verdict == "no missing effect" and after.rms_mm_without_outliers <= 1.25 * NOISE
@@ -131,7 +131,7 @@ def test_lead_screw_comp_file_leaves_the_noise(model, lead_screw, tmp_path):
     path = MF.save(fm, tmp_path / "model.json")
     fm = MF.load(path)                                                # through the file
     assert [e.kind for e in fm.effects] == ["reversal", "profile"] and fm.effects[1].arg == 100.0
-    comp = CT.compensate(fm, model, counts={v: 2 for v in model.variables}, poses=200)
+    comp = CT.compensate(fm, model, counts={v: 9 if v == "X" else 2 for v in model.variables}, poses=200)  # X: knots
     (tmp_path / "comp").mkdir()
     CT.write(comp, tmp_path / "comp")
     nominal, fwd, rev = lx.read_comp_file(tmp_path / "comp" / "linuxcnc" / "joint0-X.comp")
@@ -157,7 +157,7 @@ def test_lead_screw_through_the_command_line(model, lead_screw, tmp_path, capsys
                            "dx_x:xk100", "-o", tmp_path / "m.json")
     assert rc == 0, err
     rc, out, err = run_cli(capsys, "compensate", tmp_path / "m.json", "-o", tmp_path / "c", "--nodes",
-                           "X=2,Y=2,Z=2,A=2,C=2", "--poses", "100")
+                           "X=9,Y=2,Z=2,A=2,C=2", "--poses", "100")
     assert rc == 0, err
     rc, out, err = run_cli(capsys, "simulate", "--machine", "ac_trunnion", "--instrument", "interferometer",
                            "--axes", "X", "--targets", "9", "--effect", "dx_x:xr=0.0125", "--seed", "3", "-o",

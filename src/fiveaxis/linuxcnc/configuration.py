@@ -295,9 +295,9 @@ def periodic_extension(nodes, *curves, max_lines: int = MAX_COMP_POINTS):
     return (nominal, *out)
 
 
-def _roughness(blocks, n_trt: int, n_par: int, norms, periodic) -> np.ndarray:
-    """Rows of SMOOTHING x (second differences of every trim curve), each scaled by its block's typical design
-    column norm; a full-turn joint's curve wraps around (its last node is its first)."""
+def _roughness(blocks, n_trt: int, n_par: int, norms, periodic, smooth) -> np.ndarray:
+    """Rows of SMOOTHING x (second differences of every trim curve of a joint with smooth[j]), each scaled by its
+    block's typical design column norm; a full-turn joint's curve wraps around (its last node is its first)."""
     rows = []
     k = n_trt
     for what, j, keep in blocks:
@@ -305,6 +305,8 @@ def _roughness(blocks, n_trt: int, n_par: int, norms, periodic) -> np.ndarray:
         col = np.full(points, -1)
         col[keep] = np.arange(k, k + keep.sum())
         k += int(keep.sum())
+        if not smooth[j]:
+            continue
         if periodic[j]:
             col[-1] = col[0]
         scale = SMOOTHING * float(np.median(norms[col[keep]]))
@@ -329,7 +331,8 @@ def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None,
     belong at given positions (the knots of a per-position profile), instead of `points` evenly spaced ones.
     Least squares over `samples` random poses (seeded), linearised with the
     nominal Jacobian, then two refinement steps on the exact tip errors; the trim curves' second differences are
-    penalised (SMOOTHING), so that they follow the model, not the sampling of the poses. A full-turn rotary axis
+    penalised (SMOOTHING), so that they follow the model, not the sampling of the poses (not at given nodes: a
+    per-position profile is piecewise linear between its knots, its trims as rough as it is). A full-turn rotary axis
     (C of a trunnion) gets a periodic curve (equal at -180 and 180 degrees), written over as many turns as a comp
     file holds (periodic_extension): LinuxCNC holds the end values beyond the file's nominals."""
     if not 2 <= points <= MAX_COMP_POINTS:
@@ -405,7 +408,7 @@ def fit(tip_error, model, points: int = COMP_POINTS, samples: int | None = None,
     D = np.concatenate([c if c.ndim == 3 else c[:, :, None] for c in cols], axis=2).reshape(3 * samples, n_par)
     norms = np.linalg.norm(D, axis=0)
     norms[norms == 0] = 1.0
-    R = _roughness(blocks, n_trt, n_par, norms, periodic)
+    R = _roughness(blocks, n_trt, n_par, norms, periodic, [v not in given for v in variables])
     U, S, Vt = np.linalg.svd(np.vstack([D, R]) / norms, full_matrices=False)
     keep = S > 1e-10 * S[0]
     U, S, Vt = U[:, keep], S[keep], Vt[keep]
