@@ -4,7 +4,8 @@ import pytest
 
 from fiveaxis.exceptions import InputError
 from fiveaxis.measurement.column_names import looks_like
-from fiveaxis.measurement.files import OPTIONAL, READINGS, read
+from fiveaxis.measurement.files import read
+from fiveaxis.model.columns import COLUMNS
 from fiveaxis.model.machine import load_machine
 
 from conftest import ROOT, run_cli
@@ -49,7 +50,7 @@ def test_other_columns_are_left_alone(tmp_path, li):
     path = tmp_path / "m.csv"
     df.to_csv(path, index=False)
     assert read(path, li).warnings == []
-    known = (*li.variables, *READINGS, *OPTIONAL)
+    known = (*li.variables, *(c.name for c in COLUMNS))
     assert [looks_like(c, known) for c in ("dz_raw", "dt", "dxy", "dd")] == [None] * 4
 
 

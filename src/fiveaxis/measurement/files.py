@@ -359,6 +359,7 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
             raise InputError(f"unknown {what} '{value}' (expected one of: {', '.join(allowed)})")
     names, cols, lines, types = _read_table(regular_file(path, "a measurement file") if path.exists() else path)
     variables = tuple(machine.variables)
+    warnings = check_columns(path, names, variables, tuple(c.name for c in COLUMNS))     # misspelled columns
     _check_header(path, cols, variables, readings_required)
     nrows = len(cols[names[0]]) if names else 0
     # Rows that are entirely empty (blank lines) are skipped; row numbers stay those of the file.
@@ -369,7 +370,6 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     keep = np.flatnonzero(filled)
     if not len(keep):
         raise InputError(f"{path}: no data rows (expected one row per measured pose under the header)")
-    warnings = check_columns(path, names, variables, tuple(c.name for c in COLUMNS))     # misspelled columns
     f = _File(path, cols, lines, types, keep, machine, variables, readings_required, warnings, {})
     for column in COLUMNS:                               # the table's columns, one loop
         if column.name in cols:
