@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 MACHINE ?= li2018
 
-.PHONY: install system-deps warm run test test-fast test-linuxcnc fuzz derive bench lint clean
+.PHONY: install system-deps warm run test test-fast test-scale test-linuxcnc fuzz derive bench lint clean
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -41,14 +41,18 @@ PYTEST := $(BIN)/python -m pytest -q -n 2 --dist loadfile
 warm: install
 	@$(BIN)/python scripts/warm-kernels.py
 
-## everything, as CI runs it (the slow tests too: large sets, Dask clusters, the wheel, the browser, full grids)
+## everything but the scale tests (the slow ones too: the browser, full grids, null-set series)
 test: install system-deps warm
-	$(PYTEST)
+	$(PYTEST) -m "not scale"
 	$(BIN)/lint-imports
+
+## the scale tests: 400,000 poses in row blocks, Dask clusters, the installed wheel (CI runs them after make test)
+test-scale: install warm
+	$(PYTEST) -m scale
 
 ## the loop of a developer: everything but the tests marked slow
 test-fast: install warm
-	$(PYTEST) -m "not slow"
+	$(PYTEST) -m "not slow and not scale"
 	$(BIN)/lint-imports
 
 ## against the real LinuxCNC 2.9 (Debian linuxcnc-uspace, installed when missing; skipped with a one-line

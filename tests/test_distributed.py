@@ -38,7 +38,7 @@ def test_reduce_grid_drops_axes_absent_from_J_exactly(model):
     assert reduce_grid(model, poses) == (poses, 1)
 
 
-@pytest.mark.slow
+@pytest.mark.scale
 def test_local_cluster_equals_single_process(model):
     grid = _grid()
     single = gsil(model, grid, order="exact", check=False, progress=False)
@@ -67,7 +67,7 @@ def test_bad_options_are_one_line_errors(model):
     assert to_command_line(str(exc.value)).startswith("--worker-kernel: expected")
 
 
-@pytest.mark.slow
+@pytest.mark.scale
 def test_cli_on_local_workers_matches_gsa(model, capsys):
     """`fiveaxis dask` (2 local worker processes) prints the same indices as `fiveaxis gsa --order exact`."""
     import json

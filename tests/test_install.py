@@ -78,7 +78,7 @@ def installed():
         shutil.rmtree(base, ignore_errors=True)
 
 
-@pytest.mark.slow
+@pytest.mark.scale
 def test_wheel_holds_the_data_packages(installed):
     _, _, site, wheel = installed
     for rel in ("fiveaxis_machines/li2018.toml", "fiveaxis_machines/ac_trunnion.toml",
@@ -89,7 +89,7 @@ def test_wheel_holds_the_data_packages(installed):
     assert wheel.name.startswith("fiveaxis-0.1.0-")
 
 
-@pytest.mark.slow
+@pytest.mark.scale
 def test_installed_package_diagnoses_the_example_read_only(installed):
     base, venv, site, _ = installed
     work = base / "work"

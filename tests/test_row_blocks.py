@@ -155,7 +155,7 @@ def test_diagnose_in_blocks_without_sigma_null_and_periodic(tmp_path, small_bloc
     assert pb == pytest.approx(pa, rel=2e-3) and pa == pytest.approx(400, rel=2e-3)
 
 
-@pytest.mark.slow
+@pytest.mark.scale
 def test_blocks_on_a_dask_cluster_give_the_single_process_result(tmp_path, small_blocks):
     path = simulate(tmp_path, "d.csv", "--machine", "li2018", "--n", "2500", "--effect", "ex_x:x1",
                     "--with-sigma", "--seed", "14")
@@ -186,7 +186,7 @@ def test_blocks_on_a_dask_cluster_give_the_single_process_result(tmp_path, small
     assert jc["rms_mm"] == pytest.approx(jl["rms_mm"], rel=1e-9)
 
 
-@pytest.mark.slow
+@pytest.mark.scale
 def test_diagnose_of_400000_poses_runs_in_blocks(tmp_path):
     """Issue 13: `diagnose` on 400,000 poses ended in `Unable to allocate 6.76 GiB`. Now in row blocks; the
     hidden effect is found. (Time and memory: bench/bench_scale.py.)"""

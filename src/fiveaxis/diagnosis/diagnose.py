@@ -53,6 +53,9 @@ VERDICTS = ("missing effect", "no missing effect", "unexplained structure")
 SCREEN_SINGLES = 24
 #: Periodic candidates of a row-block screen decided on all readings.
 SCREEN_BLOCKS = 8
+#: Per-position profiles of a row-block screen decided on all readings (the best by extended BIC on the sample;
+#: each is a column per knot, and deciding all of them on 400,000 poses cost 4 minutes of QR).
+SCREEN_PROFILES = 4
 
 
 # -- the record ------------------------------------------------------------------------------------------------
@@ -200,13 +203,14 @@ def unseen(res: FitResult) -> set:
 
 def _items(pool: cd.Pool, keep) -> list:
     """The candidates of a pool for the decision: [(effect, family, fold or None)], the screen's choice keep
-    (indices of singles and of periodic effects) or all of them."""
+    (indices of singles, of periodic effects and of profiles) or all of them."""
     singles = range(len(pool.singles)) if keep is None else keep[0]
     periodic = range(len(pool.periodic)) if keep is None else keep[1]
+    profiles = range(len(pool.profiles)) if keep is None else keep[2]
     items = [(pool.singles[j], str(pool.single_family[j]), None) for j in singles]
     items += [(pool.periodic[b], "periodic", None) for b in periodic]
     items += [(e, "custom", None) for e in pool.customs]
-    items += [(e, "profile", None) for e in pool.profiles]
+    items += [(pool.profiles[j], "profile", None) for j in profiles]
     items += [(x.effect, fam, f) for f, found in enumerate(pool.fold_found) for fam, x in found]
     return items
 
@@ -214,7 +218,7 @@ def _items(pool: cd.Pool, keep) -> list:
 def _cut(pool: cd.Pool, sc: Screen, known: bool):
     """The row-block screen's choice: the SCREEN_SINGLES best one-column candidates by extended BIC on the sample
     and the SCREEN_BLOCKS best periodic ones, each with its aliases on the sample (so that the most plausible
-    member of an alias set heads it, as in memory)."""
+    member of an alias set heads it, as in memory), and the SCREEN_PROFILES best profiles."""
     N = len(sc.rw)
     rss = float(sc.rw @ sc.rw)
     singles = set()
@@ -233,7 +237,15 @@ def _cut(pool: cd.Pool, sc: Screen, known: bool):
         top = order[:SCREEN_BLOCKS]
         periodic = set(top) | {b for b in order[SCREEN_BLOCKS:] if any(dc._same_space(bases[b], bases[t])
                                                                          for t in top)}
-    return sorted(singles), sorted(periodic)
+    profiles = []
+    if pool.profiles:
+        d = []
+        for e in pool.profiles:
+            got = cd.score_block(sc.Q, cd.candidate_matrix(sc.block, sc.w, [e]), sc.rw)
+            d.append(cd.deltas(rss, np.array([got.gain]), N,
+                               np.array([pool.prior.penalty("profile", N, max(got.k, 1))]), known)[0])
+        profiles = sorted(int(j) for j in np.argsort(d, kind="stable")[:SCREEN_PROFILES])
+    return sorted(singles), sorted(periodic), profiles
 
 
 def _search_after_first_choice(pool: cd.Pool, sc: Screen, present: set, known: bool) -> None:
@@ -342,7 +354,8 @@ def diagnose_fit(res: FitResult, top: int = 10) -> "Diagnosis":
             "poses": int(prob.meas.n), "block_poses": design.size, "sample_poses": int(sc.prob.meas.n),
             "scored_on_all_readings": len(lay.main()),
             "rule": f"every candidate screened on the sample (extended BIC); the best {SCREEN_SINGLES} one-column, "
-                    f"{SCREEN_BLOCKS} periodic and every custom candidate decided on all readings"}
+                    f"{SCREEN_BLOCKS} periodic, {SCREEN_PROFILES} profiles and every custom candidate decided on all "
+                    f"readings"}
     # The residual after the accepted set on the screen's readings (first order), for the structure tests.
     Xs = _columns(sc.block, sc.w, sc.residual, free, prob.fixed_values, [lay.effects[k] for k in out.accepted])
     r_cur = Xs[:, -2] - Xs[:, :-2] @ out.coefs

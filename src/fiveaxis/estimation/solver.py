@@ -52,9 +52,11 @@ EXACT_TOLERANCE = 1.01
 
 
 def tsqr(R: np.ndarray | None, X: np.ndarray) -> np.ndarray:
-    """The triangular factor of [R; X] (R None: of X): after all blocks, the R of a QR of the stacked blocks."""
-    for i in range(0, max(len(X), 1), QR_ROWS):
-        Y = X[i:i + QR_ROWS] if R is None else np.vstack([R, X[i:i + QR_ROWS]])
+    """The triangular factor of [R; X] (R None: of X): after all blocks, the R of a QR of the stacked blocks. Rows
+    go in chunks of QR_ROWS, or 4 times the columns where that is more (the R carried along costs as many rows)."""
+    step = max(QR_ROWS, 4 * X.shape[1])
+    for i in range(0, max(len(X), 1), step):
+        Y = X[i:i + step] if R is None else np.vstack([R, X[i:i + step]])
         R = np.linalg.qr(Y, mode="r")
     return R
 
