@@ -15,6 +15,7 @@
 """
 from __future__ import annotations
 
+import hashlib
 import os
 import re
 import tempfile
@@ -144,7 +145,6 @@ def write_set(files, seal, seal_text: Callable[[dict], str], force: bool = False
     seal is removed; the temporaries are renamed into place; the new seal is written last (atomically). A run
     killed at any point leaves the old set with its seal, or files without a seal (readers refuse), or the new
     set with its seal: never a seal that vouches for files it did not see written."""
-    import hashlib
     items = [(Path(p), w) for p, w in files]
     for p, _ in items + [(Path(seal), None)]:
         target(p, force)

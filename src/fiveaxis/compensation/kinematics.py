@@ -19,6 +19,7 @@ import numpy as np
 from ..effects.families import TIME
 from ..linuxcnc import kinematics as K
 from .table import DAMPING, actual_tool
+from ..estimation.fitted_model import errors_at
 
 REASONS = {
     "reversal": "a reversal depends on the direction of motion, which kinematics do not see; not compensated "
@@ -73,7 +74,6 @@ def module_model(fm, values: K.ModuleValues):
 def tool_function(fm, model):
     """tool_fn(positions, L) -> (tip, axis) of the fitted machine (mm) where the module evaluates it: effects at
     the positions with full-turn rotary axes wrapped, no time, reversal effects at their mean."""
-    from ..estimation.fitted_model import errors_at
 
     def tool_fn(positions, L):
         E, dL = errors_at(fm, model, K.wrap_positions(model.machine, positions))

@@ -27,6 +27,7 @@ import math
 import numpy as np
 
 from ..effects import families as fx
+from ..estimation.fitted_model import effect_of
 
 #: Poses of the account the band is computed on (its first ones).
 MAX_POSES = 1000
@@ -79,7 +80,6 @@ def parameter_jacobians(fm, model, q, L, dirs=None):
     """J (n, 3, p) of the tool tip and K (n, 3, p) of the tool axis by the machine's parameters (fm.parameter_names:
     errors, then effect coefficients; first order) at poses q (mm, rad), tool lengths L (mm). Time effects at
     t = 0 contribute nothing (as compensation evaluates them); reversal effects need dirs (else nothing)."""
-    from ..estimation.fitted_model import effect_of
     names = list(fm.parameter_names)
     Jm, Km = model.jk(q, L)                                   # (n, ne, 3)
     index = {n: i for i, n in enumerate(model.errors)}

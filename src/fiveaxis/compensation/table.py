@@ -362,7 +362,7 @@ def length_warning(table: Table, L) -> str | None:
 def table_frame(table: Table):
     """The table as a DataFrame in file units: [L (mm) if the table has tool lengths,] the variables (mm, degrees)
     then c_<var> (mm, degrees); C order over the grid (L slowest, the last variable fastest)."""
-    import pandas as pd
+    import pandas as pd          # pandas: heavy, loaded only to write a table
     q = table.poses()
     c = table.c.reshape(-1, len(table.variables))
     cols = {}
@@ -379,7 +379,7 @@ def read_table(path, machine) -> Table:
     """A table file (CSV or Parquet, as table_frame writes it) for a machine; InputError if it is not a full grid
     of the machine's variables (and of the tool length, mm, when it has an L column)."""
 
-    import pandas as pd
+    import pandas as pd          # pandas: heavy, loaded only to write a table
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path}: compensation table not found")

@@ -39,6 +39,8 @@ from ..model import provenance
 from ..model.inverse import iterate, linear_for_tip
 from ..model.machine import data_dir, module_name
 from .configuration import _tip_jacobian
+from ..model.error_model import cache_dir
+from ..outputs import write_text
 
 #: Effect slots of the module (must equal fiveaxis_derive.kins.SLOTS: a test checks the generated files).
 SLOTS = 16
@@ -85,7 +87,6 @@ def source(model) -> str:
     """The halcompile source of the module for a loaded model's machine file and convention: the committed file
     of generated/ when it is current, else derived once into the model cache folder (needs SymPy then).
     InputError when the module cannot describe the machine."""
-    from ..model.error_model import cache_dir
     machine, conv = model.machine, model.convention
     why = unsupported(machine)
     if why:
@@ -105,7 +106,6 @@ def source(model) -> str:
     print(f"fiveaxis: deriving the LinuxCNC kinematics module of {machine.path} ({conv}) into {path.parent}",
           file=sys.stderr)
     from fiveaxis_derive.kins import render      # a machine file without a current module: derive it
-    from ..outputs import write_text
     text = render(machine, conv)
     write_text(path, text, force=True)
     return text
