@@ -18,7 +18,7 @@ import numpy as np
 
 from ..effects.families import TIME
 from ..linuxcnc import kinematics as K
-from .table import DAMPING, actual_tool
+from .chain import DAMPING, actual_tool
 from ..estimation.fitted_model import errors_at
 
 REASONS = {

@@ -39,7 +39,9 @@ from pathlib import Path
 
 import numpy as np
 
+from . import kinematics as ck
 from . import plausible, prediction
+from .chain import DAMPING, actual_tool     # both corrections' chain and damping (also this module's names)
 from ..effects.families import TIME, profile_knots, var_token
 from ..estimation.fitted_model import check_model, errors_at, sha256
 from ..exceptions import InputError
@@ -53,8 +55,6 @@ from ..linuxcnc.volumetric import files as volumetric_files
 from ..model.inverse import iterate
 from ..outputs import write_set, write_text
 
-#: Penalty on rotary corrections where the rotary joints hardly move the tool axis (dimensionless, see above).
-DAMPING = 0.2
 #: Weight of the tip residual relative to the tool axis residual times the tool length (makes the tip exact).
 W_TIP = 1e3
 STEP_TOL_MM = 1e-10
@@ -75,19 +75,6 @@ LENGTH_TOL_MM = 1e-9
 
 
 # -- the exact erroneous machine ---------------------------------------------------------------------------------
-def actual_tool(model, positions, E, dL=None, L=None):
-    """Tool tip (n, 3; mm) and tool axis (n, 3) relative to the workpiece of the machine with error values E
-    (n, n_errors or (n_errors,); mm, rad) whose axes are at `positions` (n, nvar; mm, rad); tool lengths L (mm; None:
-    the machine's L0) changed by dL (n,; mm)."""
-    q = model.poses(positions)
-    n = len(q)
-    Ls = model.tool_lengths(L, n) + (0.0 if dL is None else np.asarray(dL, float))
-    E = np.ascontiguousarray(np.broadcast_to(np.asarray(E, float), (n, len(model.errors))))
-    P0, V0 = model.ideal_tool(q, Ls)
-    Pe, Ve = model.tool_errors(q, E, Ls, exact=True)
-    return P0 + Pe, V0 + Ve
-
-
 def tip_error_function(model, errors_fn, L=None):
     """tip_error(positions, dirs, commanded) -> (n, 3) mm: actual tip at the positions minus the nominal tip of the
     commanded poses. errors_fn(positions, dirs) -> (E, dL) gives the machine's errors where its axes are."""
@@ -566,7 +553,6 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     points = comp_points or lx.COMP_POINTS
     lc = lx.fit(tip_error_function(model, errors_fn), model, points, reversal=reversal,
                 nodes=profile_nodes(fm, model, points))
-    from . import kinematics as ck          # below this module's functions: imported here (it imports them)
     values, text, note = None, "", lk.unsupported(model.machine) or ""
     if not note:
         values, text = ck.module_values(fm, model, damping), lk.source(model)
