@@ -752,7 +752,8 @@ def _outputs_finite(out: Path, stdout: str) -> str | None:
         if p.is_file() and p.suffix in (".json", ".csv", ".comp", ".ini", ".hal", ".ngc") and p.stat().st_size < 5e7:
             texts.append((p.name, p.read_text(errors="replace")))
     for name, text in texts:
-        lines = [line for line in text.splitlines() if not line.lstrip().startswith(("#", "(", ";"))]
+        text = re.sub(r"/\*.*?\*/", " ", text, flags=re.S)     # C comments of the kinematics module's source
+        lines = [line for line in text.splitlines() if not line.lstrip().startswith(("#", "(", ";", "//"))]
         body = "\n".join(lines)
         if name.endswith(".csv"):
             body = body.replace(",,", ",").replace(",\n", "\n")
