@@ -28,6 +28,8 @@ REASONS = {
     "thermal": "a time effect: kinematics hold no time (taken at t = 0, as in the table)",
     "time": "a time effect: kinematics hold no time (taken at t = 0, as in the table)",
     "custom": "custom effects of the machine file are not in the module yet",
+    "profile": "a per-position profile is not in the module yet (../joint*.comp carry it as trims at its knots, but "
+               "they belong to the stock kinematics)",
     "slots": f"the module has {K.SLOTS} effect slots, all in use",
 }
 
