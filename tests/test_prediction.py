@@ -15,6 +15,7 @@ from fiveaxis.compensation import prediction as PR
 from fiveaxis.compensation import table as C
 from fiveaxis.estimation import fit as F
 from fiveaxis.estimation import fitted_model as MF
+from fiveaxis.report import text as T
 from fiveaxis.exceptions import InputError
 from fiveaxis.measurement.simulate import simulate
 from fiveaxis.model.error_model import load
@@ -88,7 +89,7 @@ def test_rtest_campaign_is_flagged_and_the_measurement_named(case):
     assert any("not what the machine will show" in w for w in warns)
     best = unc["determining"]["best"]
     assert best["determines_share"] > 0.99 and "tip readings over the whole workspace" in best["measurement"]
-    text = "\n".join(C.report(comp).splitlines())
+    text = "\n".join(T.compensation(C.summary(comp)).splitlines())
     assert "WARNING" in text and best["command"] in text
 
 

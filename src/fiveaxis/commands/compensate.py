@@ -81,6 +81,7 @@ def run_compensate(args) -> int:
     from ..estimation import fitted_model as MF
     from ..model.error_model import load
     from ..plots.compensation import figure
+    from ..report import text
     fm = MF.load(args.model)
     model = load(args.machine, fm.convention) if args.machine else MF.load_model(fm, str(args.model))
     MF.check_model(fm, model, str(args.model))
@@ -124,5 +125,5 @@ def run_compensate(args) -> int:
     if args.json:
         print(json.dumps(C.summary(comp, str(args.model)), indent=1))
     else:
-        print(C.report(comp, str(out)))
+        print(text.compensation(C.summary(comp, str(args.model)), str(out)))
     return 0

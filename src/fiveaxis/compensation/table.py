@@ -812,59 +812,6 @@ def read_summary(folder) -> dict:
     return data
 
 
-def report(comp: Compensation, folder="") -> str:
-    """The account as text (um)."""
-    tab, lc = comp.table, comp.lc
-    tip = comp.account["tip_error_mm"]
-    ax = comp.account["axis_error_rad"]
-    grid = " x ".join(str(c) for c in tab.counts)
-    lines = [f"fiveaxis compensate: machine {comp.fm.machine} ({comp.fm.convention}), tool length "
-             f"{comp.tool_length:g} mm",
-             f"  table: {grid} = {tab.size} nodes over the strokes ({', '.join(('L (mm)',) * (tab.tool_lengths is not None) + tab.variables)}); exact-model "
-             f"residual at the nodes <= {np.max(comp.nodes.tip_residual):.1e} mm",
-             f"  predicted tool-tip error over {comp.account['poses']} random poses (um):   max      RMS      p95"]
-    what = lc.trt.component + " + " if lc.trt is not None else ""
-    rows = [("before", "before"),
-            (f"after LinuxCNC ({what}{len(lc.comps)} comp files)", "after_linuxcnc"),
-            ("after LinuxCNC with the kinematics module fiveaxis_kins", "after_kinematics_module"),
-            ("after the volumetric table (multilinear)", "after_table"),
-            ("after the exact correction (Newton)", "after_exact_correction")]
-    for label, key in rows:
-        if key not in tip:
-            continue
-        s = tip[key]
-        lines.append(f"    {label:56s} {1e3 * s['max']:8.3f} {1e3 * s['rms']:8.3f} {1e3 * s['p95']:8.3f}")
-    lines.append(f"  tool-axis error RMS (urad, model estimates): before {1e6 * ax['before']['rms']:.3g}, after the "
-                 f"table {1e6 * ax['after_table']['rms']:.3g} (damping {comp.damping:g} near singular poses)")
-    lines += prediction.text_lines(comp.account.get("uncertainty", {}))
-    if tab.tool_lengths is not None:
-        lines.append(f"  tool lengths (mm) {', '.join(f'{x:g}' for x in tab.tool_lengths)} (first grid dimension); "
-                     f"predicted tool-tip error by tool length (um):")
-        lines.append(f"    {'L (mm)':>10s} {'':6s} {'before RMS':>11s} {'after table RMS':>16s} {'max':>9s} "
-                     f"{'after exact RMS':>16s}")
-        for r in comp.account.get("by_tool_length", []):
-            b, a, e = (r["tip_error_mm"][k] for k in ("before", "after_table", "after_exact_correction"))
-            lines.append(f"    {r['tool_length_mm']:10.3f} {'node' if r['table_node'] else 'mid':6s} "
-                         f"{1e3 * b['rms']:11.3f} {1e3 * a['rms']:16.3f} {1e3 * a['max']:9.3f} "
-                         f"{1e3 * e['rms']:16.3f}")
-        for w in comp.account.get("warnings", []):
-            lines.append(f"  warning: {w}")
-    if lc.trt is not None:
-        pins = ", ".join(f"{k} {v:+.4f}" for k, v in lc.trt.pins().items())
-        o = lc.trt.origin
-        lines.append(f"  LinuxCNC {lc.trt.component} (mm): {pins}; G54 X{o[0]:+.4f} Y{o[1]:+.4f} Z{o[2]:+.4f}")
-    if comp.module is not None:
-        for line in comp.module.left_out:
-            lines.append(f"  kinematics module: {line}")
-    else:
-        lines.append(f"  no kinematics module: {comp.module_note}")
-    if folder:
-        vol = f", linuxcnc/{VOLUMETRIC}/ (the kinematics module and a simulated configuration)" \
-            if comp.module is not None else ""
-        lines.append(f"  wrote {folder}/table.csv, table.parquet, summary.json, linuxcnc/{vol}")
-    return "\n".join(lines)
-
-
 def load_table(folder, model) -> Table:
     """The table of a `compensate` output folder, checked against the model's machine file and against
     summary.json's hashes (read_summary)."""

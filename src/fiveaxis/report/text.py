@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 
+from ..compensation.prediction import text_lines as prediction_text
 from ..diagnosis import residual_tests as st
 from ..effects.families import TIME
 from ..estimation.result import STRONG_CORRELATION
@@ -251,3 +252,55 @@ def _unexplained_lines(u: dict) -> list[str]:
     lines.append("    a custom effect to fill in (machine file; then fiveaxis diagnose FILE --machine EDITED.toml):")
     lines += [f"        {t}" for t in u["template"].splitlines()]
     return lines
+
+
+def compensation(rec: dict, folder: str = "") -> str:
+    """The text of a compensation (um, urad), built from its record (`compensation.table.summary`, what
+    summary.json holds); folder: where it was written, for the last line."""
+    tab, lc, mod = rec["table"], rec["linuxcnc"], rec["kinematics_module"]
+    tip, ax = rec["predicted_tip_error_mm"], rec["predicted_axis_error_rad"]
+    counts = [tab["nodes"][v]["count"] for v in tab["variables"]]
+    lengths = tab.get("tool_lengths_mm")
+    grid = " x ".join(str(c) for c in ([len(lengths)] if lengths else []) + counts)
+    dims = ("L (mm)",) * (lengths is not None) + tuple(tab["variables"])
+    lines = [f"fiveaxis compensate: machine {rec['machine']['name']} ({rec['convention']}), tool length "
+             f"{rec['tool_length_mm']:g} mm",
+             f"  table: {grid} = {tab['size']} nodes over the strokes ({', '.join(dims)}); exact-model residual at "
+             f"the nodes <= {tab['nodes_max_tip_residual_mm']:.1e} mm",
+             f"  predicted tool-tip error over {rec['workspace']['poses']} random poses (um):   max      RMS      p95"]
+    what = lc["kinematics"] + " + " if lc.get("kinematics") else ""
+    rows = [("before", "before"),
+            (f"after LinuxCNC ({what}{len(lc['comp_files'])} comp files)", "after_linuxcnc"),
+            ("after LinuxCNC with the kinematics module fiveaxis_kins", "after_kinematics_module"),
+            ("after the volumetric table (multilinear)", "after_table"),
+            ("after the exact correction (Newton)", "after_exact_correction")]
+    for label, key in rows:
+        if key in tip:
+            s = tip[key]
+            lines.append(f"    {label:56s} {1e3 * s['max']:8.3f} {1e3 * s['rms']:8.3f} {1e3 * s['p95']:8.3f}")
+    lines.append(f"  tool-axis error RMS (urad, model estimates): before {1e6 * ax['before']['rms']:.3g}, after the "
+                 f"table {1e6 * ax['after_table']['rms']:.3g} (damping {tab['damping']:g} near singular poses)")
+    lines += prediction_text(rec.get("prediction_uncertainty", {}))
+    if lengths is not None:
+        lines.append(f"  tool lengths (mm) {', '.join(f'{x:g}' for x in lengths)} (first grid dimension); "
+                     f"predicted tool-tip error by tool length (um):")
+        lines.append(f"    {'L (mm)':>10s} {'':6s} {'before RMS':>11s} {'after table RMS':>16s} {'max':>9s} "
+                     f"{'after exact RMS':>16s}")
+        for r in rec.get("predicted_by_tool_length", []):
+            b, a, e = (r["tip_error_mm"][k] for k in ("before", "after_table", "after_exact_correction"))
+            lines.append(f"    {r['tool_length_mm']:10.3f} {'node' if r['table_node'] else 'mid':6s} "
+                         f"{1e3 * b['rms']:11.3f} {1e3 * a['rms']:16.3f} {1e3 * a['max']:9.3f} "
+                         f"{1e3 * e['rms']:16.3f}")
+        lines += [f"  warning: {w}" for w in rec.get("warnings", [])]
+    if lc.get("kinematics"):
+        pins = ", ".join(f"{k} {v:+.4f}" for k, v in lc["trt_pins_mm"].items())
+        o = lc["workpiece_origin_g54_mm"]
+        lines.append(f"  LinuxCNC {lc['kinematics']} (mm): {pins}; G54 X{o[0]:+.4f} Y{o[1]:+.4f} Z{o[2]:+.4f}")
+    if mod.get("folder"):
+        lines += [f"  kinematics module: {line}" for line in mod["left_out"]]
+    else:
+        lines.append(f"  no kinematics module: {mod['note']}")
+    if folder:
+        vol = f", {mod['folder']}/ (the kinematics module and a simulated configuration)" if mod.get("folder") else ""
+        lines.append(f"  wrote {folder}/table.csv, table.parquet, summary.json, linuxcnc/{vol}")
+    return "\n".join(lines)
