@@ -314,7 +314,7 @@ def interpolate(table: Table, poses, L=None) -> np.ndarray:
     """Multilinear interpolation of the table's corrections at poses (n, nvar; mm, rad) -> (n, nvar); poses outside
     the grid take the values at its edge (clamped). L: tool length(s) (mm; scalar or (n,)), needed for a table with
     a tool-length dimension (interpolated over it too, clamped to its lengths), ignored otherwise."""
-    from scipy.interpolate import RegularGridInterpolator
+    from scipy.interpolate import RegularGridInterpolator     # SciPy: heavy, loaded only to interpolate a table
     q = np.atleast_2d(np.asarray(poses, float))
     Ls = _lengths_for(table, L, len(q))
     if Ls is not None:
