@@ -61,17 +61,14 @@ def split_lines(text: str) -> list[str]:
     return [line[:-1] if line.endswith("\r") else line for line in lines]
 
 
-def _comments(line: str, where: str) -> tuple[str, list[str]]:
-    """(the line without its comments, the comments' texts), read as rs274 reads them."""
+def _comments(line: str, where: str) -> tuple[str, list[tuple[str, bool]]]:
+    """(the line without its comments, the comments as (text, reported)), read as rs274 reads them: a `(...)`
+    comment is reported in the canonical output, a `;` comment is not."""
     code, comments, i = [], [], 0
     while i < len(line):
         c = line[i]
         if c == ";":
-            comments.append(None)                   # a ';' comment: nothing rs274 reports (';py,' refused below)
-            if PYTHON_COMMENT.match(line[i + 1:].lstrip().lower()):
-                raise InputError(f"{where}: a Python comment ({_clip(line[i + 1:].strip())}): LinuxCNC would run "
-                                 f"it as Python code; fiveaxis does not give it to rs274 (remove it to sample the "
-                                 f"path)")
+            comments.append((line[i + 1:], False))
             break
         if c == "(":
             end = line.find(")", i + 1)
@@ -81,7 +78,7 @@ def _comments(line: str, where: str) -> tuple[str, list[str]]:
             if 0 <= inner < end:
                 raise InputError(f"{where}: a comment opened with '(' inside another (rs274 refuses nested "
                                  f"comments)")
-            comments.append(line[i + 1:end])
+            comments.append((line[i + 1:end], True))
             code.append(" ")
             i = end + 1
             continue
@@ -113,12 +110,12 @@ def inert(text: str, path) -> str:
             _check_name(raw[raw.index("<") + 1:], where)
         code, comments = _comments(line, where)
         kept = []
-        for comment in comments:
-            low = "" if comment is None else comment.lstrip().lower()
+        for comment, reported in comments:
+            low = comment.lstrip().lower()
             if PYTHON_COMMENT.match(low):
                 raise InputError(f"{where}: a Python comment ({_clip(comment.strip())}): LinuxCNC would run it as "
                                  f"Python code; fiveaxis does not give it to rs274 (remove it to sample the path)")
-            if comment is not None and not ACTING_COMMENT.match(low):
+            if reported and not ACTING_COMMENT.match(low):
                 kept.append(f"({comment})")
         bare = re.sub(r"\s+", "", code).lower()
         m = O_WORD.match(bare)
