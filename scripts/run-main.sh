@@ -88,7 +88,7 @@ say "diagnose with the reversal in: the per-position profile dx_x:xk100 is offer
 say "Fit the reversal and the profile, compensate: LinuxCNC's trims at the profile's knots (joint0-X.comp)"
 "$BIN/fiveaxis" fit "$LASER" --machine ac_trunnion --add dx_x:xr --add dx_x:xk100 -o "$IDIR/model.json" --force \
     | sed -n '/residual RMS/p'
-"$BIN/fiveaxis" compensate "$IDIR/model.json" -o "$IDIR/comp" --nodes X=2,Y=2,Z=2,A=2,C=2 --poses 500 --force \
+"$BIN/fiveaxis" compensate "$IDIR/model.json" -o "$IDIR/comp" --poses 500 --force \
     > /dev/null
 cat "$IDIR/comp/linuxcnc/joint0-X.comp"
 say "The same laser run with LinuxCNC's files applied (simulate --compensation --linuxcnc): ISO 230-2 again"
