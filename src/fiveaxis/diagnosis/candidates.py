@@ -102,17 +102,32 @@ class Scored:
 def score_block(Q: np.ndarray, Gb: np.ndarray, rw: np.ndarray) -> Scored:
     """One multi-column candidate (periodic, custom): gain |Qb^T r|^2, Qb an orthonormal basis of its columns
     projected off span(Q); rw orthogonal to span(Q)."""
-    Gp = Gb - Q @ (Q.T @ Gb)
-    Gp -= Q @ (Q.T @ Gp)
-    Qb, R = np.linalg.qr(Gp)
-    keep = np.abs(np.diag(R)) > ABSORBED * np.maximum(np.linalg.norm(Gb, axis=0), 1e-300)
-    Qb = Qb[:, keep]
-    y = Qb.T @ rw
-    coefs = np.zeros(Gb.shape[1])
-    if keep.any():
-        coefs[keep] = np.linalg.solve(R[np.ix_(keep, keep)], y) if keep.all() else \
-            np.linalg.lstsq(R[:, keep][keep], y, rcond=None)[0]
-    return Scored(float(y @ y), int(keep.sum()), Qb, coefs)
+    return score_blocks(Q, Gb, [np.arange(Gb.shape[1])], rw)[0]
+
+
+def score_blocks(Q: np.ndarray, Z: np.ndarray, cols: list, rw: np.ndarray) -> list[Scored]:
+    """score_block of every candidate whose columns are Z[:, cols[i]]: the columns of those of one width projected
+    at once, then each block factored (column-major: LAPACK's own layout, no copy per block)."""
+    out = [None] * len(cols)
+    by_width: dict = {}
+    for i, c in enumerate(cols):
+        by_width.setdefault(len(c), []).append(i)
+    for width, members in by_width.items():
+        Gb = np.take(Z, np.concatenate([np.asarray(cols[i], dtype=np.intp) for i in members]), axis=1)
+        Gp = Gb - Q @ (Q.T @ Gb)
+        Gp = np.asfortranarray(Gp - Q @ (Q.T @ Gp))
+        norms = np.linalg.norm(Gb, axis=0).reshape(len(members), width)
+        for b, i in enumerate(members):
+            Qb, R = np.linalg.qr(Gp[:, b * width:(b + 1) * width])
+            keep = np.abs(np.diag(R)) > ABSORBED * np.maximum(norms[b], 1e-300)
+            Qb = Qb[:, keep]
+            y = Qb.T @ rw
+            coefs = np.zeros(width)
+            if keep.any():
+                coefs[keep] = np.linalg.solve(R[np.ix_(keep, keep)], y) if keep.all() else \
+                    np.linalg.lstsq(R[:, keep][keep], y, rcond=None)[0]
+            out[i] = Scored(float(y @ y), int(keep.sum()), Qb, coefs)
+    return out
 
 
 def pair_gram(Gp: np.ndarray):
