@@ -11,6 +11,13 @@ DATA = Path(__file__).resolve().parent / "data"
 SHIPPED = sorted(p.stem for p in MACHINES_DIR.glob("*.toml"))
 
 
+def first_fast(cases, fast: int = 1) -> list:
+    """Parametrize cases of which the first `fast` run in `make test-fast` and the others are marked slow (`make
+    test` runs them all): the developer's loop keeps a case of each kind."""
+    return list(cases[:fast]) + [pytest.param(*(c if isinstance(c, tuple) else (c,)), marks=pytest.mark.slow)
+                                 for c in cases[fast:]]
+
+
 def poses_and_lengths(machine, n, seed=0):
     """n random poses in the strokes (mm, rad) and tool lengths within +-50% of L0 (mm)."""
     rng = np.random.default_rng(seed)

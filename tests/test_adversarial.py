@@ -27,6 +27,7 @@ def test_the_corpus_is_large_and_covers_every_command():
     assert set(COMMANDS) <= {t.command for t in trials}, set(COMMANDS) - {t.command for t in trials}
 
 
+@pytest.mark.slow
 def test_fast_subset(rs274, tmp_path):
     selected = [t for t in A.trials() if t.id in A.FAST]
     assert len(selected) == len(A.FAST)

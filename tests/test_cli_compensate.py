@@ -21,7 +21,7 @@ def rms_mm(path) -> float:
     return math.sqrt(np.mean(np.sum(d ** 2, axis=1)))
 
 
-@pytest.fixture(scope="module", params=list(CASES))
+@pytest.fixture(scope="module", params=[pytest.param("ac_trunnion", marks=pytest.mark.slow), "li2018"])
 def loop(request, tmp_path_factory):
     machine = request.param
     d = tmp_path_factory.mktemp(machine)
@@ -166,6 +166,7 @@ def test_simulate_compensation_of_another_machine_is_refused(loop, capsys, tmp_p
     _one_line_error(rc, err, "not found")
 
 
+@pytest.mark.slow
 def test_tool_length_table_on_the_simulated_machine(capsys, tmp_path):
     """Several tool lengths (60 to 400 mm, ac_trunnion, L0 = 150): fit on data with those lengths, compensate with
     --tool-lengths 60:400:3 and without, measure the same simulated machine (noise-free) through each table at

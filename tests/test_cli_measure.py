@@ -48,6 +48,7 @@ def test_fit_json(capsys, data):
     assert "[[Determined relative to" in out and "Syz (E_A(0Y)Z)" in out and "relative to E_AY" in out
 
 
+@pytest.mark.slow
 def test_diagnose_json_add_and_plot(capsys, data, tmp_path):
     rc, out, _ = run_cli(capsys, "diagnose", data, "--json", "--top", "3", "--plot", tmp_path)
     j = json.loads(out)
@@ -70,6 +71,7 @@ def test_bad_input_is_one_line(capsys, data, tmp_path, argv, expect):
     assert rc == 2 and err.startswith("fiveaxis: error: ") and err.count("\n") == 1 and expect in err
 
 
+@pytest.mark.slow
 def test_model_add_writes_a_copy_and_diagnose_uses_it(capsys, data, tmp_path, monkeypatch):
     monkeypatch.setenv("FIVEAXIS_CACHE", str(tmp_path / "cache"))
     mine = tmp_path / "mine.toml"

@@ -184,6 +184,7 @@ def test_damping_bounds_the_c_correction_near_the_singularity(ac):
 
 
 # -- the table ----------------------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_table_interpolation_within_5_percent_at_the_documented_density(fitted):
     """Multilinear interpolation of the default table at random off-grid poses reproduces the exact corrections to
     within 5 % of the error they remove (RMS over the poses of the tip error left, against the tip error before)."""

@@ -195,6 +195,7 @@ def _seal(b: dict, folder: Path, hashes: dict) -> str:
     return json.dumps(record)
 
 
+@pytest.mark.slow
 def test_kill_9_of_compensate_force(fitted, two_sets, tmp_path):
     """The real thing: `fiveaxis compensate --force` killed with SIGKILL the moment the old summary.json goes
     (the write has begun), over an existing folder; then `simulate --compensation` and the table reader."""

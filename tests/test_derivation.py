@@ -11,8 +11,9 @@ from fiveaxis_derive.model import derive_model
 
 from conftest import DATA, SHIPPED, poses_and_lengths
 
-#: Machine files of tests/data with offsets, axis-line shifts and chain ends: derived on demand into a cache.
-DATA_MODELS = [pytest.param(str(DATA / f"{n}.toml"), "equations", id=n)
+#: Machine files of tests/data with offsets, axis-line shifts and chain ends: derived on demand into a cache (and
+#: their kernels compiled: `make test`, not `make test-fast`).
+DATA_MODELS = [pytest.param(str(DATA / f"{n}.toml"), "equations", id=n, marks=pytest.mark.slow)
                for n in ("ac_trunnion_offsets", "planar_offsets")]
 MODELS = [(name, "equations") for name in SHIPPED] + [("li2018", "printed")] + DATA_MODELS
 
@@ -134,6 +135,7 @@ def test_ideal_tool_of_li2018():
     assert np.allclose(V[0], v) and np.allclose(P[0], [X, Y, Z] + 200.0 * v)
 
 
+@pytest.mark.slow
 def test_non_axis_aligned_rotary_axis(tmp_path, monkeypatch):
     """A nutating head (B about (0, 1, 1)/sqrt 2): derived on demand, exact and FD checks as for shipped machines."""
     monkeypatch.setenv("FIVEAXIS_CACHE", str(tmp_path))

@@ -8,6 +8,8 @@ from fiveaxis.diagnosis import diagnose as D
 from fiveaxis.measurement.simulate import simulate
 from fiveaxis.estimation.problem import build
 
+from conftest import first_fast
+
 NOISE = 1e-3
 
 
@@ -26,7 +28,7 @@ def _round(model, meas, added, hidden):
     return top
 
 
-@pytest.mark.parametrize("spec", [
+@pytest.mark.parametrize("spec", first_fast([
     "ex_x:x1=2e-5",      # linear axis: roll changing along X (twisted guideway)
     "ez_y:y1=3e-5",      # linear axis: yaw of Y changing along Y
     "ey_B:B1=1e-4",      # rotary axis: angular positioning error of B growing with B
@@ -34,7 +36,7 @@ def _round(model, meas, added, hidden):
     "dz_x:x2=0.01",      # quadratic (bowed) vertical straightness of X
     "L:t1=0.01",         # thermal drift: tool growing with time
     "dz_z:t1=0.005",     # thermal drift of Z
-])
+]))
 def test_hidden_effect_found_and_error_falls_to_noise(model, spec):
     hidden = spec.split("=")[0]
     meas = simulate(model, [spec], n=1500, noise=NOISE, seed=21).meas
@@ -45,6 +47,7 @@ def test_hidden_effect_found_and_error_falls_to_noise(model, spec):
     assert not after.missing_effect
 
 
+@pytest.mark.slow
 def test_two_effects_found_in_two_rounds(model):
     meas = simulate(model, ["ex_x:x1=2e-5", "L:t1=0.008"], n=1500, noise=NOISE, seed=22).meas
     first = _round(model, meas, [], ["ex_x:x1", "L:t1"])
@@ -54,7 +57,7 @@ def test_two_effects_found_in_two_rounds(model):
     assert final.rms_mm <= 1.25 * NOISE and not final.missing_effect
 
 
-@pytest.mark.parametrize("seed,sigma", [(31, False), (32, False), (33, False), (34, True)])
+@pytest.mark.parametrize("seed,sigma", first_fast([(31, False), (32, False), (33, False), (34, True)]))
 def test_no_false_alarm_without_hidden_effect(model, seed, sigma):
     dg = D.diagnose(model, simulate(model, [], n=1500, noise=NOISE, seed=seed, with_sigma=sigma).meas)
     assert not dg.missing_effect
@@ -62,6 +65,7 @@ def test_no_false_alarm_without_hidden_effect(model, seed, sigma):
     assert dg.rms_mm == pytest.approx(NOISE, rel=0.1)
 
 
+@pytest.mark.slow
 def test_aliases_and_the_measurement_that_separates_them(model):
     meas = simulate(model, ["ey_A:x1=5e-5"], n=1500, noise=NOISE, seed=23).meas
     top = D.diagnose(model, meas).candidates[0]

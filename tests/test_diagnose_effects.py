@@ -18,6 +18,8 @@ from fiveaxis.report import text
 from fiveaxis.diagnosis.candidates import param_columns
 from fiveaxis.diagnosis.decision import basis_map
 
+from conftest import first_fast
+
 NOISE = 1e-3
 DIRS = {"directions": True}          # tip plans with the approach directions of the linear axes (dir_ columns)
 
@@ -100,7 +102,7 @@ def test_periodic_in_time_found(model):
     assert abs(top["period"] - 600) < 0.05 * 600, top
 
 
-@pytest.mark.parametrize("spec, tau", [("L:te600=0.01", 600.0), ("dz_z:te1500=0.008", 1500.0)])
+@pytest.mark.parametrize("spec, tau", first_fast([("L:te600=0.01", 600.0), ("dz_z:te1500=0.008", 1500.0)]))
 def test_hidden_exponential_drift_found_with_its_time_constant(model, spec, tau):
     sim = simulate(model, [spec], n=800, noise=NOISE, seed=45)
     dg = D.diagnose(model, sim.meas, top=3)
@@ -155,6 +157,7 @@ def test_gross_outliers_in_a_null_set_are_listed_and_raise_no_alarm(model, sigma
     assert "left out of the decision" in text.diagnosis(dg.to_json())
 
 
+@pytest.mark.slow
 def test_outliers_on_top_of_a_hidden_effect(model):
     sim = simulate(model, ["ex_x:x1=2e-5"], n=1000, noise=NOISE, seed=47)
     hit = add_outliers(sim.meas, 0.005, 0.05, seed=2)
@@ -167,6 +170,7 @@ def test_outliers_on_top_of_a_hidden_effect(model):
     assert after.rms_mm_without_outliers <= 1.25 * NOISE
 
 
+@pytest.mark.slow
 def test_the_tails_of_a_missing_effect_are_not_outliers(model):
     """A roll error times a lever arm has long tails (|z| up to 10 against the median scale): those readings are
     the effect, not gross errors."""
@@ -201,7 +205,7 @@ def test_outliers_by_data_row_of_the_file(capsys, model, tmp_path):
 
 
 # -- the verdict -------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("sigma", [False, True])
+@pytest.mark.parametrize("sigma", first_fast([False, True]))
 def test_effect_outside_every_vocabulary_is_unexplained_structure_along_x(model, sigma):
     """A 5 um step in dz at X = 0: polynomials and periods approximate it, but structure along X remains."""
     sim = simulate(model, [], n=800, noise=NOISE, seed=48, with_sigma=sigma)
@@ -222,6 +226,7 @@ def test_effect_outside_every_vocabulary_is_unexplained_structure_along_x(model,
     assert dg.structure_test["noise_local_mm"] == pytest.approx(NOISE, rel=0.15)
 
 
+@pytest.mark.slow
 def test_sigma_column_understating_the_noise(model):
     """chi2 fails (the rule with a sigma column) without structure along any variable: said so, no template."""
     sim = simulate(model, [], n=400, noise=2 * NOISE, seed=50, with_sigma=True)
@@ -238,6 +243,7 @@ def test_text_report_is_built_from_the_json(model, periodic_set):
     assert j["verdict"] in D.VERDICTS and j["structure_test"]["significant"] in (True, False)
 
 
+@pytest.mark.slow
 def test_no_false_alarm_on_null_sets_with_the_larger_vocabulary(model):
     """20 null sets with approach directions (polynomial, reversal, periodic and thermal families), half with a
     sigma column: never "missing effect", never "unexplained structure"."""
@@ -250,6 +256,7 @@ def test_no_false_alarm_on_null_sets_with_the_larger_vocabulary(model):
     assert verdicts == ["no missing effect"] * 20, verdicts
 
 
+@pytest.mark.slow
 def test_backlash_and_a_linear_error_motion_found_in_two_rounds(model):
     sim = simulate(model, ["dx_x:xr=0.003", "ez_y:y1=3e-5"], n=800, noise=NOISE, seed=49, options=DIRS)
     hidden = {"dx_x:xr", "ez_y:y1"}

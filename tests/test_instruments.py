@@ -15,7 +15,7 @@ from fiveaxis.measurement.simulate import simulate, to_frame
 from fiveaxis.estimation import result as R
 from fiveaxis.report import text
 
-from conftest import worst_z, run_cli
+from conftest import first_fast, run_cli, worst_z
 
 NOISE = 1e-3
 
@@ -109,6 +109,7 @@ def test_machine_frame_rule_against_the_numpy_chain(models):
     assert np.abs(measured - predicted).max() < 1e-4 * np.abs(measured).max()
 
 
+@pytest.mark.slow
 def test_tool_axis_readings_separate_an_angular_effect_from_translations(models):
     """ey_A:x1 (the A axis tilting about y along X) moves the tip like the translations dx_A:x1, dx_B:x1 at one
     tool length; only its tilt of the tool axis tells it apart."""
@@ -122,12 +123,12 @@ def test_tool_axis_readings_separate_an_angular_effect_from_translations(models)
     assert "ey_A:x1" in {b["id"], *b["aliases"]} and not translations & {b["id"], *b["aliases"]}
 
 
-@pytest.mark.parametrize("machine, instrument, effect", [
+@pytest.mark.parametrize("machine, instrument, effect", first_fast([
     ("ac_trunnion", "rtest", "dx_C:C1=0.01"),
     ("tilting_head", "rtest", "ey_B:B1=3e-5"),         # every shipped machine: the B head's angular positioning
     ("li2018", "ballbar", "dx_x:x1=0.05"),            # a scale error of X: 20 um/m
     ("ac_trunnion", "tracker", "dx_x:x1=0.01"),
-])
+]))
 def test_diagnose_finds_hidden_effects_from_instruments(models, machine, instrument, effect):
     model = models[machine]
     sim = simulate(model, [effect], n=600, noise=NOISE, seed=21, instrument=instrument)

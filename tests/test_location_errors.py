@@ -39,6 +39,7 @@ def test_every_location_error_of_tilting_head_is_identifiable(tilting_head):
     assert rank([cols[n] for n in pige]) == 13
 
 
+@pytest.mark.slow
 def test_the_old_tool_minus_workpiece_translations_were_not(tmp_path, monkeypatch):
     """The former file (plain translations tx, tz of B and tx, ty of C, no spindle errors) has rank 10 of 11:
     the same check fails on it, so the test above can fail."""

@@ -24,7 +24,7 @@ from fiveaxis.measurement.files import read, write
 from fiveaxis.measurement.simulate import simulate
 from fiveaxis.estimation.problem import build
 
-from conftest import DATA
+from conftest import DATA, first_fast
 
 
 @pytest.fixture(scope="module")
@@ -158,10 +158,10 @@ def _found(model, plan, spec, seed):
     return bool(dg.missing_effect and (top["id"] == eff or eff in top["aliases"]))
 
 
-@pytest.mark.parametrize("machine, instrument, spec, n", [
+@pytest.mark.parametrize("machine, instrument, spec, n", first_fast([
     ("li2018", "tip", "ex_x:x2=5e-6", 16),
     ("ac_trunnion", "rtest", "ex_A:A2=2e-5", 20),
-])
+]))
 def test_named_effect_found_at_the_planned_poses_where_random_plans_miss_it(models, machine, instrument, spec, n):
     """The plan for the effect finds it (diagnose: missing effect, the effect or its exact alias on top) in every
     one of 3 simulations; random plans of the same size (6 plans from the same population) miss it in most.

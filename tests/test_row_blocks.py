@@ -67,6 +67,7 @@ def test_fit_in_blocks_equals_in_memory_tip_with_sigma(tmp_path, small_blocks):
     assert_same_fit(a, b)
 
 
+@pytest.mark.slow
 def test_fit_in_blocks_equals_in_memory_setups_axis_readings_no_sigma(tmp_path, small_blocks):
     """R-test setups (unknown sphere places), tool-axis readings beside the tip and no sigma column: variance
     components weight the two kinds of reading; a parameter held fixed."""
@@ -83,6 +84,7 @@ def test_fit_in_blocks_equals_in_memory_setups_axis_readings_no_sigma(tmp_path, 
     assert len({g for g in a.problem.obs.group}) == 2 and not a.known_sigma                           # two groups
 
 
+@pytest.mark.slow
 def test_gross_outliers_flagged_alike_in_blocks(tmp_path, small_blocks):
     path = simulate(tmp_path, "o.csv", "--machine", "li2018", "--n", "3000", "--with-sigma", "--seed", "8")
     df = pd.read_csv(path)
@@ -105,6 +107,7 @@ def _decision(j):
     return (j["verdict"], d["best"], d["passes"], [f["id"] for f in j["forward"]])
 
 
+@pytest.mark.slow
 def test_diagnose_in_blocks_equals_in_memory(tmp_path, small_blocks):
     """A hidden roll of X (its tails look like outliers at first): same verdict, best candidate, extended BIC,
     cross-validation, forward steps, listing (RMS after, aliases) and outliers as in memory."""
@@ -133,6 +136,7 @@ def test_diagnose_in_blocks_equals_in_memory(tmp_path, small_blocks):
     assert b["decision"]["in_blocks"]["sample_poses"] == 1500
 
 
+@pytest.mark.slow
 def test_diagnose_in_blocks_without_sigma_null_and_periodic(tmp_path, small_blocks):
     """No sigma column (the noise estimated), a null set and a hidden screw error (its period searched on the
     sample): the same answers as in memory. (On the null set the best candidate that fails is noise and may differ:

@@ -109,6 +109,7 @@ def test_malformed_lines_are_named(rs274, tmp_path, line, message):
         gcode.interpret(path)
 
 
+@pytest.mark.slow
 def test_an_endless_loop_stops_at_the_cpu_limit(rs274, tmp_path):
     """`o100 while [1]` ran 300 s at 2.1 GB; now rs274 stops within seconds and the message names the limit."""
     for body in ("G1 X1\nG1 X2", "#1 = [#1 + 1]"):          # printing moves, and silent

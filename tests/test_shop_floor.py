@@ -20,6 +20,8 @@ from fiveaxis.measurement.simulate import simulate, to_frame
 from fiveaxis.model.error_model import load
 from fiveaxis.report import record
 
+from conftest import first_fast
+
 NOISE = 0.001
 MACHINES = ("li2018", "ac_trunnion", "tilting_head")
 INSTRUMENTS = ("tip", "rtest", "probe-sphere", "ballbar", "interferometer", "tracker", "test-part")
@@ -86,6 +88,7 @@ def test_every_instrument_at_seven_digits(machine, instrument, tmp_path):
     check_null_set(model, as_written(model, sim, tmp_path, "seven digits"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("machine", ("ac_trunnion", "tilting_head"))
 def test_readme_ballbar_and_rtest_plans_at_full_size(machine, tmp_path):
     """The Done-means cases at the standard plans' size: R-test at both resolutions, the ballbar plan as the
@@ -182,7 +185,7 @@ def test_backlash_of_y_is_headlined_as_y_own_reversal(tmp_path):
 
 
 # -- one verdict ----------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("case", ("null", "missing", "structure"))
+@pytest.mark.parametrize("case", first_fast(("null", "missing", "structure")))
 def test_report_and_diagnose_give_one_verdict(case, tmp_path):
     """Issue 21.6: the report said the model explains the data where diagnose said unexplained structure. The
     report's verdict and numbers are those of the last diagnosis round."""
