@@ -73,12 +73,12 @@ class Candidates:
         return np.where(self.ok & self.ok[j], np.abs(num) / np.where(den > 0, den, 1.0), 0.0)
 
 
-def project(Q: np.ndarray, G: np.ndarray, rw: np.ndarray, effects, g2=None) -> Candidates:
+def project(Q: np.ndarray, G: np.ndarray, rw: np.ndarray, effects, g2=None, QtG=None) -> Candidates:
     """Score candidate columns G against the weighted residual rw after projecting both off span(Q).
 
-    g2: squared column norms of G when known."""
+    g2: squared column norms of G when known; QtG: Q^T G when known."""
     rw = rw - Q @ (Q.T @ rw)
-    QtG = Q.T @ G
+    QtG = Q.T @ G if QtG is None else QtG
     if g2 is None:
         g2 = np.einsum("ij,ij->j", G, G)
     p2 = np.clip(g2 - np.einsum("ij,ij->j", QtG, QtG), 0.0, None)
@@ -106,27 +106,35 @@ def score_block(Q: np.ndarray, Gb: np.ndarray, rw: np.ndarray) -> Scored:
 
 
 def score_blocks(Q: np.ndarray, Z: np.ndarray, cols: list, rw: np.ndarray) -> list[Scored]:
-    """score_block of every candidate whose columns are Z[:, cols[i]]: the columns of those of one width projected
-    at once, then each block factored (column-major: LAPACK's own layout, no copy per block)."""
-    out = [None] * len(cols)
-    by_width: dict = {}
-    for i, c in enumerate(cols):
-        by_width.setdefault(len(c), []).append(i)
-    for width, members in by_width.items():
-        Gb = np.take(Z, np.concatenate([np.asarray(cols[i], dtype=np.intp) for i in members]), axis=1)
-        Gp = Gb - Q @ (Q.T @ Gb)
-        Gp = np.asfortranarray(Gp - Q @ (Q.T @ Gp))
-        norms = np.linalg.norm(Gb, axis=0).reshape(len(members), width)
-        for b, i in enumerate(members):
-            Qb, R = np.linalg.qr(Gp[:, b * width:(b + 1) * width])
-            keep = np.abs(np.diag(R)) > ABSORBED * np.maximum(norms[b], 1e-300)
-            Qb = Qb[:, keep]
-            y = Qb.T @ rw
-            coefs = np.zeros(width)
-            if keep.any():
-                coefs[keep] = np.linalg.solve(R[np.ix_(keep, keep)], y) if keep.all() else \
-                    np.linalg.lstsq(R[:, keep][keep], y, rcond=None)[0]
-            out[i] = Scored(float(y @ y), int(keep.sum()), Qb, coefs)
+    """score_block of every candidate whose columns are Z[:, cols[i]] (the columns of all projected at once)."""
+    G = np.take(Z, np.concatenate([np.asarray(c, dtype=np.intp) for c in cols]), axis=1)
+    at = np.cumsum([0] + [len(c) for c in cols])
+    return factor_blocks(project_off(Q, G), np.linalg.norm(G, axis=0), list(zip(at[:-1], at[1:])), rw)
+
+
+def project_off(Q: np.ndarray, G: np.ndarray) -> np.ndarray:
+    """G's columns projected off span(Q) (Q orthonormal), twice for accuracy; column-major (LAPACK's layout: a
+    block of its columns is factored without a copy)."""
+    Pt = np.ascontiguousarray(G.T)
+    Pt -= (Pt @ Q) @ Q.T
+    Pt -= (Pt @ Q) @ Q.T
+    return Pt.T
+
+
+def factor_blocks(P: np.ndarray, norms: np.ndarray, spans: list, rw: np.ndarray) -> list[Scored]:
+    """Score the candidates whose projected columns are P[:, a:b] for (a, b) in spans against rw (orthogonal to
+    the basis P was projected off); norms: the columns' norms before the projection."""
+    out = []
+    for a, b in spans:
+        Qb, R = np.linalg.qr(P[:, a:b])
+        keep = np.abs(np.diag(R)) > ABSORBED * np.maximum(norms[a:b], 1e-300)
+        Qb = Qb[:, keep]
+        y = Qb.T @ rw
+        coefs = np.zeros(b - a)
+        if keep.any():
+            coefs[keep] = np.linalg.solve(R[np.ix_(keep, keep)], y) if keep.all() else \
+                np.linalg.lstsq(R[:, keep][keep], y, rcond=None)[0]
+        out.append(Scored(float(y @ y), int(keep.sum()), Qb, coefs))
     return out
 
 
@@ -136,14 +144,14 @@ def pair_gram(Gp: np.ndarray):
     return np.einsum("ij,ij->j", c, c), np.einsum("ij,ij->j", s, s), np.einsum("ij,ij->j", c, s)
 
 
-def pair_gains(Q: np.ndarray, Gp: np.ndarray, rw: np.ndarray, gram=None) -> np.ndarray:
+def pair_gains(Q: np.ndarray, Gp: np.ndarray, rw: np.ndarray, gram=None, QtG=None) -> np.ndarray:
     """Gains of the 2-column candidates (columns 2i, 2i+1 of Gp) against rw (orthogonal to span(Q)): b^T S^+ b with
     b = G^T r and S the Gram matrix of the columns projected off Q, |G|^2 - (Q^T G)^T (Q^T G); gram: pair_gram of
-    Gp when known."""
+    Gp when known; QtG: Q^T Gp when known."""
     if not Gp.shape[1]:
         return np.zeros(0)
     cc, ss, cs = pair_gram(Gp) if gram is None else gram
-    QtG = Q.T @ Gp
+    QtG = Q.T @ Gp if QtG is None else QtG
     qc, qs = QtG[:, 0::2], QtG[:, 1::2]
     b = Gp.T @ rw
     return es.two_column_gain(b[0::2], b[1::2], cc - np.einsum("ij,ij->j", qc, qc),

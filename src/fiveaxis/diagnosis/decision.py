@@ -227,7 +227,7 @@ def decide(rows, lay: Layout, prior: cd.Prior, idf, known: bool, top: int, descr
     rss = float(rw @ rw)
     main = lay.main()
     pens = {k: prior.penalty(lay.families[k], N, len(lay.cols[k])) for k in main}
-    gains = _Scorer(Z, lay, main).gains(Q, rw)
+    gains = _Scorer(Z, lay, main, Q).gains(rw)
     d = _deltas(rss, gains, main, N, pens, known)
     sse0, sse1, chosen = cross_validate(rows, lay, prior, known, rank)
     accepted, _ = select(Z, Q, rw, lay, main, pens, N, known)
@@ -300,12 +300,13 @@ def _columns(Z, lay: Layout, ks) -> np.ndarray:
 
 
 class _Scorer:
-    """The columns of candidates ks gathered once from Z, to score them against several bases and residuals: the
-    one-column candidates with their squared norms, the periodic pairs with their Gram entries (neither depends on
-    the basis), the wider blocks."""
+    """The candidates ks scored against the model's basis Q and against Q extended by the columns of a set: their
+    columns gathered once from Z, with what does not depend on the extension (the one-column candidates' squared
+    norms and Q^T G, the periodic pairs' Gram entries and Q^T G, the wider blocks projected off Q)."""
 
-    def __init__(self, Z, lay: Layout, ks):
+    def __init__(self, Z, lay: Layout, ks, Q):
         width = {k: len(lay.cols[k]) for k in ks}
+        self.Q = Q
         self.singles = [k for k in ks if width[k] == 1]
         self.pairs = [k for k in ks if width[k] == 2 and lay.families[k] == "periodic"]
         taken = set(self.singles) | set(self.pairs)
@@ -313,21 +314,32 @@ class _Scorer:
         self.effects = [lay.effects[k] for k in self.singles]
         self.G = _columns(Z, lay, self.singles)
         self.g2 = np.einsum("ij,ij->j", self.G, self.G)
+        self.QtG = Q.T @ self.G
         self.Gp = _columns(Z, lay, self.pairs)
         self.gram = cd.pair_gram(self.Gp)
-        self.Gb = _columns(Z, lay, self.blocks)
+        self.QtGp = Q.T @ self.Gp
+        Gb = _columns(Z, lay, self.blocks)
+        self.Pb = cd.project_off(Q, Gb)
+        self.b_norms = np.linalg.norm(Gb, axis=0)
         at = np.cumsum([0] + [width[k] for k in self.blocks])
-        self.block_cols = [np.arange(a, b) for a, b in zip(at[:-1], at[1:])]
+        self.spans = list(zip(at[:-1], at[1:]))
 
-    def gains(self, Q, rw) -> dict:
-        """Drop of the weighted RSS when each candidate joins the model (basis Q; rw orthogonal to it) alone."""
+    def gains(self, rw, Qg=None) -> dict:
+        """Drop of the weighted RSS when each candidate joins alone the model of basis [Q, Qg] (Qg orthonormal and
+        orthogonal to Q: the columns a set adds; none by default); rw orthogonal to both."""
+        extra = Qg is not None and Qg.shape[1] > 0
+        Qc = np.hstack([self.Q, Qg]) if extra else self.Q
         out = {}
         if self.singles:
-            c = cd.project(Q, self.G, rw, self.effects, g2=self.g2)
+            QtG = np.vstack([self.QtG, Qg.T @ self.G]) if extra else self.QtG
+            c = cd.project(Qc, self.G, rw, self.effects, g2=self.g2, QtG=QtG)
             out.update({k: float(g) for k, g in zip(self.singles, c.gain)})
         if self.pairs:
-            out.update({k: float(g) for k, g in zip(self.pairs, cd.pair_gains(Q, self.Gp, rw, gram=self.gram))})
-        out.update({k: b.gain for k, b in zip(self.blocks, cd.score_blocks(Q, self.Gb, self.block_cols, rw))})
+            QtG = np.vstack([self.QtGp, Qg.T @ self.Gp]) if extra else self.QtGp
+            out.update({k: float(g) for k, g in zip(self.pairs, cd.pair_gains(Qc, self.Gp, rw, self.gram, QtG))})
+        if self.blocks:
+            P = cd.project_off(Qg, self.Pb) if extra else self.Pb
+            out.update({k: b.gain for k, b in zip(self.blocks, cd.factor_blocks(P, self.b_norms, self.spans, rw))})
         return out
 
 
@@ -368,7 +380,7 @@ def select(Z, Q, rw, lay: Layout, ks, pens: dict, N: int, known: bool):
     def score(members):
         return _set_ebic(rss0, _set_rss(Z, Q, rw, lay, members), N, sum(pens[u] for u in members), known)
 
-    scorer = _Scorer(Z, lay, ks)
+    scorer = _Scorer(Z, lay, ks, Q)
 
     def best_addition(members, exclude=()):
         """(the candidate that lowers the set's extended BIC most when added to members, the new value)."""
@@ -377,7 +389,7 @@ def select(Z, Q, rw, lay: Layout, ks, pens: dict, N: int, known: bool):
         cand = [k for k in ks if k not in members and k not in exclude]
         if not cand:
             return None, math.inf
-        g = scorer.gains(Qc, r)      # every candidate's (each one's alone: those of cand as if scored alone)
+        g = scorer.gains(r, Qc[:, Q.shape[1]:])     # every candidate's, those of cand as if scored alone
         base = score(members)
         val = {k: base + v for k, v in _deltas(float(r @ r), g, cand, N, pens, known).items()}
         k = min(cand, key=lambda j: (val[j], j))
@@ -435,7 +447,7 @@ def cross_validate(rows, lay: Layout, prior: cd.Prior, known: bool, rank: int):
         r_tr = Ztr[:, lay.id_] - Qtr @ (Qtr.T @ Ztr[:, lay.id_])
         ks = [k for k in range(len(lay.effects))
               if (lay.fold[k] is None and k not in lay.resampled) or lay.fold[k] == f]
-        g = _Scorer(Ztr, lay, ks).gains(Qtr, r_tr)
+        g = _Scorer(Ztr, lay, ks, Qtr).gains(r_tr)
         dk = _deltas(rr, g, ks, Ntr, {k: prior.penalty(lay.families[k], Ntr, len(lay.cols[k])) for k in ks}, known)
         best, best_d = None, math.inf
         for k in ks:
