@@ -1,4 +1,5 @@
 """Shared fixtures: the shipped machines and random poses within their strokes."""
+import os
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +24,15 @@ def poses_and_lengths(machine, n, seed=0):
     rng = np.random.default_rng(seed)
     L0 = machine.tool_length or 100.0
     return machine.random_poses(n, rng), rng.uniform(0.5 * L0, 1.5 * L0, n)
+
+
+@pytest.fixture(autouse=True)
+def numba_cache_folder_kept():
+    """A test leaves numba's cache folder as it found it: the tests after it in the same process would otherwise
+    compile every kernel anew into another folder (25 s for one gsa after a leak)."""
+    before = os.environ.get("NUMBA_CACHE_DIR")
+    yield
+    assert os.environ.get("NUMBA_CACHE_DIR") == before, "this test changed NUMBA_CACHE_DIR and left it changed"
 
 
 @pytest.fixture(scope="session")

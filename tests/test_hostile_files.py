@@ -130,7 +130,11 @@ def shared_tmp(tmp_path, monkeypatch):
     tmp.mkdir()
     tmp.chmod(0o1777)
     monkeypatch.setattr("tempfile.tempdir", str(tmp))
-    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    # ensure_writable sets NUMBA_CACHE_DIR itself: recorded here so that it is gone again after the test (a plain
+    # delenv of an unset variable records nothing, and the later tests of this process compiled every kernel anew
+    # into the deleted fallback folder: 25 s for one gsa)
+    monkeypatch.setenv("NUMBA_CACHE_DIR", "")
+    monkeypatch.delenv("NUMBA_CACHE_DIR")
     monkeypatch.setattr(numba_cache, "_DONE", {})
     monkeypatch.setattr("numba.core.config.reload_config", lambda: None)
     return tmp
