@@ -476,8 +476,9 @@ def _same_space(A: np.ndarray, B: np.ndarray) -> bool:
 def listing(Z, Q, M, rw, rss, lay: Layout, main, d: dict, gains: dict, accepted, rows, top, describe,
             head_key) -> list:
     """The candidates best first (the accepted set first, in its order), aliases collapsed into one entry headed
-    by the most plausible physical cause."""
-    order = list(accepted) + sorted((k for k in main if k not in accepted), key=lambda k: (d[k], k))
+    by the most plausible physical cause. Candidates whose extended BIC differ by rounding only (aliases: the same
+    projected column) keep the pool's order, so that the listing does not depend on the last bits of the arithmetic."""
+    order = list(accepted) + sorted((k for k in main if k not in accepted), key=lambda k: (round(d[k], 6), k))
     bases = {}
     width = {k: len(lay.cols[k]) for k in main}
 
