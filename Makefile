@@ -59,7 +59,7 @@ test-scale: install warm
 	$(PYTEST) -m scale
 
 ## the loop of a developer: everything but the tests marked slow (one case of each parametrized family stays):
-## 150 s of pytest with a warm cache on 2 cores, against about 510 s for `make test`'s
+## 150 s of pytest with a warm cache on 2 cores, against about 290 s for `make test`'s
 test-fast: install warm
 	$(PYTEST) -m "not slow and not scale"
 	$(BIN)/lint-imports
