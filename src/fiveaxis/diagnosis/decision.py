@@ -227,12 +227,13 @@ def decide(rows, lay: Layout, prior: cd.Prior, idf, known: bool, top: int, descr
     rss = float(rw @ rw)
     main = lay.main()
     pens = {k: prior.penalty(lay.families[k], N, len(lay.cols[k])) for k in main}
-    gains = _Scorer(Z, lay, main, Q).gains(rw)
+    scorer = _Scorer(Z, lay, main, Q)
+    gains = scorer.gains(rw)
     d = _deltas(rss, gains, main, N, pens, known)
     sse0, sse1, chosen = cross_validate(rows, lay, prior, known, rank)
-    accepted, _ = select(Z, Q, rw, lay, main, pens, N, known)
+    accepted, _ = select(Z, Q, rw, lay, main, pens, N, known, scorer)
     accepted = _ranked(Z, Q, rw, lay, [_head(Z, Q, lay, main, k, head_key) for k in accepted], pens, N, known)
-    order = sorted(main, key=lambda k: d[k])
+    order = _best_first(main, d)
     if accepted:       # the set: its extended BIC against the model alone, its members' penalties
         best = accepted[0]
         d_best = _set_ebic(rss, _set_rss(Z, Q, rw, lay, accepted), N, sum(pens[k] for k in accepted), known)
@@ -343,6 +344,13 @@ class _Scorer:
         return out
 
 
+def _best_first(ks, d: dict) -> list:
+    """Candidates ks by their change of the extended BIC d, best first; those whose values differ by rounding only
+    (aliases: the same projected column) keep the pool's order, so that the order does not depend on the last bits
+    of the arithmetic."""
+    return sorted(ks, key=lambda k: (round(d[k], 6), k))
+
+
 def _deltas(rss, gains: dict, ks, N, pens: dict, known) -> dict:
     """The change of the extended BIC (`candidates.deltas`) of each candidate of ks added alone."""
     got = cd.deltas(rss, [gains[k] for k in ks], N, np.array([pens[k] for k in ks], float), known)
@@ -367,20 +375,20 @@ def _set_ebic(rss0, rss, N, pen, known) -> float:
 SELECT_ROUNDS = 12
 
 
-def select(Z, Q, rw, lay: Layout, ks, pens: dict, N: int, known: bool):
+def select(Z, Q, rw, lay: Layout, ks, pens: dict, N: int, known: bool, scorer=None):
     """The set of candidates the rule accepts, as a set: stepwise selection by the set's extended BIC (its RSS and
     its members' penalties). Forward: the candidate that lowers it most joins (at most FORWARD_MAX members);
     backward: a member whose removal lowers it leaves; swap: a member is replaced by the candidate that lowers it
     most in its place (a searched shape that first took the place of two plain effects, a sine in time for a
     linear error and a reversal, gives way to them), or two members by one (two polynomials in time by the
     exponential warm-up they approximate). Stops when no move lowers it. Returns (the set in order of entry, the
-    weighted RSS after it)."""
+    weighted RSS after it). scorer: the `_Scorer` of ks on Z and Q when the caller has it."""
     rss0 = float(rw @ rw)
 
     def score(members):
         return _set_ebic(rss0, _set_rss(Z, Q, rw, lay, members), N, sum(pens[u] for u in members), known)
 
-    scorer = _Scorer(Z, lay, ks, Q)
+    scorer = scorer or _Scorer(Z, lay, ks, Q)
 
     def best_addition(members, exclude=()):
         """(the candidate that lowers the set's extended BIC most when added to members, the new value)."""
@@ -476,9 +484,8 @@ def _same_space(A: np.ndarray, B: np.ndarray) -> bool:
 def listing(Z, Q, M, rw, rss, lay: Layout, main, d: dict, gains: dict, accepted, rows, top, describe,
             head_key) -> list:
     """The candidates best first (the accepted set first, in its order), aliases collapsed into one entry headed
-    by the most plausible physical cause. Candidates whose extended BIC differ by rounding only (aliases: the same
-    projected column) keep the pool's order, so that the listing does not depend on the last bits of the arithmetic."""
-    order = list(accepted) + sorted((k for k in main if k not in accepted), key=lambda k: (round(d[k], 6), k))
+    by the most plausible physical cause."""
+    order = list(accepted) + _best_first([k for k in main if k not in accepted], d)
     bases = {}
     width = {k: len(lay.cols[k]) for k in main}
 
