@@ -21,6 +21,7 @@ import time
 import numpy as np
 
 import fiveaxis
+from fiveaxis.planning import criterion, exchange, pool
 from fiveaxis.planning import plan as P
 from fiveaxis.diagnosis.diagnose import diagnose
 from fiveaxis.measurement.simulate import simulate
@@ -48,14 +49,14 @@ def part_d(quick: bool):
         rng = np.random.default_rng(7)
         med = {}
         for mult in (1, 2, 3):
-            med[mult] = float(np.median([dsg.criterion(P.random_units(dsg, mult * n, rng))[0] for _ in range(RANDOM)]))
-        logdet_w, dmax, M = P.bound(dsg.X[:, :, dsg.cols("base")])
+            med[mult] = float(np.median([dsg.criterion(exchange.random_units(dsg, mult * n, rng))[0] for _ in range(RANDOM)]))
+        logdet_w, dmax, M = exchange.bound(dsg.X[:, :, dsg.cols("base")])
         b = logdet_w + res.r * math.log(n)
         # The bound holds for any plan within the constraints if no fresh candidate has d above r (equivalence
         # theorem): a second, larger pool from another seed, its rows in the same reference coordinates.
-        fresh = P.design(model, P.pool(model, instrument, 20000, 20000, np.random.default_rng(99)), [],
+        fresh = criterion.design(model, pool.pool(model, instrument, 20000, 20000, np.random.default_rng(99)), [],
                          model.machine.fixed)
-        Xf = (P._block(fresh.problem).A[:, P._theta_columns(fresh.problem)] * fresh.problem.w[:, None]
+        Xf = (criterion.design_block(fresh.problem).A[:, criterion.theta_columns(fresh.problem)] * fresh.problem.w[:, None]
               / dsg.ref.scale) @ dsg.ref.basis
         Xf = Xf[np.argsort(fresh.pool.unit[fresh.problem.obs.row], kind="stable")].reshape(fresh.C, fresh.k, -1)
         Xf = Xf.reshape(-1, res.r)
@@ -113,7 +114,7 @@ def part_detect(quick: bool):
                 continue
             p = np.mean([found(model, res.plan, spec, 100 + s) for s in range(NOISE_SEEDS)])
             rr = np.random.default_rng(1000 + n)
-            r = np.mean([found(model, P.subplan(res.design.pool, P.random_units(res.design, len(res.units), rr)),
+            r = np.mean([found(model, pool.subplan(res.design.pool, exchange.random_units(res.design, len(res.units), rr)),
                                spec, 200 + s) for s in range(RANDOM_DETECT)])
             plan_share.append((n, p))
             rand_share.append((n, r))
