@@ -20,7 +20,6 @@ from fiveaxis.linuxcnc import configuration as lx
 from fiveaxis.measurement import instruments as ins
 from fiveaxis.measurement.files import read
 from fiveaxis.measurement.simulate import simulate, to_frame
-from fiveaxis.model import effect_ids as ids
 
 NOISE = 1e-3
 
@@ -31,10 +30,10 @@ def model():
 
 
 def test_grammar_and_knots(model):
-    e = ids.split("dx_x:xk100", ["x", "y", "z", "A", "C", "t"])
-    assert (e.kind, e.arg, e.text) == ("profile", 100.0, "dx_x:xk100")
-    assert ids.split("dx_x:tk100", ["x", "t"]) is None and ids.split("dx_x:xk0", ["x"]) is None
-    assert "k<spacing>" in ids.explain("dx_x:xq5", ["x"])
+    fam, parts = fx.split("dx_x:xk100", ["x", "y", "z", "A", "C", "t"])
+    assert (fam.NAME, parts, fam.format(*parts)) == ("profile", ("dx_x", "x", 100.0), "dx_x:xk100")
+    assert fx.split("dx_x:tk100", ["x", "t"]) is None and fx.split("dx_x:xk0", ["x"]) is None
+    assert "k<spacing>" in fx.explain("dx_x:xq5", ["x"])
     eff = fx.parse("dx_x:xk100", model.machine, model.errors)
     assert eff.knots == tuple(float(k) for k in range(-400, 401, 100))
     assert eff.names[0] == "dx_x:xk100@-400" and len(eff.names) == 9

@@ -94,9 +94,10 @@ def parameter_jacobians(fm, model, q, L, dirs=None):
     V0 = model.ideal_tool(q, L)[1]
     ctx = fx.context(model.machine, q, None, fm_dirs(model, dirs, n), sc=fm.scales)
     for rec in fm.effects:
-        if rec.var == fx.TIME or (rec.kind == "reversal" and dirs is None):
+        here = fx.family(rec.kind).evaluated_in(rec, ctx)        # no time here; without directions no reversal
+        if here is None:
             continue
-        basis = effect_of(rec, model).basis(ctx)              # (n, k)
+        basis = effect_of(rec, model).basis(here)              # (n, k)
         for k, cname in enumerate(rec.names):
             if cname not in col:
                 continue

@@ -42,7 +42,7 @@ import numpy as np
 from . import kinematics as ck
 from . import plausible, prediction
 from .chain import DAMPING, actual_tool     # both corrections' chain and damping (also this module's names)
-from ..effects.families import TIME, profile_knots, var_token
+from ..effects.families import TIME, family, var_token
 from ..estimation.fitted_model import check_model, errors_at, sha256
 from ..exceptions import InputError
 from ..guards import check_memory
@@ -574,12 +574,13 @@ def profile_nodes(fm, model, points: int) -> dict:
     out = {}
     for v in model.variables:
         tok = _token(model, v)
-        recs = [e for e in fm.effects if e.var == tok and e.kind == "profile"]
-        if not recs:
+        at = [family(e.kind).table_knots(e, model.machine) for e in fm.effects if e.var == tok]
+        at = [k for k in at if k is not None]
+        if not at:
             continue
         lo, hi = (float(x) for x in model.machine.axis(v).stroke)
-        knots = np.concatenate([profile_knots(model.machine, tok, e.arg) for e in recs] + [[lo, hi]])
-        if any(e.var == tok and e.kind in ("polynomial", "periodic", "custom") for e in fm.effects):
+        knots = np.concatenate(at + [[lo, hi]])
+        if any(e.var == tok and family(e.kind).SMOOTH_ALONG_AXIS for e in fm.effects):
             knots = np.concatenate([knots, comp_nodes(model.machine, v, points)])
         knots = np.unique(np.round(knots[(knots >= lo) & (knots <= hi)], 9))
         if len(knots) > MAX_COMP_POINTS:

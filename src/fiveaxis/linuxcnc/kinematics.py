@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..effects import families as fx
 from ..exceptions import InputError
 from ..model import provenance
 from ..model.inverse import iterate, linear_for_tip
@@ -44,8 +45,9 @@ from ..outputs import write_text
 
 #: Effect slots of the module (must equal fiveaxis_derive.kins.SLOTS: a test checks the generated files).
 SLOTS = 16
-#: Effect kinds of the slots (the `kind` pin). Profiles (`<param>:<var>k<spacing>`) will be kind 3.
-KINDS = {"none": 0, "polynomial": 1, "periodic": 2}
+#: Effect kinds of the slots (the `kind` pin): each family that the module carries gives its number
+#: (`MODULE_KIND`, the template's FA_KIND_* constants).
+KINDS = {"none": 0, **{name: f.MODULE_KIND for name, f in fx.FAMILIES.items() if f.MODULE_KIND}}
 #: The component's name: the file name halcompile requires, the prefix of its pins.
 COMPONENT = "fiveaxis_kins"
 #: The reference inverse's limits (the module's: FA_MAX_ITER, FA_TOL_MM, FA_TOL_RAD).

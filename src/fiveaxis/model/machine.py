@@ -615,8 +615,8 @@ def parse_machine(data: dict, path: Path) -> Machine:
     for i, ident in enumerate(added):
         if isinstance(ident, str) and ident in effects:
             continue
-        m = effect_ids.split(ident, tokens)
-        if m is None or m.param not in seen_errors | {"L"}:
+        m = effect_ids.envelope(ident)         # the families check the suffix where the effects are resolved
+        if m is None or m[0] not in seen_errors | {"L"} or not any(m[1].startswith(t) for t in tokens):
             _fail(path, f"model.effects[{i}]", f"expected an effect id {effect_ids.expected(sorted(tokens))} with an "
                                                f"error name of this machine or L, or a custom effect name, "
                                                f"got {ident!r}")

@@ -8,6 +8,7 @@ import math
 
 from ..compensation.prediction import text_lines as prediction_text
 from ..diagnosis import residual_tests as st
+from ..effects import families as fx
 from ..effects.families import TIME
 from ..estimation.result import STRONG_CORRELATION
 from ..units import human
@@ -159,7 +160,7 @@ def diagnosis(j: dict) -> str:
                      f"{j['readings']:,} readings (structure tests on the sample)")
     lines.append("[[Candidates]] best first: RMS after adding it, share of the residual it explains")
     for k, c in enumerate(j["candidates"], 1):
-        coef = "" if c["coefficient"] is None or c["family"] in ("periodic", "reversal", "thermal", "custom") \
+        coef = "" if c["coefficient"] is None or not fx.family(c["family"]).RATE_SHOWN \
             else f"coef {c['coefficient']:.3g} {c['unit']}: "
         shown = f"{c['id']} ({c['iso']})" if c.get("iso") else c["id"]
         lines.append(f"    {k:2d}. {shown:18s} -> {c['rms_mm'] * 1000:.4g} um ({c['explained']:.1%}) "
