@@ -256,7 +256,7 @@ def _unexplained_lines(u: dict) -> list[str]:
 
 
 def compensation(rec: dict, folder: str = "") -> str:
-    """The text of a compensation (um, urad), built from its record (`compensation.table.summary`, what
+    """The text of a compensation (um, urad), built from its record (`compensation.record.summary`, what
     summary.json holds); folder: where it was written, for the last line."""
     tab, lc, mod = rec["table"], rec["linuxcnc"], rec["kinematics_module"]
     tip, ax = rec["predicted_tip_error_mm"], rec["predicted_axis_error_rad"]
