@@ -526,7 +526,7 @@ class Compensation:
     damping: float
     tool_length: float
     module: object = None      # linuxcnc.kinematics.ModuleValues, or None when the module cannot describe the machine
-    module_source: str = ""    # the module's halcompile source (fiveaxis_kins.comp)
+    module_source: str = ""    # the module's halcompile source (<machine>_kins.comp)
     module_note: str = ""      # why there is no module (one line), or ""
 
 
@@ -553,7 +553,7 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     points = comp_points or lx.COMP_POINTS
     lc = lx.fit(tip_error_function(model, errors_fn), model, points, reversal=reversal,
                 nodes=profile_nodes(fm, model, points))
-    values, text, note = None, "", lk.unsupported(model.machine) or ""
+    values, text, note = None, "", lk.unsupported(model.machine, model.convention or "equations") or ""
     if not note:
         values, text = ck.module_values(fm, model, damping), lk.source(model)
     module = None if values is None else (lambda q, dirs, fn: ck.predicted(fm, model, values, fn, q, dirs))
@@ -662,7 +662,7 @@ def module_summary(comp: Compensation) -> dict:
     if comp.module is None:
         return {"folder": None, "note": comp.module_note}
     v, acc = comp.module, comp.account.get("kinematics_module", {})
-    return {"folder": f"linuxcnc/{VOLUMETRIC}", "component": lk.COMPONENT,
+    return {"folder": f"linuxcnc/{VOLUMETRIC}", "component": v.component,
             "files": sorted(volumetric_files(comp.model, v, "").keys()),
             "joints": list(comp.model.variables),
             "world_coordinates": "the tool tip in the workpiece frame (mm; plus the G43 tool offset on z) and the "
@@ -697,7 +697,7 @@ linuxcnc/  for LinuxCNC 2.9: joint<N>-<axis>.comp (COMP_FILE_TYPE = 1: nominal, 
     line, machine units), fiveaxis.ini (lines to merge into the machine's INI), fiveaxis-trt.hal (trunnions: the
     kinematics parameters). LinuxCNC's stock kinematics and comp files take only part of the model: see
     summary.json, predicted_tip_error_mm (after_linuxcnc).
-linuxcnc/volumetric/  the whole model in LinuxCNC: the kinematics module fiveaxis_kins (source, build with
+linuxcnc/volumetric/  the whole model in LinuxCNC: the kinematics module <machine>_kins (source, build with
     halcompile) and a complete simulated configuration around it; its own README.txt has the commands.
     Predicted: summary.json, predicted_tip_error_mm (after_kinematics_module). Use it instead of the files above,
     not with them.
