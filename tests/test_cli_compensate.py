@@ -96,12 +96,14 @@ def test_compensate_outputs(loop):
     ini = (lc / "fiveaxis.ini").read_text()
     assert ini.count("COMP_FILE_TYPE = 1") == 5
     vol = lc / "volumetric"
-    assert sorted(p.name for p in vol.iterdir()) == ["README.txt", "fiveaxis.hal", "fiveaxis.ini", "fiveaxis.tbl",
-                                                     "fiveaxis_kins.comp"]
-    assert (vol / "fiveaxis_kins.comp").read_text().splitlines()[5].startswith("component fiveaxis_kins ")
+    kins = f"{machine}_kins"                     # the module is named after its machine (issue 28, point 9)
+    assert sorted(p.name for p in vol.iterdir()) == sorted(["README.txt", "fiveaxis.hal", "fiveaxis.ini",
+                                                            "fiveaxis.tbl", f"{kins}.comp"])
+    assert (vol / f"{kins}.comp").read_text().splitlines()[5].startswith(f"component {kins} ")
     vini = (vol / "fiveaxis.ini").read_text()
-    assert "KINEMATICS = fiveaxis_kins\n" in vini and f"COORDINATES = X Y Z {' '.join(variables[3:])}\n" in vini
-    assert "$ sudo halcompile --install fiveaxis_kins.comp" in (vol / "README.txt").read_text()
+    assert f"KINEMATICS = {kins}\n" in vini and f"COORDINATES = X Y Z {' '.join(variables[3:])}\n" in vini
+    assert f"$ sudo halcompile --install {kins}.comp" in (vol / "README.txt").read_text()
+    assert s["kinematics_module"]["component"] == kins
     assert s["kinematics_module"]["folder"] == "linuxcnc/volumetric" and s["kinematics_module"]["left_out"] == []
     assert tip["after_kinematics_module"]["max"] < 1e-6
     if machine == "ac_trunnion":

@@ -41,7 +41,7 @@ linuxcnc/  for LinuxCNC 2.9: joint<N>-<axis>.comp (COMP_FILE_TYPE = 1: nominal, 
     line, machine units), fiveaxis.ini (lines to merge into the machine's INI), fiveaxis-trt.hal (trunnions: the
     kinematics parameters). LinuxCNC's stock kinematics and comp files take only part of the model: see
     summary.json, predicted_tip_error_mm (after_linuxcnc).
-linuxcnc/volumetric/  the whole model in LinuxCNC: the kinematics module fiveaxis_kins (source, build with
+linuxcnc/volumetric/  the whole model in LinuxCNC: the kinematics module <machine>_kins (source, build with
     halcompile) and a complete simulated configuration around it; its own README.txt has the commands.
     Predicted: summary.json, predicted_tip_error_mm (after_kinematics_module). Use it instead of the files above,
     not with them.

@@ -40,7 +40,7 @@ class Compensation:
     damping: float
     tool_length: float
     module: object = None      # linuxcnc.kinematics.ModuleValues, or None when the module cannot describe the machine
-    module_source: str = ""    # the module's halcompile source (fiveaxis_kins.comp)
+    module_source: str = ""    # the module's halcompile source (<machine>_kins.comp)
     module_note: str = ""      # why there is no module (one line), or ""
 
 
@@ -67,7 +67,7 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     points = comp_points or lx.COMP_POINTS
     lc = lx.fit(tip_error_function(model, errors_fn), model, points, reversal=reversal,
                 nodes=profile_nodes(fm, model, points))
-    values, text, note = None, "", lk.unsupported(model.machine) or ""
+    values, text, note = None, "", lk.unsupported(model.machine, model.convention or "equations") or ""
     if not note:
         values, text = ck.module_values(fm, model, damping), lk.source(model)
     module = None if values is None else (lambda q, dirs, fn: ck.predicted(fm, model, values, fn, q, dirs))

@@ -87,7 +87,7 @@ def module_summary(comp: Compensation) -> dict:
     if comp.module is None:
         return {"folder": None, "note": comp.module_note}
     v, acc = comp.module, comp.account.get("kinematics_module", {})
-    return {"folder": f"linuxcnc/{VOLUMETRIC}", "component": lk.COMPONENT,
+    return {"folder": f"linuxcnc/{VOLUMETRIC}", "component": v.component,
             "files": sorted(volumetric_files(comp.model, v, "").keys()),
             "joints": list(comp.model.variables),
             "world_coordinates": "the tool tip in the workpiece frame (mm; plus the G43 tool offset on z) and the "

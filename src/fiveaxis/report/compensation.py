@@ -82,7 +82,7 @@ def _uncertainty(unc: dict) -> dict:
 #: The stages of summary.json's predicted_tip_error_mm the report shows, in order, with their labels.
 STAGES = (("before", "before compensation"), ("after_linuxcnc", "after what LinuxCNC takes (comp files, trunnion "
                                                                  "kinematics)"),
-          ("after_kinematics_module", "after LinuxCNC with the kinematics module fiveaxis_kins"),
+          ("after_kinematics_module", "after LinuxCNC with the kinematics module"),
           ("after_table", "after the volumetric table"))
 MAP = ("error_map.png", "predicted tool-tip error over the workspace before and after the table (um)")
 

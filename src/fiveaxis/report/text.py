@@ -272,7 +272,7 @@ def compensation(rec: dict, folder: str = "") -> str:
     what = lc["kinematics"] + " + " if lc.get("kinematics") else ""
     rows = [("before", "before"),
             (f"after LinuxCNC ({what}{len(lc['comp_files'])} comp files)", "after_linuxcnc"),
-            ("after LinuxCNC with the kinematics module fiveaxis_kins", "after_kinematics_module"),
+            ("after LinuxCNC with the kinematics module", "after_kinematics_module"),
             ("after the volumetric table (multilinear)", "after_table"),
             ("after the exact correction (Newton)", "after_exact_correction")]
     for label, key in rows:
