@@ -43,7 +43,7 @@ from . import kinematics as ck
 from . import plausible, prediction
 from .chain import DAMPING, actual_tool     # both corrections' chain and damping (also this module's names)
 from ..effects.families import TIME, profile_knots, var_token
-from ..estimation.fitted_model import check_model, errors_at, sha256
+from ..estimation.fitted_model import check_model, errors_at
 from ..exceptions import InputError
 from ..guards import check_memory
 from ..inputs import read_json, regular_file
@@ -53,6 +53,7 @@ from ..linuxcnc.configuration import MAX_COMP_POINTS, comp_nodes, linuxcnc_comma
 from ..linuxcnc.kinematics import axis_jacobian
 from ..linuxcnc.volumetric import files as volumetric_files
 from ..model.inverse import iterate
+from ..model.machine import check_made_for
 from ..outputs import write_set, write_text
 
 #: Weight of the tip residual relative to the tool axis residual times the tool length (makes the tip exact).
@@ -818,15 +819,11 @@ def load_table(folder, model) -> Table:
 
     folder = Path(folder)
     info = read_summary(folder)
-    name, sha = info["machine"]["name"], info["machine"]["sha256"]
-    machine = model.machine
-    if name != machine.name or sha != sha256(machine.path):
-        raise InputError(f"{folder}: compensation for machine '{name}' (sha256 {str(sha)[:12]}...), not for "
-                         f"'{machine.name}' ({machine.path})")
+    check_made_for(model.machine, info["machine"]["name"], info["machine"]["sha256"], str(folder), "compensation")
     path = folder / "table.parquet"
     if "table.parquet" not in info[MANIFEST]:
         path = folder / "table.csv"
-    return read_table(path, machine)
+    return read_table(path, model.machine)
 
 
 def command_function(folder, model, table: Table | None = None):
