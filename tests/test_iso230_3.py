@@ -5,6 +5,7 @@ hand-computed values of closed-form drifts; bad input as one-line errors naming 
 import csv
 import json
 import math
+import re
 
 import numpy as np
 import pandas as pd
@@ -14,7 +15,7 @@ from fiveaxis.exceptions import InputError
 from fiveaxis.iso230 import thermal as T
 from fiveaxis.iso230.thermal_sim import simulate
 
-from conftest import one_line_error, run_cli
+from conftest import ROOT, one_line_error, run_cli
 
 TOL = 0.01           # um and urad: the done criterion
 SPACING = 100.0      # mm
@@ -312,3 +313,57 @@ def test_bad_statements(tmp_path, capsys):
     assert rc == 2 and "--spacing: expected the distance" in err
     rc, _, err = run_cli(capsys, "iso230-3", path, "--spacing", "50", "--test", "axis")
     assert rc == 2 and "needs the axis' position" in err
+
+
+# -- the report's section -------------------------------------------------------------------------------------------
+def _cells(page: str, table_id: str) -> list:
+    body = re.search(rf'<table id="{table_id}">.*?<tbody>(.*?)</tbody>', page).group(1)
+    return [re.findall(r"<td[^>]*>(.*?)</td>", row) for row in re.findall(r"<tr[^>]*>(.*?)</tr>", body)]
+
+
+def test_report_section_prints_the_record(tmp_path):
+    """Every number of the section's tables is the record's, to the decimals of the readings' resolution."""
+    from fiveaxis.report import html
+    from fiveaxis.report.iso230_3 import section
+    path, _ = simulated(tmp_path, "spindle", hours=5.0, run_hours=3.0, seed=8)
+    rec, figs = section(path, spacing_mm=SPACING)
+    page = html._iso230_3({"iso230_3": rec}, figs)
+    assert page.startswith('<section id="iso230-3">') and 'id="fig-iso230_3"' in page
+    assert html._has_iso({"iso230_3": rec}, "iso230-3") and not html._has_iso({}, "iso230-3")
+    step = {"um": 0.05, "urad": 0.5}              # half the last printed decimal (0.1 um; 1 urad: 0.1 um / 100 mm)
+    rows = _cells(page, "iso230-3-figures")
+    assert len(rows) == len(rec["directions"]) == 5
+    for row, d in zip(rows, rec["directions"]):
+        u = d["unit"]
+        values = [float(x) for x in row[1:]]
+        assert values == pytest.approx([d[f"{k}_{u}"] for k in ("max_drift", "range", "change", "last_hour_change")],
+                                       abs=step[u] + 1e-9)
+    for row, c in zip(_cells(page, "iso230-3-temperatures"), rec["temperatures"]):
+        assert row[0] == c["channel"]
+        assert [float(x) for x in row[1:]] == pytest.approx(
+            [c[k] for k in ("first_degC", "last_degC", "min_degC", "max_degC", "range_degC", "change_degC")],
+            abs=0.005 + 1e-9)
+
+
+def test_report_refuses_a_bad_thermal_file_before_the_fit(tmp_path, capsys):
+    c = good()
+    c["temp_spindle"][4] = 2000.0
+    bad = write(tmp_path, c, "bad.csv")
+    out = tmp_path / "r.html"
+    rc, _, err = run_cli(capsys, "report", ROOT / "examples" / "li2018_measurements.csv", "-o", out, "--iso230-3",
+                         bad)
+    assert rc == 2 and err.count("\n") == 1 and "bad.csv: data row 5" in err and "temp_spindle" in err
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_report_with_a_thermal_test(tmp_path, capsys):
+    path, _ = simulated(tmp_path, "spindle", hours=5.0, run_hours=3.0, seed=9)
+    out = tmp_path / "r.html"
+    rc, js, err = run_cli(capsys, "report", ROOT / "examples" / "li2018_measurements.csv", "-o", out, "--iso230-3",
+                          path, "--spacing", "100", "--rounds", "1", "--no-sensitivity", "--json")
+    assert rc == 0, err
+    rec = json.loads(js)["iso230_3"]
+    page = out.read_text()
+    assert '<a href="#iso230-3">ISO 230-3</a>' in page and '<section id="iso230-3">' in page
+    assert rec["test"] == "spindle" and rec == T.evaluate_file(path, spacing_mm=SPACING)

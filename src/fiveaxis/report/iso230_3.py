@@ -7,7 +7,7 @@ import math
 from ..iso230 import thermal as T
 from ..plots.thermal import thermal_figure
 from .figures import png
-from .html import _e, _figure, _num, _table
+from .html import _e, _figure, _table
 
 #: The rows of a direction's figures: key, label.
 ROWS = (("max_drift", "maximum drift"), ("max_drift_t_min", "  at (min)"), ("range", "range (max - min)"),
@@ -23,13 +23,15 @@ def _value(d: dict, key: str):
     return d.get(key if key.endswith("_min") else f"{key}_{d['unit']}")
 
 
+def _decimals(res) -> int:
+    return 3 if not res or res <= 0 else int(min(3, max(0, math.ceil(-math.log10(res) - 1e-9))))
+
+
 def digits(rec: dict) -> dict:
-    """Decimals to print per direction: those of its resolution as the file gives it (0.1 um: 1; a tilt from
-    sensors at 0.1 um 100 mm apart, 1 urad: 0), at most 3."""
-    out = {}
-    for e in rec["directions_read"]:
-        res = e.get(f"resolution_{e['unit']}") or 0.0
-        out[e["direction"]] = 3 if res <= 0 else int(min(3, max(0, math.ceil(-math.log10(res) - 1e-9))))
+    """Decimals to print per direction and temperature channel: those of its resolution as the file gives it (0.1
+    um: 1; a tilt from sensors at 0.1 um 100 mm apart, 1 urad: 0; 0.01 degC: 2), at most 3."""
+    out = {e["direction"]: _decimals(e.get(f"resolution_{e['unit']}")) for e in rec["directions_read"]}
+    out.update({c["channel"]: _decimals(c.get("resolution_degC")) for c in rec["temperatures"]})
     return out
 
 
@@ -89,7 +91,7 @@ def text(rec: dict) -> str:
         lines += ["", f"  {'temperature (degC)':22s}{'first':>9s}{'last':>9s}{'min':>9s}{'max':>9s}{'range':>9s}"
                       f"{'change':>9s}{'readings':>10s}"]
         for c in rec["temperatures"]:
-            lines.append(f"    {c['channel']:20s}" + "".join(f"{c[k]:9.2f}" for k in (
+            lines.append(f"    {c['channel']:20s}" + "".join(f"{c[k]:9.{places[c['channel']]}f}" for k in (
                 "first_degC", "last_degC", "min_degC", "max_degC", "range_degC", "change_degC"))
                 + f"{c['readings']:10d}")
         if len(rec["phases"]) > 1:
@@ -98,7 +100,7 @@ def text(rec: dict) -> str:
                 cells = []
                 for p in rec["phases"]:
                     f = next((t for t in p["temperatures"] if t["channel"] == c["channel"]), None)
-                    cells.append(f"{f['change_degC']:12.2f}" if f else f"{'-':>12s}")
+                    cells.append(f"{f['change_degC']:12.{places[c['channel']]}f}" if f else f"{'-':>12s}")
                 lines.append(f"    {c['channel']:20s}" + "".join(cells))
     for n in rec["notes"]:
         lines.append(f"  note: {n}")
@@ -130,44 +132,52 @@ def section(file, test=None, spindle=None, spacing_mm=None) -> tuple[dict, dict]
     return rec, {"iso230_3": png(thermal_figure(rec))}
 
 
+def _people(unit: str) -> str:
+    return {"um": "\u00b5m", "urad": "\u00b5rad"}.get(unit, unit)
+
+
 def section_html(rec: dict, figs: dict) -> str:
-    """The HTML of the report's ISO 230-3 section (empty without one)."""
+    """The HTML of the report's ISO 230-3 section (empty without one): the figures with the decimals of the
+    readings' resolution, as the text prints them."""
     th = rec.get("iso230_3")
     if not th:
         return ""
+    places = digits(th)
     out = [f'<section id="iso230-3"><h2>ISO 230-3: {_e(th["test_name"])}</h2>',
            f"<p>From <span class=\"code\">{_e(th['file'])}</span>: {th['readings']} readings over "
-           f"{_num(th['duration_min'], 4)} min. The drift of a direction is its reading minus the reference reading "
+           f"{th['duration_min']:.4g} min. The drift of a direction is its reading minus the reference reading "
            f"(the first of the test; for a phase, the last reading before it), \u00b5m; tilts in \u00b5rad "
            f"(= \u00b5m/m).</p>"]
     keys = [k for k, _ in ROWS if k != "max_drift_t_min"]
     head = ["direction"] + [label for k, label in ROWS if k != "max_drift_t_min"]
+    numeric = tuple(range(1, len(head)))
 
     def rows_of(dirs):
-        return [[_e(d["direction"]) + f" ({_e(d['unit'])})"] + [_num(_value(d, k), 4) if _value(d, k) is not None
-                                                                  else "\u2013" for k in keys] for d in dirs]
+        return [[_e(d["direction"]) + f" ({_people(d['unit'])})"]
+                + [f"{_value(d, k):.{places[d['direction']]}f}" if _value(d, k) is not None else "\u2013"
+                   for k in keys] for d in dirs]
     if th["test"] == "axis":
         for tg in th["targets"]:
-            out.append(f"<p>Target {_e(th['axis'])} = {_num(tg['position_mm'], 6)} mm</p>"
-                       + _table(head, rows_of(tg["directions"]), "", numeric=tuple(range(1, len(head)))))
+            out.append(f"<p>Target {_e(th['axis'])} = {tg['position_mm']:g} mm</p>"
+                       + _table(head, rows_of(tg["directions"]), "", numeric=numeric))
         e = th.get("expansion")
         if e:
-            out.append(f"<p>Change of the distance between {_num(e['from_mm'], 6)} and {_num(e['to_mm'], 6)} mm: "
-                       f"largest {_num(e['max_drift_um'], 4)} \u00b5m ({_num(e['max_drift_um_per_m'], 4)} \u00b5m/m), "
-                       f"range {_num(e['range_um'], 4)} \u00b5m.</p>")
+            k = places.get(th["axis"], 2)
+            out.append(f"<p>Change of the distance between {e['from_mm']:g} and {e['to_mm']:g} mm: largest "
+                       f"{e['max_drift_um']:.{k}f} \u00b5m ({e['max_drift_um_per_m']:.{k}f} \u00b5m/m), range "
+                       f"{e['range_um']:.{k}f} \u00b5m.</p>")
     else:
-        out.append(_table(head, rows_of(th["directions"]), "iso230-3-figures", numeric=tuple(range(1, len(head)))))
+        out.append(_table(head, rows_of(th["directions"]), "iso230-3-figures", numeric=numeric))
         if th["test"] == "etve":
             out.append("<p>ETVE per direction (range over the test): " + ", ".join(
-                f"{_e(d['direction'])} {_num(d['ETVE_' + d['unit']], 4)} {_e(d['unit'])}"
+                f"{_e(d['direction'])} {d['ETVE_' + d['unit']]:.{places[d['direction']]}f} {_people(d['unit'])}"
                 for d in th["directions"]) + ".</p>")
         for p in th["phases"] if len(th["phases"]) > 1 else []:
-            out.append(f"<p>{_e(_phase_label(p))}</p>" + _table(head, rows_of(p["directions"]), "",
-                                                                 numeric=tuple(range(1, len(head)))))
+            out.append(f"<p>{_e(_phase_label(p))}</p>" + _table(head, rows_of(p["directions"]), "", numeric=numeric))
     if th["temperatures"]:
         out.append(_table(["temperature", "first (\u00b0C)", "last (\u00b0C)", "min (\u00b0C)", "max (\u00b0C)",
                            "range (\u00b0C)", "change (\u00b0C)"],
-                          [[_e(c["channel"])] + [_num(c[k], 4) for k in ("first_degC", "last_degC", "min_degC",
+                          [[_e(c["channel"])] + [f"{c[k]:.{places[c['channel']]}f}" for k in ("first_degC", "last_degC", "min_degC",
                                                                         "max_degC", "range_degC", "change_degC")]
                            for c in th["temperatures"]], "iso230-3-temperatures", numeric=(1, 2, 3, 4, 5, 6)))
     out.append(_figure(figs, "iso230_3", f"ISO 230-3 {th['test']}", "Drift of each direction and the temperatures "
