@@ -1,6 +1,6 @@
 """What a compensation's prediction cannot know: the fit's uncertainty and the directions the data did not determine.
 
-The account (compensation.table.account) predicts the tool-tip error left after each stage (LinuxCNC's files, the
+The account (compensation.account.account) predicts the tool-tip error left after each stage (LinuxCNC's files, the
 kinematics module, the table) on the fitted model, whose undetermined parameters carry the minimum-norm solution.
 The true machine differs by D = theta_true - theta_fit: to first order the error left at a pose q becomes
 e(q) + J(q) D, J the tip's derivative by the machine's parameters (errors, effect coefficients) at q (the
@@ -94,9 +94,10 @@ def parameter_jacobians(fm, model, q, L, dirs=None):
     V0 = model.ideal_tool(q, L)[1]
     ctx = fx.context(model.machine, q, None, fm_dirs(model, dirs, n), sc=fm.scales)
     for rec in fm.effects:
-        if rec.var == fx.TIME or (rec.kind == "reversal" and dirs is None):
+        here = fx.family(rec.kind).evaluated_in(rec, ctx)        # no time here; without directions no reversal
+        if here is None:
             continue
-        basis = effect_of(rec, model).basis(ctx)              # (n, k)
+        basis = effect_of(rec, model).basis(here)              # (n, k)
         for k, cname in enumerate(rec.names):
             if cname not in col:
                 continue

@@ -208,9 +208,8 @@ def _items(pool: cd.Pool, keep) -> list:
     periodic = range(len(pool.periodic)) if keep is None else keep[1]
     profiles = range(len(pool.profiles)) if keep is None else keep[2]
     items = [(pool.singles[j], str(pool.single_family[j]), None) for j in singles]
-    items += [(pool.periodic[b], "periodic", None) for b in periodic]
-    items += [(e, "custom", None) for e in pool.customs]
-    items += [(pool.profiles[j], "profile", None) for j in profiles]
+    items += [(e, e.NAME, None) for e in [pool.periodic[b] for b in periodic] + pool.customs
+              + [pool.profiles[j] for j in profiles]]
     items += [(x.effect, fam, f) for f, found in enumerate(pool.fold_found) for fam, x in found]
     return items
 
@@ -243,7 +242,7 @@ def _cut(pool: cd.Pool, sc: Screen, known: bool):
         for e in pool.profiles:
             got = cd.score_block(sc.Q, cd.candidate_matrix(sc.block, sc.w, [e]), sc.rw)
             d.append(cd.deltas(rss, np.array([got.gain]), N,
-                               np.array([pool.prior.penalty("profile", N, max(got.k, 1))]), known)[0])
+                               np.array([pool.prior.penalty(e.NAME, N, max(got.k, 1))]), known)[0])
         profiles = sorted(int(j) for j in np.argsort(d, kind="stable")[:SCREEN_PROFILES])
     return sorted(singles), sorted(periodic), profiles
 
@@ -339,8 +338,8 @@ def diagnose_fit(res: FitResult, top: int = 10) -> "Diagnosis":
         return item
 
     def head_key(k):
-        return (lay.families[k] != "custom", lay.families[k] in cd.SEARCHED,
-                cd.plausibility(machine, lay.effects[k]))
+        fam = fx.family(lay.families[k])
+        return (not fam.USER_WRITTEN, fam.SEARCHED, cd.plausibility(machine, lay.effects[k]))
 
     out = dc.decide(rows, lay, pool.prior, res.idf, known, top, describe, head_key)
     if out.listed and out.listed[0]["aliases"] and len(lay.cols[_index(lay, out.listed[0]["id"])]) == 1:
@@ -362,7 +361,7 @@ def diagnose_fit(res: FitResult, top: int = 10) -> "Diagnosis":
     noise = (res.noise(ob.LENGTH) or 0.0) if known else out.noise_mm
     c_s = cd.project(sc.Q, pool.G, sc.rw, pool.singles) if pool.singles else None
     absorbed_idx = [j for j, ratio in enumerate(c_s.ratio) if ratio <= cd.ABSORBED] if c_s is not None else []
-    absorbed = [pool.singles[j].id for j in absorbed_idx if pool.single_family[j] != "thermal"]
+    absorbed = [pool.singles[j].id for j in absorbed_idx if not fx.family(pool.single_family[j]).SEARCHED]
     dg = conclude(res, sc.prob, sc.w, sc.residual, r_cur, out.decision, out.forward, noise, out.listed, pool,
                   out.rss, absorbed, prob.meas.n)
     dg.hidden_by_placement = separation.hidden_by_placement(sc.block, sc.w, pool.singles, pool.G, absorbed_idx)
@@ -443,11 +442,7 @@ def candidate_item(prob, eff, family, coefs, rms_after, gain, rss, delta) -> dic
             "coefficient": phys[0][0] if phys else None, "unit": phys[0][1] if phys else ""}
     if len(phys) > 1:
         item["coefficients"] = [{"name": nm, "value": v, "unit": u} for nm, (v, u) in zip(eff.names, phys)]
-    if family == "periodic":
-        item["period"] = eff.arg
-        item["amplitude"] = float(math.hypot(*[v for v, _ in phys]))
-    if family == "thermal":
-        item["tau_s"] = eff.arg
+    item.update(eff.listing(phys))
     return item
 
 

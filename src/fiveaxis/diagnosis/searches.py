@@ -33,7 +33,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model import effect_ids as ids
 from ..effects import families as fx
 from scipy.sparse import csr_matrix
 
@@ -260,9 +259,8 @@ def periodic(sums: RowSums, bands: list, pairs=None) -> list[Found]:
         for i, p in enumerate(cols):
             u = back[i]
             param = sums.params[p]
-            e = ids.EffectId(param, b.token, "periodic", float(P[u, best[u]]))
             gain = float(exact[u, best[u]]) if cols[uniq[u]] == p else None
-            out.append(Found(fx.Effect(e.text, param, b.token, "periodic", e.arg), gain, int(p)))
+            out.append(Found(fx.Periodic.make(param, b.token, float(P[u, best[u]])), gain, int(p)))
         # Parameters sharing a column share the period; their exact gain differs only by the projection.
         redo = [k for k, f_ in enumerate(out) if f_.gain is None]
         if redo:
@@ -397,8 +395,7 @@ def thermal(sums: RowSums, grid: TauGrid, params=None) -> list[Found]:
     out = []
     for i, p in enumerate(cols):
         param = sums.params[p]
-        e = ids.EffectId(param, fx.TIME, "thermal", float(taus[i]))
-        out.append(Found(fx.Effect(e.text, param, fx.TIME, "thermal", e.arg), float(exact[i]), int(p)))
+        out.append(Found(fx.Thermal.make(param, fx.TIME, float(taus[i])), float(exact[i]), int(p)))
     return out
 
 

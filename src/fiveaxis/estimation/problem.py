@@ -138,8 +138,13 @@ def resolve_effects(model, ids, where="--add"):
 
 
 def machine_effects(model) -> list[str]:
-    """Effects the machine file itself adds (`[model] effects = [...]`)."""
-    return list(model.machine.added_effects)
+    """Effects the machine file itself adds (`[model] effects = [...]`), each id checked by its family (InputError
+    naming the file and the key)."""
+    machine = model.machine
+    for i, ident in enumerate(machine.added_effects):
+        if ident not in machine.effects:
+            fx.parse(ident, machine, model.errors, f"{machine.path}: model.effects[{i}]")
+    return list(machine.added_effects)
 
 
 def build(model, meas, added=(), fixed=None) -> Problem:

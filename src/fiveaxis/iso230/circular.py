@@ -437,7 +437,7 @@ def diagnostics(model, meas, circles: list, max_rounds: int = 4) -> dict:
             item(f"straightness {ax} ({plane})", eid, *(est or (None, None)),
                  note=f"bow over the {2 * radius[plane]:g} mm diameter" if est else "not determined by these "
                                                                                   "circles")
-    periodic = [e for e in res.problem.effects if getattr(e, "kind", "") == "periodic"]
+    periodic = [e for e in res.problem.effects if isinstance(e, fx.Periodic)]
     for e in periodic:
         k = list(res.problem.names).index(e.names[0])
         amp = 1e3 * math.hypot(res.theta[k], res.theta[k + 1])

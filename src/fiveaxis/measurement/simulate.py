@@ -25,9 +25,6 @@ from ..effects.custom import load_custom
 #: Standard deviations of the random base errors: a few um and tens of urad.
 BASE_LINEAR_MM = 3e-3
 BASE_ANGULAR_RAD = 20e-6
-#: Default size of a hidden effect: its change at the end of the scaled range (u = 1), or its amplitude.
-EFFECT_LINEAR_MM = 10e-3
-EFFECT_ANGULAR_RAD = 20e-6
 #: Standard deviations of random setup placements: offsets and length offsets (mm), rotations (rad, ~0.03 deg).
 SETUP_OFFSET_MM = 0.02
 SETUP_ROTATION_RAD = 5e-4
@@ -59,30 +56,13 @@ class Simulation:
 def parse_effect(spec: str, model):
     """`ex_x:x1` (default size) or `ex_x:x1=2e-5` (the change at the end of the stroke, mm or rad; for a periodic
     effect `=a` or `=a,b`: sine and cosine amplitudes; for a profile `dx_x:xk100=v1,...,vk`: its value at each
-    knot); custom effects: `name=p1,p2,...`."""
+    knot); custom effects: `name=p1,p2,...`. Each family says what its values are (`simulated`)."""
     ident, _, value = spec.partition("=")
     if ident in model.machine.effects:
         eff = load_custom(model.machine, ident)
-        vals = _floats(spec, value) if value else None
-        if vals is not None and len(vals) != len(eff.names):
-            raise InputError(f"effect value {spec}: expected {len(eff.names)} values ({', '.join(eff.params)})")
-        return eff, (np.array(vals) if vals else np.full(len(eff.names), EFFECT_LINEAR_MM))
-    eff = fx.parse(ident, model.machine, model.errors, "--effect")
-    k = len(eff.names)
-    if eff.kind == "profile" and (not value or len(_floats(spec, value)) != k):
-        knots = ", ".join(f"{x:g}" for x in eff.knots)
-        raise InputError(f"effect value {spec}: a profile needs its value at each of its {k} knots ({knots}), "
-                         f"mm or rad, e.g. {ident}=" + ",".join(["0.001"] * min(k, 3)) + (",..." if k > 3 else ""))
-    if value:
-        vals = _floats(spec, value)
-        if len(vals) == 1 and k > 1:
-            vals = vals + [0.0] * (k - 1)
-        if len(vals) != k:
-            raise InputError(f"effect value {spec}: expected {k} value(s) after '='")
     else:
-        angular = eff.param != fx.TOOL and model.machine.is_angular(eff.param)
-        vals = [EFFECT_ANGULAR_RAD if angular else EFFECT_LINEAR_MM] + [0.0] * (k - 1)
-    return eff, np.array(vals, dtype=float)
+        eff = fx.parse(ident, model.machine, model.errors, "--effect")
+    return eff, eff.simulated(_floats(spec, value) if value else None, model.machine, spec)
 
 
 def _floats(spec, text):

@@ -258,6 +258,14 @@ def module_name(machine_name: str, convention: str = "equations") -> str:
     return machine_name if convention in (None, "", "equations") else f"{machine_name}__{convention}"
 
 
+def kins_component(machine_name: str, convention: str = "equations") -> str:
+    """The LinuxCNC kinematics module of a machine model: `li2018_kins`, `li2018__printed_kins`; the component
+    halcompile builds, its file name (without .comp) and its pins' prefix. Made of checked names only (the machine's
+    and the convention's: letters, digits, single underscores), so that it is a C and HAL identifier and the
+    modules of two machines install side by side."""
+    return f"{module_name(machine_name, convention)}_kins"
+
+
 def resolve(name_or_path: str | Path) -> Path:
     """A machine name (`li2018`) from `machines/`, or a path to a TOML file."""
     p = Path(name_or_path)
@@ -615,8 +623,8 @@ def parse_machine(data: dict, path: Path) -> Machine:
     for i, ident in enumerate(added):
         if isinstance(ident, str) and ident in effects:
             continue
-        m = effect_ids.split(ident, tokens)
-        if m is None or m.param not in seen_errors | {"L"}:
+        m = effect_ids.envelope(ident)         # the families check the suffix where the effects are resolved
+        if m is None or m[0] not in seen_errors | {"L"} or not any(m[1].startswith(t) for t in tokens):
             _fail(path, f"model.effects[{i}]", f"expected an effect id {effect_ids.expected(sorted(tokens))} with an "
                                                f"error name of this machine or L, or a custom effect name, "
                                                f"got {ident!r}")

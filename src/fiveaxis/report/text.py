@@ -8,6 +8,7 @@ import math
 
 from ..compensation.prediction import text_lines as prediction_text
 from ..diagnosis import residual_tests as st
+from ..effects import families as fx
 from ..effects.families import TIME
 from ..estimation.result import STRONG_CORRELATION
 from ..units import human
@@ -159,7 +160,7 @@ def diagnosis(j: dict) -> str:
                      f"{j['readings']:,} readings (structure tests on the sample)")
     lines.append("[[Candidates]] best first: RMS after adding it, share of the residual it explains")
     for k, c in enumerate(j["candidates"], 1):
-        coef = "" if c["coefficient"] is None or c["family"] in ("periodic", "reversal", "thermal", "custom") \
+        coef = "" if c["coefficient"] is None or not fx.family(c["family"]).RATE_SHOWN \
             else f"coef {c['coefficient']:.3g} {c['unit']}: "
         shown = f"{c['id']} ({c['iso']})" if c.get("iso") else c["id"]
         lines.append(f"    {k:2d}. {shown:18s} -> {c['rms_mm'] * 1000:.4g} um ({c['explained']:.1%}) "
@@ -255,7 +256,7 @@ def _unexplained_lines(u: dict) -> list[str]:
 
 
 def compensation(rec: dict, folder: str = "") -> str:
-    """The text of a compensation (um, urad), built from its record (`compensation.table.summary`, what
+    """The text of a compensation (um, urad), built from its record (`compensation.record.summary`, what
     summary.json holds); folder: where it was written, for the last line."""
     tab, lc, mod = rec["table"], rec["linuxcnc"], rec["kinematics_module"]
     tip, ax = rec["predicted_tip_error_mm"], rec["predicted_axis_error_rad"]
@@ -271,7 +272,7 @@ def compensation(rec: dict, folder: str = "") -> str:
     what = lc["kinematics"] + " + " if lc.get("kinematics") else ""
     rows = [("before", "before"),
             (f"after LinuxCNC ({what}{len(lc['comp_files'])} comp files)", "after_linuxcnc"),
-            ("after LinuxCNC with the kinematics module fiveaxis_kins", "after_kinematics_module"),
+            ("after LinuxCNC with the kinematics module", "after_kinematics_module"),
             ("after the volumetric table (multilinear)", "after_table"),
             ("after the exact correction (Newton)", "after_exact_correction")]
     for label, key in rows:
