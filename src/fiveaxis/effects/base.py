@@ -146,18 +146,21 @@ class Series:
     temps: dict
     cache: dict = field(default_factory=dict, repr=False)
 
-    def lagged(self, token: str, tau: float) -> np.ndarray:
-        """The channel through a first-order lag of time constant tau (s), over the readings in time order."""
+    def lagged(self, token: str, tau: float, keep: bool = True) -> np.ndarray:
+        """The channel through a first-order lag of time constant tau (s), over the readings in time order (kept
+        for the next call unless keep is False: a search trying many)."""
         key = (token, float(tau))
-        if key not in self.cache:
-            if self.t is None:
-                raise InputError(f"a temperature effect with a lag needs a t column (s) in the measurements (the "
-                                 f"lag of {token} runs over time)")
-            order = np.argsort(self.t, kind="stable")
-            out = np.empty(len(order))
-            out[order] = first_order_lag(np.asarray(self.t, float)[order], self.temps[token][order], tau)
+        if key in self.cache:
+            return self.cache[key]
+        if self.t is None:
+            raise InputError(f"a temperature effect with a lag needs a t column (s) in the measurements (the lag of "
+                             f"{token} runs over time)")
+        order = np.argsort(self.t, kind="stable")
+        out = np.empty(len(order))
+        out[order] = first_order_lag(np.asarray(self.t, float)[order], self.temps[token][order], tau)
+        if keep:
             self.cache[key] = out
-        return self.cache[key]
+        return out
 
 
 def first_order_lag(t, x, tau: float) -> np.ndarray:
@@ -243,13 +246,13 @@ class EffectContext:
             raise InputError(f"effects on '{token}' need a {token} column (degC) in the measurements")
         return self.temps[token]
 
-    def lagged(self, token: str, tau: float) -> np.ndarray:
+    def lagged(self, token: str, tau: float, keep: bool = True) -> np.ndarray:
         """A temperature channel through a first-order lag of time constant tau (s; 0: none) at every pose (degC):
         computed over the whole measurement in time; in a steady state, the channel itself."""
         if tau <= 0 or self.steady:
             return self.temperature(token)
         self.temperature(token)
-        full = self.series.lagged(token, tau)
+        full = self.series.lagged(token, tau, keep)
         return full if self.rows is None else full[self.rows]
 
     def direction(self, token: str) -> np.ndarray:
@@ -315,17 +318,15 @@ def scales(machine, t=None, tmax: float | None = None, temps=None, references=No
     return out
 
 
-def filled(temps: dict, t, where: str = "measurements") -> dict:
+def filled(temps: dict, t) -> dict:
     """Temperature channels with the rows where a sensor was not read (NaN) filled: linear in time between the
-    readings around them (held beyond the first and last); without times, InputError if any is blank."""
+    readings around them (held beyond the first and last); without times they stay NaN (an effect of the channel
+    refuses them)."""
     out = {}
     for name, T in (temps or {}).items():
         T = np.asarray(T, float)
         blank = np.isnan(T)
-        if blank.any():
-            if t is None:
-                raise InputError(f"{where}: column {name}: {int(blank.sum())} row(s) without a reading and no t "
-                                 f"column to interpolate them in time (give a temperature in every row, or t)")
+        if blank.any() and t is not None and (~blank).any():
             t = np.asarray(t, float)
             order = np.argsort(t[~blank], kind="stable")
             T = np.where(blank, np.interp(t, t[~blank][order], T[~blank][order]), T)
@@ -459,10 +460,10 @@ def chain_distance(machine, effect) -> int:
     """How far apart the parameter's place and the variable's axis are along the kinematic loop tool -> base ->
     workpiece (0: the same axis; the tool length and the chain ends: the loop's length). In time, the tool
     length comes first (0: the spindle's thermal growth, the first thing ISO 230-3 measures), every other error
-    after it."""
+    after it; the same for a temperature channel."""
     loop = [a.name for a in reversed(machine.tool_chain)] + [a.name for a in machine.workpiece_chain]
     var = getattr(effect, "var", None)
-    if var == TIME:
+    if var == TIME or axis_of_token(machine, var) is None:      # time, a temperature: the tool length first
         return 0 if effect.param == TOOL else len(loop)
     if effect.param == TOOL:
         return len(loop)

@@ -97,6 +97,9 @@ class Temperature(base.VocabularyEffect):
         if s is None or self.var not in ctx.temps:
             raise InputError(f"effect {self.id} needs a {self.var} column (degC) in the measurements")
         b = ctx.lagged(self.var, self.arg) - s.centre
+        if np.isnan(b).any():
+            raise InputError(f"effect {self.id}: column {self.var} has rows without a reading and the measurements "
+                             f"no t column to interpolate them in time (give a temperature in every row, or t)")
         return (b * ctx.u(self.axis) if self.axis else b)[:, None]
 
     def physical(self, machine, coefs, sc: dict) -> list[tuple[float, str]]:
