@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 import fiveaxis
-from fiveaxis.compensation import table as CT
+from fiveaxis.compensation import folder as CF
+from fiveaxis.compensation import pipeline as CP
+from fiveaxis.compensation.record import summary
 from fiveaxis.diagnosis import diagnose as D
 from fiveaxis.effects import families as fx
 from fiveaxis.estimation import fit as F
@@ -130,15 +132,15 @@ def test_lead_screw_comp_file_leaves_the_noise(model, lead_screw, tmp_path):
     path = MF.save(fm, tmp_path / "model.json")
     fm = MF.load(path)                                                # through the file
     assert [e.kind for e in fm.effects] == ["reversal", "profile"] and fm.effects[1].arg == 100.0
-    comp = CT.compensate(fm, model, counts={v: 9 if v == "X" else 2 for v in model.variables}, poses=200)  # X: knots
+    comp = CP.compensate(fm, model, counts={v: 9 if v == "X" else 2 for v in model.variables}, poses=200)  # X: knots
     (tmp_path / "comp").mkdir()
-    CT.write(comp, tmp_path / "comp")
+    CF.write(comp, tmp_path / "comp", summary(comp))
     nominal, fwd, rev = lx.read_comp_file(tmp_path / "comp" / "linuxcnc" / "joint0-X.comp")
     assert list(nominal) == list(range(-400, 401, 100))               # the trims sit at the profile's knots
     assert np.median(fwd - rev) == pytest.approx(-0.025, abs=0.001)    # the reversal: forward 25 um below reverse
     before = simulate(model, effects, noise=NOISE, seed=33, plan=plan)
     after = simulate(model, effects, noise=NOISE, seed=33, plan=plan,
-                     commands=CT.linuxcnc_function(tmp_path / "comp", model))
+                     commands=CF.linuxcnc_function(tmp_path / "comp", model))
     spread = lambda du: float(np.sqrt(np.mean((du - du.mean()) ** 2)))      # noqa: E731  (the dead path aside)
     assert spread(before.meas.du) > 10 * NOISE
     assert spread(after.meas.du) <= 1.25 * NOISE

@@ -289,11 +289,11 @@ def run_simulate(args) -> int:
     if args.linuxcnc and args.compensation is None:
         raise InputError("--linuxcnc applies the LinuxCNC files of a compensation folder: give --compensation DIR")
     if args.compensation is not None and args.linuxcnc:
-        from ..compensation.table import linuxcnc_function
+        from ..compensation.folder import linuxcnc_function
         commands = linuxcnc_function(args.compensation, model)
         comp = f", compensated by LinuxCNC with {args.compensation}/linuxcnc"
     elif args.compensation is not None:
-        from ..compensation.table import command_function, load_table
+        from ..compensation.folder import command_function, load_table
         table = load_table(args.compensation, model)
         commands = command_function(args.compensation, model, table)
         comp = f", compensated by {args.compensation}"

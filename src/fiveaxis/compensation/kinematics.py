@@ -40,7 +40,7 @@ def module_values(fm, model, damping: float = DAMPING) -> K.ModuleValues:
     units = tuple("rad" if model.machine.is_angular(n) else "mm" for n in names)
     errors = np.array([fm.errors[n] for n in names], dtype=float)
     return K.ModuleValues(model.machine.name, names, errors, units, tuple(slots), float(model.machine.tool_length),
-                          float(damping), tuple(left))
+                          float(damping), tuple(left), model.convention or "equations")
 
 
 def module_model(fm, values: K.ModuleValues):

@@ -1,6 +1,6 @@
 """What a compensation's prediction cannot know: the fit's uncertainty and the directions the data did not determine.
 
-The account (compensation.table.account) predicts the tool-tip error left after each stage (LinuxCNC's files, the
+The account (compensation.account.account) predicts the tool-tip error left after each stage (LinuxCNC's files, the
 kinematics module, the table) on the fitted model, whose undetermined parameters carry the minimum-norm solution.
 The true machine differs by D = theta_true - theta_fit: to first order the error left at a pose q becomes
 e(q) + J(q) D, J the tip's derivative by the machine's parameters (errors, effect coefficients) at q (the

@@ -258,6 +258,14 @@ def module_name(machine_name: str, convention: str = "equations") -> str:
     return machine_name if convention in (None, "", "equations") else f"{machine_name}__{convention}"
 
 
+def kins_component(machine_name: str, convention: str = "equations") -> str:
+    """The LinuxCNC kinematics module of a machine model: `li2018_kins`, `li2018__printed_kins`; the component
+    halcompile builds, its file name (without .comp) and its pins' prefix. Made of checked names only (the machine's
+    and the convention's: letters, digits, single underscores), so that it is a C and HAL identifier and the
+    modules of two machines install side by side."""
+    return f"{module_name(machine_name, convention)}_kins"
+
+
 def resolve(name_or_path: str | Path) -> Path:
     """A machine name (`li2018`) from `machines/`, or a path to a TOML file."""
     p = Path(name_or_path)

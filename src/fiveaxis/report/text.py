@@ -279,7 +279,7 @@ def _unexplained_lines(u: dict) -> list[str]:
 
 
 def compensation(rec: dict, folder: str = "") -> str:
-    """The text of a compensation (um, urad), built from its record (`compensation.table.summary`, what
+    """The text of a compensation (um, urad), built from its record (`compensation.record.summary`, what
     summary.json holds); folder: where it was written, for the last line."""
     tab, lc, mod = rec["table"], rec["linuxcnc"], rec["kinematics_module"]
     tip, ax = rec["predicted_tip_error_mm"], rec["predicted_axis_error_rad"]
@@ -295,7 +295,7 @@ def compensation(rec: dict, folder: str = "") -> str:
     what = lc["kinematics"] + " + " if lc.get("kinematics") else ""
     rows = [("before", "before"),
             (f"after LinuxCNC ({what}{len(lc['comp_files'])} comp files)", "after_linuxcnc"),
-            ("after LinuxCNC with the kinematics module fiveaxis_kins", "after_kinematics_module"),
+            ("after LinuxCNC with the kinematics module", "after_kinematics_module"),
             ("after the volumetric table (multilinear)", "after_table"),
             ("after the exact correction (Newton)", "after_exact_correction")]
     for label, key in rows:
