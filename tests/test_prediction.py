@@ -117,7 +117,7 @@ def test_model_files_without_covariance_say_so(case, tmp_path):
     path.write_text(json.dumps(data))
     old = MF.load(path)
     assert old.covariance is None and PR.band(old, model, sim.meas.poses, None, 150.0, {}, {}) == {}
-    assert "unknown" in PR.text_lines({})[0]
+    assert "unknown" in T.prediction_lines({}, [])[0]
     data = json.loads(MF.load.__globals__["json"].dumps(MF.to_json(fm)))
     data["covariance_mm_rad"]["matrix"][0] = [1.0]
     path.write_text(json.dumps(data))

@@ -104,8 +104,11 @@ def run_compensate(args) -> int:
     from ..plots.compensation import figure
     from ..report import text
     fm = MF.load(args.model)
-    model = load(args.machine, fm.convention) if args.machine else MF.load_model(fm, str(args.model))
-    MF.check_model(fm, model, str(args.model))
+    if args.machine:               # before the output folder is made (load_model checks the model file's own)
+        model = load(args.machine, fm.convention)
+        MF.check_model(fm, model, str(args.model))
+    else:
+        model = MF.load_model(fm, str(args.model))
     out = args.output
     if not out.is_dir():
         if not out.parent.is_dir():

@@ -66,9 +66,13 @@ def register_diagnose(p):
     _common(p)
     _fit_options(p)
     p.add_argument("--top", type=int, default=10, help="candidates to list (default 10)")
+    p.add_argument("--rounds", type=int, default=1, metavar="N",
+                   help="the calibration loop: diagnose, add the top candidate, diagnose again while an effect is "
+                        "missing, at most N diagnoses (default 1: one diagnosis); --json gives {\"rounds\": [...]}")
     p.add_argument("--json", action="store_true", help="print JSON instead of the report")
     p.add_argument("--plot", type=Path, default=None, metavar="DIR",
-                   help="write residuals.png (residuals against each variable, before/after the top candidate)")
+                   help="write residuals.png (residuals against each variable, before/after the top candidate; "
+                        "of the last round)")
     p.set_defaults(func=run_diagnose)
 
 
@@ -231,23 +235,25 @@ def run_fit(args) -> int:
 
 
 def run_diagnose(args) -> int:
-    from ..diagnosis import diagnose as D
+    from ..diagnosis import rounds as loop
     from ..report import text
     if args.top < 1:
         raise InputError(f"--top: expected a positive number, got {args.top}")
+    if args.rounds < 1:
+        raise InputError(f"--rounds: expected a positive number of diagnoses, got {args.rounds}")
     model, meas, effects, fixed = _load(args)
     preconditions.check(meas)                        # enough distinct poses for the cross-validation
     with _where_blocks(args) as in_blocks:
-        dg = D.diagnose(model, meas, effects, top=args.top, fixed=fixed, in_blocks=in_blocks)
+        dgs = loop.rounds(model, meas, effects, args.rounds, top=args.top, fixed=fixed, in_blocks=in_blocks)
     if args.plot is not None:
         from ..plots.residuals import plot_residuals
-        path = plot_residuals(dg, args.plot)
+        path = plot_residuals(dgs[-1], args.plot)
         print(f"fiveaxis: wrote {path}", file=sys.stderr)
-    j = dg.to_json()
+    js = [dg.to_json() for dg in dgs]
     if args.json:
-        _dump(j)
+        _dump(js[0] if args.rounds == 1 else {"rounds": js})
     else:
-        print(text.diagnosis(j))
+        print(text.diagnosis(js[0]) if args.rounds == 1 else text.rounds(js))
     return 0
 
 

@@ -11,12 +11,12 @@ from pathlib import Path
 import numpy as np
 
 from .table import INTERPOLATION, INTERPOLATION_L, Table, compensated_commands, read_table, table_frame
-from ..estimation.fitted_model import sha256
 from ..exceptions import InputError
 from ..inputs import read_json, regular_file
 from ..linuxcnc import configuration as lx
 from ..linuxcnc.configuration import linuxcnc_commands
 from ..linuxcnc.volumetric import files as volumetric_files
+from ..model.machine import check_made_for
 from ..outputs import write_set
 
 
@@ -159,11 +159,7 @@ def read_summary(folder) -> dict:
 def summary_for(folder, model) -> dict:
     """The summary.json of a compensate folder (read_summary), checked to be for the model's machine file."""
     info = read_summary(folder)
-    name, sha = info["machine"]["name"], info["machine"]["sha256"]
-    machine = model.machine
-    if name != machine.name or sha != sha256(machine.path):
-        raise InputError(f"{folder}: compensation for machine '{name}' (sha256 {str(sha)[:12]}...), not for "
-                         f"'{machine.name}' ({machine.path})")
+    check_made_for(model.machine, info["machine"]["name"], info["machine"]["sha256"], str(folder), "compensation")
     return info
 
 

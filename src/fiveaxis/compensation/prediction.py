@@ -274,33 +274,3 @@ def warnings(unc: dict) -> list[str]:
                        f"not compensate with this model{todo}")
             break
     return out
-
-
-def text_lines(unc: dict) -> list[str]:
-    """The prediction's uncertainty as report lines (um, urad)."""
-    if not unc:
-        return ["  the prediction's uncertainty: unknown (the model file has no covariance: fit it again with this "
-                "version)"]
-    p, parts = unc["prior"], unc["tip_parts_rms_mm"]
-    lines = [f"  what the prediction cannot know (true RMS tool-tip error, k = 2 range, um): the fit's uncertainty "
-             f"{1e3 * parts['fit']:.3g} um, the {unc['undetermined_directions']} undetermined directions "
-             f"{1e3 * math.hypot(parts['undetermined'], parts['undetermined_best_value']):.3g} um (their size taken "
-             f"as the determined ones': {1e3 * p['linear_mm']:.3g} um, {1e6 * p['angular_rad']:.3g} urad)"]
-    noise = unc.get("noise_mm")
-    for key, s in unc["tip_error_mm"].items():
-        lo, hi = s["range_k2"]
-        re = s.get("remeasured_range_k2")
-        more = (f"; a tip measurement with {1e3 * noise:.2g} um noise would read {1e3 * re[0]:.3g} to "
-                f"{1e3 * re[1]:.3g}") if re and noise else ""
-        lines.append(f"    {STAGE_LABELS.get(key, key):56s} {1e3 * lo:8.3f} to {1e3 * hi:.3f}{more}")
-    ax = unc["axis_error_rad"]
-    if "after_table" in ax:
-        lo, hi = ax["after_table"]["range_k2"]
-        lines.append(f"  tool-axis error after the table (model estimate): {1e6 * lo:.3g} to {1e6 * hi:.3g} urad RMS "
-                     f"(k = 2)")
-    best = (unc.get("determining") or {}).get("best")
-    if best:
-        lines.append(f"  to determine the undetermined part ({100 * best['determines_share']:.0f} % of it): "
-                     f"{best['measurement']}: {best['command']}")
-    lines += [f"  WARNING: {w}" for w in warnings(unc)]
-    return lines

@@ -59,7 +59,7 @@ from ..effects import families as fx
 from ..effects.base import EffectRecord
 from ..exceptions import InputError
 from ..inputs import read_bytes, read_json
-from ..model.machine import MACHINES_DIR, MAX_MACHINE_BYTES, machine_from_text
+from ..model.machine import MACHINES_DIR, MAX_MACHINE_BYTES, check_made_for, machine_from_text
 from ..outputs import write_text
 from ..model import error_model
 
@@ -196,12 +196,7 @@ def undetermined_directions(res, n_machine: int) -> np.ndarray:
 # -- checks against a loaded model -------------------------------------------------------------------------------
 def check_model(fm: FittedModel, model, where: str = "model file") -> None:
     """InputError unless fm was fitted for this machine file (same name and SHA-256) and convention."""
-    machine = model.machine
-    sha = sha256(machine.path)
-    if fm.machine != machine.name or fm.machine_sha256 != sha:
-        raise InputError(f"{where}: fitted for machine '{fm.machine}' ({fm.machine_file}, sha256 "
-                         f"{fm.machine_sha256[:12]}...), not for '{machine.name}' ({machine.path}, sha256 "
-                         f"{sha[:12]}...)")
+    check_made_for(model.machine, fm.machine, fm.machine_sha256, where)
     if fm.convention != model.convention:
         raise InputError(f"{where}: fitted under convention '{fm.convention}', the model loaded uses "
                          f"'{model.convention}'")
@@ -383,7 +378,7 @@ def _get(d, key, kind, where):
 def load(path) -> FittedModel:
     """Read a model file written by `save`; InputError naming the key for anything malformed."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise InputError(f"{path}: model file not found")
     data = read_json(path, "a fitted-model JSON file (`fiveaxis fit ... -o`)")
     w = str(path)

@@ -29,7 +29,7 @@ import numpy as np
 from ..exceptions import InputError
 from ..model.columns import (AXIS_DEVIATIONS, BY_NAME, COLUMNS, DEVIATIONS, DIRECTION, DIRECTION_PREFIX, FRAMES, LINE,
                              READINGS, SETUP_KINDS, TEMPERATURE_PREFIX, TEMPERATURE_RE, temperature_column)
-from ..inputs import regular_file
+from ..inputs import MAX_TABLE_BYTES, open_file
 from .column_names import check as check_columns
 
 #: A rotary column "looks like radians" when every |value| is at most this (degrees would be tiny angles) while
@@ -188,7 +188,10 @@ def _read_table(path: Path):
     if suffix in (".parquet", ".pq"):
         import pyarrow.parquet as pq   # optional heavy dependency: only for Parquet files
         try:
-            table = pq.read_table(path)
+            with open_file(path, "a measurement file", MAX_TABLE_BYTES) as fh:
+                table = pq.read_table(fh)
+        except InputError:
+            raise
         except Exception as exc:  # pyarrow raises several types for damaged files
             raise InputError(f"{path}: not a readable Parquet file ({str(exc).splitlines()[0][:120]})") from None
         names = list(table.column_names)
@@ -206,7 +209,8 @@ def _read_table(path: Path):
         raise InputError(f"{path}: unknown file type '{suffix}' (expected .csv or .parquet)")
     rows, lines = [], []
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
+        with open_file(path, "a measurement file", MAX_TABLE_BYTES, text=True, encoding="utf-8-sig",
+                       newline="") as fh:
             reader = csv.reader(fh)
             try:
                 header = next(reader, None)
@@ -362,7 +366,7 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     for what, value, allowed in (("setup kind", setup_kind, SETUP_KINDS), ("setup frame", setup_frame, FRAMES)):
         if value is not None and value not in allowed:
             raise InputError(f"unknown {what} '{value}' (expected one of: {', '.join(allowed)})")
-    names, cols, lines, types = _read_table(regular_file(path, "a measurement file") if path.exists() else path)
+    names, cols, lines, types = _read_table(path)
     variables = tuple(machine.variables)
     warnings = check_columns(path, names, variables, tuple(c.name for c in COLUMNS))     # misspelled columns
     _check_header(path, cols, variables, readings_required)

@@ -6,6 +6,7 @@ This module is the only part of the runtime that the derivation (`fiveaxis_deriv
 """
 from __future__ import annotations
 
+import hashlib
 import keyword
 import math
 import re
@@ -256,6 +257,20 @@ class Machine:
 def module_name(machine_name: str, convention: str = "equations") -> str:
     """Python module name of a machine model's generated kernels: `li2018`, `li2018__printed`."""
     return machine_name if convention in (None, "", "equations") else f"{machine_name}__{convention}"
+
+
+def check_made_for(machine: Machine, name, sha, where: str, what: str = "fitted") -> None:
+    """InputError unless a file made for a machine (a fitted model, a compensation) names this machine file: its
+    `machine.name` is the machine's and its `machine.sha256` the SHA-256 of the machine file now. where: the file
+    (or "model file"); what: how it was made for the machine ("fitted", "compensation"). The one check of this
+    kind: model files (`compensate`, `gsa --errors`) and compensation folders (`simulate --compensation`) use it."""
+    if name != machine.name:
+        raise InputError(f"{where}: key machine.name: {what} for machine {_short(name)!r}, not for "
+                         f"'{machine.name}' ({machine.path})")
+    now = hashlib.sha256(Path(machine.path).read_bytes()).hexdigest()
+    if sha != now:
+        raise InputError(f"{where}: key machine.sha256: {what} for another version of the machine file (sha256 "
+                         f"{_short(sha, 12)}...), not for {machine.path} (sha256 {now[:12]}...)")
 
 
 def kins_component(machine_name: str, convention: str = "equations") -> str:
