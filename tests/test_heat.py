@@ -209,3 +209,45 @@ def test_lag_is_the_exact_first_order_solution():
         sol = solve_ivp(lambda s, y: (np.interp(s, t, x) - y) / tau, (t[0], t[-1]), [x[0]], t_eval=t, rtol=1e-11,
                         atol=1e-11, max_step=2, method="DOP853")
         assert np.max(np.abs(first_order_lag(t, x, tau) - sol.y[0])) < 2e-5
+
+
+# -- the temperature columns -------------------------------------------------------------------------------------
+def _file(tmp_path, rows, header="X,Y,Z,A,B,t,temp_spindle,dx,dy,dz"):
+    path = tmp_path / "m.csv"
+    path.write_text(header + "\n" + "\n".join(rows) + "\n")
+    return path
+
+
+def _rows(temps):
+    return [f"{10 * k},{k},0,0,0,{k * 60},{T},0.001,0,0" for k, T in enumerate(temps)]
+
+
+def test_temperature_columns_are_checked(tmp_path):
+    from fiveaxis.exceptions import InputError
+    machine = fiveaxis.load("li2018").machine
+    with pytest.raises(InputError, match=r"data row 3 \(line 4\), column temp_spindle: expected a temperature from "
+                                         r"-50 to 200 degC.*got 2000"):
+        read(_file(tmp_path, _rows([20, 21, 2000, 22])), machine)
+    with pytest.raises(InputError, match=r"header: column 'temp_Spindle': a temperature channel is named temp_"):
+        read(_file(tmp_path, _rows([20, 21]), "X,Y,Z,A,B,t,temp_Spindle,dx,dy,dz"), machine)
+    with pytest.raises(InputError, match="column temp_spindle: no reading in any row"):
+        read(_file(tmp_path, _rows(["", ""])), machine)
+    meas = read(_file(tmp_path, _rows([20.5] * 6)), machine)
+    assert any("temp_spindle: the temperature never changes (20.5 degC in all 6 readings)" in w for w in meas.warnings)
+    meas = read(_file(tmp_path, _rows([20, "", "", 23, 24, 25])), machine)
+    ctx = fx.context(machine, meas.poses, meas.t, temps=meas.temps)
+    assert np.allclose(ctx.temps["temp_spindle"], [20, 21, 22, 23, 24, 25])       # blanks: linear in time
+
+
+def test_temperature_effect_without_times_or_channel(tmp_path):
+    from fiveaxis.exceptions import InputError
+    model = fiveaxis.load("li2018")
+    rows = [f"{10 * k},{k},0,0,0,{20 + k if k != 2 else ''},0.001,0,0" for k in range(8)]
+    meas = read(_file(tmp_path, rows, "X,Y,Z,A,B,temp_spindle,dx,dy,dz"), model.machine)
+    with pytest.raises(InputError, match="temp_spindle has rows without a reading and the measurements no t column"):
+        F.fit(model, meas, ["L:temp_spindle"])
+    with pytest.raises(InputError, match="needs a t column"):
+        F.fit(model, read(_file(tmp_path, [r.replace(",,", ",21,") for r in rows],
+                                "X,Y,Z,A,B,temp_spindle,dx,dy,dz"), model.machine), ["L:temp_spindle~60"])
+    with pytest.raises(InputError, match="needs a temp_bed column"):
+        F.fit(model, meas, ["L:temp_bed"])
