@@ -48,6 +48,8 @@ DIRECTIONS = {
     "A": ("urad", "tilt about X, in the YZ plane (Y1 - Y2) / l (urad = um/m)"),
     "B": ("urad", "tilt about Y, in the ZX plane (X2 - X1) / l (urad = um/m)"),
 }
+#: The spindle's states, by code.
+STATES = ("at rest", "running", "stopped")
 #: A span shorter than this has no last-hour change (s).
 HOUR_S = 3600.0
 #: A phase still changing over its last hour by more than this share of its largest drift is said not to have
@@ -173,29 +175,28 @@ def phases(data: TF.ThermalData, test: str, spindle: Spindle) -> list[Phase]:
     n = data.n
     if data.spindle is not None and test != "etve":
         on = data.spindle != 0
-        state = ["running" if x else ("stopped" if on[:i].any() else "at rest") for i, x in enumerate(on)]
+        ran = np.concatenate([[False], np.cumsum(on)[:-1] > 0])      # the spindle ran before this reading
+        code = np.where(on, 1, np.where(ran, 2, 0))
     elif test == "spindle" or (test == "axis" and not spindle.empty):
         t_min = data.t / 60.0
         start = spindle.on_min if spindle.on_min is not None else data.t[0] / 60.0
         stop = spindle.off_min if spindle.off_min is not None else math.inf
-        state = ["at rest" if x < start else ("running" if x < stop else "stopped") for x in t_min]
+        code = np.where(t_min < start, 0, np.where(t_min < stop, 1, 2))
     else:
         return [Phase("moving" if test == "axis" else "at rest", np.arange(n), 0)]
-    out, i = [], 0
-    while i < n:
-        j = i
-        while j + 1 < n and state[j + 1] == state[i]:
-            j += 1
-        idx = np.arange(i, j + 1)
+    cuts = [0, *(np.flatnonzero(np.diff(code)) + 1).tolist(), n]
+    out = []
+    for i, j in zip(cuts[:-1], cuts[1:]):
+        idx = np.arange(i, j)
+        state = STATES[int(code[i])]
         speed = None
-        if state[i] == "running":
+        if state == "running":
             if data.spindle is not None:
                 sp = np.abs(data.spindle[idx])
                 speed = (float(sp.min()), float(sp.max()))
             elif spindle.speed_rpm is not None:
                 speed = (spindle.speed_rpm, spindle.speed_rpm)
-        out.append(Phase(state[i], idx, i - 1 if i > 0 else 0, speed))
-        i = j + 1
+        out.append(Phase(state, idx, i - 1 if i > 0 else 0, speed))
     return out
 
 
