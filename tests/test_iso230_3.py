@@ -143,6 +143,7 @@ def test_etve_test_equals_numpy_evaluation(tmp_path):
     c = columns_of(path)
     dirs = ref_directions(c)
     assert rec["test"] == "etve" and [p["phase"] for p in rec["phases"]] == ["at rest"]
+    assert rec["test_from"] == "no spindle or position information" and "taken as an ETVE test" in rec["notes"][0]
     close(rec["directions"], {k: ref_figures(c["t"], v) for k, v in dirs.items()})
     for d in rec["directions"]:
         assert d[f"ETVE_{d['unit']}"] == pytest.approx(np.ptp(dirs[d["direction"]]), abs=TOL)
@@ -179,7 +180,8 @@ def test_stated_spindle_times_and_minutes_give_the_same_figures(tmp_path):
     del c["spindle_rpm"]
     c["t_min"] = c.pop("t") / 60.0
     stated = write(tmp_path, c, "stated.csv")
-    rec2 = T.evaluate_file(stated, spindle=T.Spindle(off_min=180.0, speed_rpm=8000.0), spacing_mm=SPACING)
+    rec2 = T.evaluate_file(stated, spindle=T.Spindle(on_min=0.0, off_min=180.0, speed_rpm=8000.0),
+                           spacing_mm=SPACING)
     assert rec2["test"] == "spindle" and rec2["time_column"] == "t_min"
     for a, b in zip(rec["phases"], rec2["phases"]):
         assert (a["phase"], a["start_min"], a["end_min"]) == (b["phase"], b["start_min"], pytest.approx(b["end_min"]))

@@ -140,7 +140,8 @@ def _check_spindle(st: Spindle, data: TF.ThermalData) -> Spindle:
     end = data.t[-1] / 60.0
     for key in ("on_min", "off_min"):
         v = getattr(st, key)
-        if v is not None and not data.t[0] / 60.0 < v <= end:
+        first = data.t[0] / 60.0
+        if v is not None and not (first <= v <= end if key == "on_min" else first < v <= end):
             raise InputError(f"spindle_{key}: {v:g} min is not within the test (its readings run from "
                              f"{data.t[0] / 60.0:g} to {end:g} min)")
     return st
@@ -167,6 +168,19 @@ def test_kind(data: TF.ThermalData, test: str | None, spindle: Spindle) -> str:
         raise InputError(f"{data.path}: header: the test of a moving linear axis needs the axis' position at each "
                          f"reading (a column X, Y or Z in mm)")
     return test
+
+
+def _test_from(data: TF.ThermalData, test: str | None, spindle: Spindle) -> str:
+    """Why the test is the one evaluated (the JSON's test_from)."""
+    if test is not None:
+        return "stated"
+    if data.axis is not None:
+        return f"column {data.axis}"
+    if data.spindle is not None and bool(np.any(data.spindle != 0)):
+        return f"column {TF.SPINDLE}"
+    if spindle.on_min is not None or spindle.off_min is not None:
+        return "stated spindle times"
+    return "no spindle or position information"
 
 
 def phases(data: TF.ThermalData, test: str, spindle: Spindle) -> list[Phase]:
@@ -227,7 +241,7 @@ def evaluate(data: TF.ThermalData, test: str | None = None, spindle: Spindle | N
     rec = {"standard": STANDARD, "test": kind, "test_name": TESTS[kind], "file": data.path, "readings": data.n,
            "start_min": float(t[0] / 60.0), "end_min": float(t[-1] / 60.0), "duration_min": data.duration_s / 60.0,
            "interval_s": float(np.median(steps)), "longest_gap_s": float(steps.max()), "time_column": data.time_column,
-           "spacing_mm": spacing, "spindle": None, "notes": []}
+           "spacing_mm": spacing, "spindle": None, "test_from": _test_from(data, test, spindle), "notes": []}
     res = data.resolution
     rec["directions_read"] = []
     for name in dirs:
@@ -275,6 +289,10 @@ def evaluate(data: TF.ThermalData, test: str | None = None, spindle: Spindle | N
     if data.axis is not None:
         rec["series"][f"{data.axis}_mm"] = data.position.tolist()
     rec["notes"] = _notes(rec, data, ph)
+    if test is None and kind == "etve":
+        rec["notes"].insert(0, "taken as an ETVE test (the machine at rest): the file has no spindle_rpm column where "
+                               "the spindle runs, no position column and no spindle times were stated; if the "
+                               "spindle ran, state when it started and stopped (--spindle-on, --spindle-off)")
     return rec
 
 
