@@ -36,7 +36,7 @@ SLOTS = 16
 MAX_ITER = 12
 TOL_MM = "1e-9"
 TOL_RAD = "1e-10"
-#: The volumetric table's damping of rotary corrections (fiveaxis.compensation.table.DAMPING), the default pin value.
+#: The volumetric table's damping of rotary corrections (fiveaxis.compensation.chain.DAMPING), the default pin value.
 DAMPING = "0.2"
 ROTARY_FIELDS = {"A": "a", "B": "b", "C": "c"}
 

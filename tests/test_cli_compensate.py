@@ -198,16 +198,18 @@ def test_tool_length_table_on_the_simulated_machine(capsys, tmp_path):
     assert "warning" not in capsys.readouterr().err
     measured = {n: rms_mm(d / f"after_{n}.csv") for n in ("one", "tl")}
     # the model's prediction at the same poses and tool lengths
-    from fiveaxis.compensation import table as C
+    from fiveaxis.compensation import folder as CF
+    from fiveaxis.compensation.chain import actual_tool
+    from fiveaxis.compensation.table import compensated_commands
     from fiveaxis.estimation import fitted_model as MF
     from fiveaxis.measurement.files import read
     fm = MF.load(d / "model.json")
     model = MF.load_model(fm, str(d / "model.json"))
     meas = read(d / "after_tl.csv", model.machine)
-    table = C.load_table(d / "tl", model)
-    cmd = C.compensated_commands(table, meas.poses, meas.L)
+    table = CF.load_table(d / "tl", model)
+    cmd = compensated_commands(table, meas.poses, meas.L)
     E, dL = MF.errors_at(fm, model, cmd, dirs=meas.dirs)
-    P, _ = C.actual_tool(model, cmd, E, dL, meas.L)
+    P, _ = actual_tool(model, cmd, E, dL, meas.L)
     P0, _ = model.ideal_tool(meas.poses, meas.L)
     pred = math.sqrt(np.mean(np.sum((P - P0) ** 2, axis=1)))
     with capsys.disabled():

@@ -11,7 +11,7 @@ import pytest
 from kins_library import EFFECTS, Library, fitted_like, gcc_missing
 from conftest import ROOT, SHIPPED
 from fiveaxis.compensation import kinematics as CK
-from fiveaxis.compensation.table import actual_tool
+from fiveaxis.compensation.chain import actual_tool
 from fiveaxis.estimation import fitted_model as MF
 from fiveaxis.exceptions import InputError
 from fiveaxis.linuxcnc import kinematics as K

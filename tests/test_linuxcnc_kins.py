@@ -21,7 +21,10 @@ from kins_library import fitted_like
 from truth import truth_model
 from fiveaxis.estimation.problem import resolve_effects
 from fiveaxis.compensation import kinematics as CK
-from fiveaxis.compensation import table as C
+from fiveaxis.compensation import folder as CF
+from fiveaxis.compensation import pipeline as CP
+from fiveaxis.compensation.record import summary
+from fiveaxis.compensation.table import compensated_commands
 from fiveaxis.estimation import fit as F
 from fiveaxis.estimation import fitted_model as MF
 from fiveaxis.linuxcnc import configuration as LX
@@ -84,9 +87,9 @@ def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("compensate")
     path = tmp_path_factory.mktemp("model") / "model.json"
     MF.save(fm, path)
-    comp = C.compensate(MF.load(path), model, {"X": 3, "Y": 3, "Z": 3}, poses=1000)
-    C.write(comp, out, model_path=str(path))
-    vol = C.volumetric_folder(out)
+    comp = CP.compensate(MF.load(path), model, {"X": 3, "Y": 3, "Z": 3}, poses=1000)
+    CF.write(comp, out, summary(comp, str(path)), model_path=str(path))
+    vol = CF.volumetric_folder(out)
     folder = H.new_folder()
     try:
         for f in vol.iterdir():
@@ -171,7 +174,7 @@ def test_true_tip_error_falls_to_the_tables_level(run):
     got = _joints(run["result"]["moves"])[:n]
     module = true_tip(truth, model, got, L0) - P0[:n]
     before = true_tip(truth, model, q[:n], L0) - P0[:n]
-    table = true_tip(truth, model, C.compensated_commands(comp.table, q[:n]), L0) - P0[:n]
+    table = true_tip(truth, model, compensated_commands(comp.table, q[:n]), L0) - P0[:n]
     stock = true_tip(truth, model, LX.linuxcnc_commands(comp.lc, model, q[:n]), L0) - P0[:n]
     tip = comp.account["tip_error_mm"]
     print(f"true tool-tip error RMS over {n} poses (um): uncompensated {1e3 * rms(before):.2f}, stock trt-kins + "

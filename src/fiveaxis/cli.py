@@ -37,6 +37,10 @@ COMMANDS = {
                                              "target and axis) with ISO 230-9's uncertainty"),
     "iso230-4": ("fiveaxis.commands.iso230", "ISO 230-4 circular test figures (G, F, H) of ballbar circles and the "
                                              "ballbar's diagnostic list"),
+    "iso230-3": ("fiveaxis.commands.iso230_3", "ISO 230-3 thermal tests (ETVE, spindle, moving axis): drift per "
+                                               "direction and phase beside the temperatures"),
+    "iso230-3-simulate": ("fiveaxis.commands.iso230_3", "a simulated ISO 230-3 test file (displacements of a "
+                                                        "five-sensor nest and temperatures over hours)"),
 }
 
 
@@ -88,6 +92,12 @@ TRANSLATIONS = (("(force=True replaces it)", "(use --force to replace it)"),
                 ("temperature_deviation_K and expansion_ppm_per_K: state both",
                  "--temperature-deviation and --expansion-ppm-per-K: state both"),
                 ("target tolerance: expected", "--tolerance: expected"),
+                ("(spacing_mm: state the spacing in mm)", "(state it with --spacing MM)"),
+                ("spacing_mm: expected", "--spacing: expected"),
+                ("spindle_on_min", "--spindle-on"), ("spindle_off_min", "--spindle-off"),
+                ("spindle_speed_rpm: expected", "--spindle-speed: expected"),
+                ("test_hours:", "--hours:"), ("run_hours: expected", "--run-hours: expected"),
+                ("interval_s: expected", "--interval: expected"), ("speed_rpm: expected", "--speed: expected"),
                 ("give the kinematics (", "give --kinematics ("))
 
 

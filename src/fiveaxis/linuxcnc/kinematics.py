@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..effects import families as fx
 from ..exceptions import InputError
 from ..model import provenance
 from ..model.inverse import iterate, linear_for_tip
@@ -46,8 +47,9 @@ from ..outputs import comment_text, write_text
 
 #: Effect slots of the module (must equal fiveaxis_derive.kins.SLOTS: a test checks the generated files).
 SLOTS = 16
-#: Effect kinds of the slots (the `kind` pin). Profiles (`<param>:<var>k<spacing>`) will be kind 3.
-KINDS = {"none": 0, "polynomial": 1, "periodic": 2}
+#: Effect kinds of the slots (the `kind` pin): each family that the module carries gives its number
+#: (`MODULE_KIND`, the template's FA_KIND_* constants).
+KINDS = {"none": 0, **{name: f.MODULE_KIND for name, f in fx.FAMILIES.items() if f.MODULE_KIND}}
 #: HAL's longest name of a pin (LinuxCNC 2.9 hal.h: HAL_NAME_LEN); a longer one fails the module's setup.
 HAL_NAME_LEN = 47
 #: The longest pin name's part after the component and a dot (the error pins are checked by name).

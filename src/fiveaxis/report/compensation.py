@@ -1,5 +1,5 @@
 """What a compensation run (`fiveaxis compensate MODEL -o DIR`) leaves for the report: DIR/summary.json, written by
-`fiveaxis.compensation.table.summary`, and the map PNG beside it.
+`fiveaxis.compensation.record.summary`, and the map PNG beside it.
 
 The report reads from summary.json: the machine (`machine.name`, must match the report's), the predicted tool-tip
 error over the workspace (`predicted_tip_error_mm`: `before`, `after_linuxcnc`, `after_kinematics_module`,
@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ..compensation.table import read_summary
+from ..compensation.folder import read_summary
 from ..exceptions import InputError
 
 SUMMARY = "summary.json"
