@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import InputError
+from ..exceptions import InputError, one_line
+from ..compensation import plausible
 from ..diagnosis import preconditions
 from ..estimation import design_size
 from ..measurement.instruments import NAMES as INSTRUMENTS
@@ -163,6 +164,16 @@ def _load(args):
     return model, meas, effects, _fixed(model, args.fix)
 
 
+def _implausible(fm, model, path, record: dict) -> None:
+    """What the fit holds that no machine shows (compensation.plausible): one warning line with the hint "did you
+    write um in a mm column?", also in the record (`warnings`). compensate refuses such a model."""
+    found = plausible.model_findings(fm, model.machine)
+    if found:
+        line = f"{path}: {plausible.unit_slip(found)}"
+        record.setdefault("warnings", []).append(line)
+        print(f"fiveaxis: warning: {one_line(line)}", file=sys.stderr)
+
+
 def _fixed(model, specs) -> dict:
     """[fit] fixed of the machine file, overridden by --fix NAME=VALUE (mm, rad)."""
     out = dict(model.machine.fixed)
@@ -222,11 +233,13 @@ def run_fit(args) -> int:
         raise InputError(f"{args.output}: exists; not overwriting it (use --force to replace it)")
     with _where_blocks(args) as in_blocks:
         res = F.fit(model, meas, effects, refine=not args.first_order, fixed=fixed, in_blocks=in_blocks)
+    from ..estimation.fitted_model import from_fit, save
+    fm = from_fit(res)
     if args.output is not None:
-        from ..estimation.fitted_model import from_fit, save
-        save(from_fit(res), args.output, force=args.force)
-        print(f"fiveaxis: wrote {args.output}", file=sys.stderr)
+        save(fm, args.output, force=args.force)
+        print(f"fiveaxis: wrote {one_line(args.output)}", file=sys.stderr)
     j = to_json(res)
+    _implausible(fm, model, args.file, j)
     if args.json:
         _dump(j)
     else:
@@ -250,6 +263,8 @@ def run_diagnose(args) -> int:
         path = plot_residuals(dgs[-1], args.plot)
         print(f"fiveaxis: wrote {path}", file=sys.stderr)
     js = [dg.to_json() for dg in dgs]
+    from ..estimation.fitted_model import from_fit
+    _implausible(from_fit(dgs[0].fit), model, args.file, js[0])         # the data as given: a unit slip
     if args.json:
         _dump(js[0] if args.rounds == 1 else {"rounds": js})
     else:
