@@ -15,7 +15,7 @@ from ..exceptions import InputError, one_line
 from ..compensation import plausible
 from ..diagnosis import preconditions
 from ..estimation import design_size
-from ..measurement.instruments import NAMES as INSTRUMENTS
+from ..measurement import instruments as ins
 from ..model.columns import FRAMES, MAX_AXIS_DEVIATION, MAX_DEVIATION_MM, MAX_TOOL_LENGTH_MM, SETUP_KINDS
 
 
@@ -82,7 +82,7 @@ def register_simulate(p):
     p.add_argument("--effect", action="append", default=[], metavar="EFFECT[=VALUE]",
                    help="hidden effect, e.g. ex_x:x1=2e-5 (VALUE: change at the end of the stroke, mm or rad; "
                         "default 20 urad or 10 um); repeatable")
-    p.add_argument("--instrument", default="tip", choices=INSTRUMENTS,
+    p.add_argument("--instrument", default="tip", choices=ins.names(),
                    help="what is measured, with its standard plan: tip (random poses, 3-D tip; default), rtest, "
                         "probe-sphere, ballbar, interferometer, tracker (docs/measurements.md)")
     p.add_argument("--poses", type=Path, default=None, metavar="FILE",
@@ -329,8 +329,9 @@ def run_simulate(args) -> int:
         value = getattr(args, key)
         if value is None:
             continue
-        if args.instrument != "interferometer" or args.poses is not None:
-            raise InputError(f"--{key}: an option of the interferometer's standard plan (--instrument interferometer)")
+        owner = next(r for r in ins.REGISTRY.values() if key in r.plan_options)
+        if owner.name != args.instrument or args.poses is not None:
+            raise InputError(f"--{key}: an option of the {owner.name}'s standard plan (--instrument {owner.name})")
         options[key] = [a.strip() for a in value.split(",")] if key == "axes" else value
     errors = {}
     for spec in args.error:
