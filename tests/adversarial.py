@@ -85,6 +85,7 @@ def make_base(base: Path, run) -> None:
         (["simulate", "--instrument", "interferometer", "--n", "200", "--seed", "3", "--effect", "dx_x:x1=0.005",
           "-o", "{base}/iso2.csv"], "iso2.csv"),
         (["simulate", "--instrument", "ballbar", "--n", "200", "--seed", "4", "-o", "{base}/iso4.csv"], "iso4.csv"),
+        (["iso230-3-simulate", "--hours", "2", "--seed", "5", "{base}/iso3.csv"], "iso3.csv"),
     ]
     (base / "comp").mkdir(exist_ok=True)
     for argv, made in steps:
@@ -438,6 +439,21 @@ ISO_FILES = {   # iso230-2 / iso230-4: hostile variants of an interferometer's a
     "good": ("copy", "{base}/{which}.csv", OK),
 }
 ISO_COMMANDS = {"iso230-2": ("iso2", ["iso230-2", "{f}"]), "iso230-4": ("iso4", ["iso230-4", "{f}", "--rounds", "1"])}
+ISO3_FILES = {   # iso230-3: hostile variants of a five-sensor thermal test (iso3.csv: t, dx, dy, dz, dx2, dy2, temp_*)
+    "NaN dx": ("csv-edit", ("iso3.csv", _cell("dx", "nan")), REFUSE),
+    "1e300 dx": ("csv-edit", ("iso3.csv", _cell("dx", 1e300)), REFUSE),
+    "um in mm": ("csv-edit", ("iso3.csv", lambda df: df.assign(dx=df["dx"] * 1000)), REFUSE),
+    "no dx": ("csv-edit", ("iso3.csv", lambda df: df.drop(columns=["dx"])), REFUSE),
+    "2000 degC": ("csv-edit", ("iso3.csv", _cell("temp_spindle", 2000)), REFUSE),
+    "stuck sensor": ("csv-edit", ("iso3.csv", lambda df: df.assign(temp_spindle=20.0)), REFUSE),
+    "time backwards": ("csv-edit", ("iso3.csv", _cell("t", -5)), REFUSE),
+    "one row": ("csv-edit", ("iso3.csv", lambda df: df.head(1)), REFUSE),
+    "text dz": ("csv-edit", ("iso3.csv", _cell("dz", "x")), REFUSE),
+    "empty": ("text", "", REFUSE), "fifo": ("fifo", None, REFUSE), "dev zero": ("symlink", "/dev/zero", REFUSE),
+    "binary": ("bytes", bytes(range(256)) * 16, REFUSE),
+    "rounded": ("csv-edit", ("iso3.csv", lambda df: df.round(4)), OK),
+    "good": ("copy", "{base}/iso3.csv", OK),
+}
 TOOLPATH_CSV = {   # lsa --toolpath X.csv
     "NaN": ("text", "X,Y,Z,A,B\n0,0,0,0,0\nnan,0,0,0,0\n", REFUSE),
     "1e300": ("text", "X,Y,Z,A,B\n0,0,0,0,0\n1e300,0,0,0,0\n", REFUSE),
@@ -489,6 +505,12 @@ OPTION_TRIALS = [   # (command argv, expect, names)
         ("--tolerance", "0"), ("--tolerance", "-1"), ("--tolerance", "nan"), ("--u-device", "-1"),
         ("--u-device", "inf"), ("--temperature-deviation", "nan"), ("--expansion-ppm-per-K", "1e300"),
         ("--misalignment", "-1"), ("--drift", "nan"), ("--frame", "sideways"))],
+    *[(["iso230-3", "{base}/iso3.csv", "--spacing", "100", o, v], REFUSE, (o,)) for o, v in (
+        ("--spindle-on", "nan"), ("--spindle-off", "-1"), ("--spindle-speed", "-5"), ("--test", "bogus"))],
+    *[(["iso230-3", "{base}/iso3.csv", o, v], REFUSE, (o,)) for o, v in (("--spacing", "-1"), ("--spacing", "nan"))],
+    *[(["iso230-3-simulate", "{out}/t.csv", o, v], REFUSE, (o,)) for o, v in (
+        ("--hours", "-1"), ("--hours", "nan"), ("--hours", "1e9"), ("--interval", "0"), ("--run-hours", "nan"),
+        ("--spacing", "-1"), ("--speed", "inf"), ("--test", "bogus"))],
     *[(["iso230-4", "{base}/iso4.csv", o, v], REFUSE, (o,)) for o, v in (
         ("--rounds", "-1"), ("--rounds", "x"), ("--feed", "0"), ("--feed", "nan"), ("--feed", "-5"))],
     (["lsa", "--pose", "X=nan,Y=0,Z=0,A=0,B=0"], REFUSE, ("--pose",)),
@@ -623,6 +645,9 @@ def trials() -> list[Trial]:
                 content.replace("{which}", which) if isinstance(content, str) else content
             out.append(Trial(f"{cmd} measurements: {name}", cmd, argv, expect, ("{f}", "column", "row", "du"),
                              (maker, what), suffix=".csv"))
+    for name, (maker, content, expect) in ISO3_FILES.items():
+        out.append(Trial(f"iso230-3 measurements: {name}", "iso230-3", ["iso230-3", "{f}", "--spacing", "100"],
+                         expect, ("{f}", "column", "row", "header"), (maker, content), suffix=".csv"))
     for name, (maker, content, expect) in TOOLPATH_CSV.items():
         out.append(Trial(f"lsa toolpath csv: {name}", "lsa", ["lsa", "--toolpath", "{f}"], expect,
                          ("{f}", "row", "column"), (maker, content), suffix=".csv"))

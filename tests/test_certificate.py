@@ -394,7 +394,8 @@ def laser(tmp_path_factory):
     from fiveaxis.report.pdf import browser
     d = tmp_path_factory.mktemp("laser")
     data = _simulate(d, "laser.csv", "--machine", "ac_trunnion", "--instrument", "interferometer", "--axes", "X",
-                     "--targets", "9", "--effect", "dx_x:xr=0.0125", "--seed", "3")
+                     "--targets", "9", "--effect", "dx_x:xr=0.0125", "--seed", "3", "--temperature", "air=air:amp=0.4",
+                     "--temperature", "bed=bed:rise=0.8")
     out = d / "cert.html"
     argv = ["report", data, "--machine", "ac_trunnion", "--rounds", "2", "--campaign", CAMPAIGN,
             "--set", "customer.name=ACME Tools", "--u-device", "0.3", "-o", out, "--dcc", "--json"]
@@ -438,6 +439,9 @@ def test_a_laser_certificate_writes_html_pdf_and_dcc_from_one_record(laser_run):
         assert out.with_suffix(".pdf").read_bytes().startswith(b"%PDF")
     cert = rec["certificate"]
     assert cert["customer"]["name"] == "ACME Tools" and cert["machine"]["serial"] == "SN 123456"
+    sensors = {s["name"]: s for s in cert["environment"]["sensors"]}
+    assert set(sensors) == {"temp_air", "temp_bed"} and all(s["readings"] > 80 for s in sensors.values())
+    assert all(15 < s["min_degC"] <= s["mean_degC"] <= s["max_degC"] < 30 for s in sensors.values())
     sections = check_numbers(page, rec)
     assert {"certificate", "verdict", "data", "fit", "rounds", "iso230", "residuals", "sensitivity"} <= sections
     for part in ('id="certificate"', 'id="instruments"', 'id="environment"', 'id="uncertainty"', 'id="signatures"',
@@ -614,3 +618,34 @@ def test_diagnose_text_says_which_separation_question_it_answers():
     page_src = Path(html.__file__).read_text()
     assert "Fitted errors the data cannot determine alone" in page_src
     assert "candidates this data cannot tell apart from it" in page_src
+
+
+@pytest.mark.slow
+def test_a_certificate_of_a_log_as_a_laser_writes_it(tmp_path):
+    """A log of X as a laser's software writes it (positions at 0.001 mm jittering around irregular targets, readings
+    at 0.1 um; tests/test_iso230_2.laser_log): the certificate's per-target table and the DCC's equal the standard's
+    formulas evaluated independently (test_iso230_2.reference) to the printed decimals (0.01 um) and to 1e-9 um."""
+    import fiveaxis
+    from test_iso230_2 import laser_log, reference
+    model = fiveaxis.load("ac_trunnion")
+    path, df = laser_log(model, tmp_path, jitter_mm=0.004)
+    ref, mean, s, B, targets = reference(df, 9)
+    rep = record.build(path, "ac_trunnion", max_rounds=1, sensitivity=False, campaign=CP.load(CAMPAIGN))
+    page = html.render(rep)
+    check_numbers(page, rep.record)
+    body = re.search(r'<table id="iso230-2-targets-0">.*?<tbody>(.*?)</tbody>', page, re.S).group(1)
+    rows = [[float(re.sub(r"<[^>]+>", "", c)) for c in re.findall(r"<td[^>]*>(.*?)</td>", r)[1:]]
+            for r in re.findall(r"<tr[^>]*>(.*?)</tr>", body)]
+    import numpy as np
+    got = np.array(rows)
+    assert np.allclose(got[:, 0], targets, atol=5e-4 + 1e-9)                       # P_i, 3 decimals (mm)
+    assert np.allclose(got[:, 1:3], mean, atol=5e-3 + 1e-9)                        # mean fwd, bwd (um)
+    assert np.allclose(got[:, 3:5], s, atol=5e-3 + 1e-9) and np.allclose(got[:, 7], B, atol=5e-3 + 1e-9)
+    table = dcc.read(dcc.write(rep.record))["results"]["ISO 230-2 positioning of X (setup laser-X)"]
+    t = table["Per target and approach direction"]
+    assert np.allclose(t["mean x_i fwd"]["values"], mean[:, 0], atol=1e-9)
+    assert np.allclose(t["B_i"]["values"], B, atol=1e-9)
+    figs = table["Axis figures"]
+    for k in ("E", "M", "B", "R", "A"):
+        assert figs[k]["value"] == pytest.approx(ref[k], abs=1e-9)
+        assert (figs[k]["U"] is not None) == (k in ("E", "M", "B"))

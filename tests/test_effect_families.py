@@ -74,7 +74,8 @@ def test_every_family_implements_the_protocol(model, name):
     poses = rng.uniform(-1, 1, (7, len(model.variables))) * [model.machine.axis(v).model_stroke[1]
                                                             for v in model.variables]
     ctx = fx.context(model.machine, poses, np.linspace(0, 3600, 7), {v: np.where(rng.random(7) < .5, 1.0, -1.0)
-                                                                     for v in model.variables})
+                                                                     for v in model.variables},
+                     temps={"temp_spindle": np.linspace(20, 30, 7)})
     B = eff.basis(ctx)
     assert B.shape == (7, len(eff.names)) and np.all(np.isfinite(B))
     coefs = np.full(len(eff.names), 1e-3)

@@ -120,6 +120,11 @@ def register_simulate(p):
                    help="interferometer: the linear axes to run (default: every linear axis, a setup each)")
     p.add_argument("--targets", type=int, default=None, help="interferometer: targets per axis (default 11)")
     p.add_argument("--cycles", type=int, default=None, help="interferometer: bidirectional cycles (default 5)")
+    p.add_argument("--temperature", action="append", default=[], metavar="NAME=KIND[:KEY=VALUE,...]",
+                   help="a temperature sensor's history over the run (a temp_NAME column, degC), e.g. "
+                        "spindle=spindle:rise=15,tau=900,off=7200 (warm-up, cool-down), air=air:amp=1.5, "
+                        "bed=bed:rise=2, motor=mix:spindle=0.4,air=1 (docs/measurements.md); repeatable; drive "
+                        "effects with --effect L:temp_spindle~600=0.0012 (mm or rad per degC)")
     p.set_defaults(func=run_simulate)
 
 
@@ -321,11 +326,17 @@ def run_simulate(args) -> int:
             raise InputError(f"--error {spec}: expected NAME=VALUE (mm or rad)") from None
         if not sep or errors[name.strip()] != errors[name.strip()] or abs(errors[name.strip()]) == float("inf"):
             raise InputError(f"--error {spec}: expected NAME=VALUE with a finite value (mm or rad)")
+    temperatures = {}
+    for spec in args.temperature:
+        name, sep, profile = spec.partition("=")
+        if not sep or not name.strip():
+            raise InputError(f"--temperature {spec}: expected NAME=KIND[:KEY=VALUE,...], e.g. spindle=spindle:rise=15")
+        temperatures[name.strip()] = profile
     sim = simulate(model, args.effect, n=args.n, noise=args.noise, seed=args.seed, tool_lengths=lengths,
                    duration=None if args.no_time else args.duration, with_sigma=args.with_sigma,
                    instrument=args.instrument, with_axis=args.with_axis, noise_axis=args.noise_axis, plan=plan,
                    setup_scale=args.setup_scale, errors=errors, setup_kind=args.setup_kind, commands=commands,
-                   options=options)
+                   options=options, temperatures=temperatures)
     meas = sim.meas
     _check_simulated(meas)
     if table is not None:

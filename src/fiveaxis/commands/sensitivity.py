@@ -320,9 +320,7 @@ def _path(args, model, L0):
     elif args.toolpath.suffix.lower() == ".csv":
         tp = toolpath.read_csv(args.toolpath, model.machine, max_rows=args.max_poses)
     else:
-        if not args.toolpath.is_file():
-            raise InputError(f"{args.toolpath}: {'not a file' if args.toolpath.exists() else 'no such file'}")
-        program = gcode.interpret(args.toolpath)
+        program = gcode.interpret(args.toolpath)      # read through fiveaxis.inputs: a regular file, bounded
         tp = toolpath.from_program(program, model.machine, args.step_mm, args.step_deg, args.max_poses, how)
     if args.surface:
         if tp.has_normals:

@@ -6,6 +6,8 @@ Families (the registry `fiveaxis.effects.families`; each family's module owns it
 - periodic `<param>:<var>p<P>`: every error and L x every variable, the period P searched (a periodogram of the
   residual, `fiveaxis.diagnosis.searches`): the best period per (param, var);
 - thermal `<param>:te<tau>`: every error and L, the time constant searched: the best per param;
+- temperature `<param>:[<axis>.]temp_<name>[~<tau>]`: every error and L against every temperature channel of the
+  data, the lag searched (none included), and each linear axis' scale expansion (`fiveaxis.diagnosis.heat`);
 - custom: the machine file's `[effects.<name>]`.
 The pool is built on the rows of a screen: every reading in memory, a sample of poses for a set in row blocks
 (`fiveaxis.diagnosis.diagnose`). The searches of each cross-validation fold (its own periods and time constants on
@@ -33,6 +35,7 @@ import numpy as np
 
 from ..effects import families as fx
 from ..measurement import observations as ob
+from . import heat
 from . import searches as es
 from .profiles import profile_candidates
 
@@ -296,13 +299,15 @@ def build_pool(block, w, Q: np.ndarray, rw: np.ndarray, present: set, custom: li
     per = [f for f in es.periodic(sums, bands) if f.effect.id not in present]
     grid = es.tau_grid(prob.meas.t, sums.live) if prob.meas.t is not None else None
     therm = [f for f in es.thermal(sums, grid) if f.effect.id not in present] if grid is not None else []
+    temp, temp_trials = heat.search(sums, prob.ctx, machine, grid, float(rw @ rw), len(rw))
+    temp = [f for f in temp if f.effect.id not in present]
     active = int(np.sum(sums.W2.sum(axis=0) > 0))
     prof = profile_candidates(block, w, present, unseen) if profiles else []
     trials = {fx.Polynomial.NAME: len(poly), fx.Reversal.NAME: len(rev),
               fx.Periodic.NAME: active * sum(b.trials for b in bands) if per else 0,
               fx.Thermal.NAME: active * grid.trials if therm else 0, fx.Profile.NAME: len(prof),
-              fx.CustomEffect.NAME: len(custom)}
-    singles = poly + rev + [f.effect for f in therm]
+              fx.Temperature.NAME: temp_trials if temp else 0, fx.CustomEffect.NAME: len(custom)}
+    singles = poly + rev + [f.effect for f in therm + temp]
     fam = np.array([e.NAME for e in singles], dtype=object)
     G = candidate_matrix(block, w, singles)
     peff = [f.effect for f in per]

@@ -43,6 +43,7 @@ from ..measurement import observations as ob
 from ..model import iso_names as iso
 from . import candidates as cd
 from . import decision as dc
+from . import heat
 from . import residual_tests as st
 from . import separation
 
@@ -80,6 +81,7 @@ class Diagnosis:
     unexplained: dict | None = None
     searched: dict = field(default_factory=dict)
     hidden_by_placement: list = field(default_factory=list)  # candidates only a setup's placement absorbs
+    heat: dict | None = None   # temperatures: confounding with time, a missing sensor, the sensors needed (heat.py)
 
     def to_json(self) -> dict:
         fj = fit_json(self.fit)
@@ -96,7 +98,8 @@ class Diagnosis:
                 "candidates": self.candidates, "forward": self.forward, "structure": self.structure,
                 "structure_test": self.structure_test, "already_in_model": self.absorbed,
                 "hidden_by_placement": self.hidden_by_placement,
-                **({"unexplained": self.unexplained} if self.unexplained else {})}
+                **({"unexplained": self.unexplained} if self.unexplained else {}),
+                **({"heat": self.heat} if self.heat else {})}
 
 
 def residual_structure(prob, w, residual: np.ndarray, tests=None) -> dict:
@@ -365,6 +368,9 @@ def diagnose_fit(res: FitResult, top: int = 10) -> "Diagnosis":
     dg = conclude(res, sc.prob, sc.w, sc.residual, r_cur, out.decision, out.forward, noise, out.listed, pool,
                   out.rss, absorbed, prob.meas.n)
     dg.hidden_by_placement = separation.hidden_by_placement(sc.block, sc.w, pool.singles, pool.G, absorbed_idx)
+    if c_s is not None:
+        dg.heat = heat.assess(res, c_s, pool, [lay.effects[k] for k in out.accepted] if out.decision.get("passes")
+                              else [], noise, dg.verdict, dg.structure_test.get("strongest"))
     if not sc.whole:
         dg.searched = dict(dg.searched, sample_poses=int(sc.prob.meas.n))
     return dg

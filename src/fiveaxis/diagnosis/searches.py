@@ -358,7 +358,12 @@ def tau_grid(t: np.ndarray, live: np.ndarray) -> TauGrid | None:
 
 def _thermal_gains(sums, t, taus):
     """Exact gains (np, k) of columns a_p (1 - exp(-t / tau)) for every parameter and taus (k,)."""
-    X = -np.expm1(-t[:, None] / taus[None, :])                        # (n, k)
+    return column_gains(sums, -np.expm1(-t[:, None] / taus[None, :]))
+
+
+def column_gains(sums, X):
+    """Exact gains (np, k) of the columns a_p X[:, j] for every parameter p and every basis X[:, j] (X: (n, k),
+    one value per pose)."""
     b = sums.W1.T @ X
     g2 = sums.W2.T @ (X * X)
     n, r, npar = sums.W3.shape

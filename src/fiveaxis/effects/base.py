@@ -64,6 +64,8 @@ class Effect(Protocol):
     @classmethod
     def split(cls, param: str, token: str, suffix: str): ...   # (var, arg) if one of its ids, else None
     @classmethod
+    def split_rest(cls, param: str, rest: str, toks) -> tuple | None: ...   # the same for all after ':' 
+    @classmethod
     def from_id(cls, parts, machine, errors, where: str): ...  # the effect of (param, var, arg), checked
     @classmethod
     def candidates(cls, machine, errors, ctx, present=()) -> list: ...   # offered to a diagnosis unsearched
@@ -113,6 +115,10 @@ def split_id(ident: str, toks, families):
             got = fam.split(param, tok, rest[len(tok):])
             if got is not None:
                 return fam, (param, *got)
+    for fam in families:                          # families whose variable is not a machine token
+        got = fam.split_rest(param, rest, toks)
+        if got is not None:
+            return fam, (param, *got)
     return None
 
 
@@ -133,14 +139,79 @@ class Scale:
 
 
 @dataclass
+class Series:
+    """A whole measurement in time (t in s, temperature channels in degC): what a channel's first-order lag is
+    computed over, whatever subset of its rows a context holds (cached per channel and time constant)."""
+    t: np.ndarray | None
+    temps: dict
+    cache: dict = field(default_factory=dict, repr=False)
+
+    def lagged(self, token: str, tau: float, keep: bool = True) -> np.ndarray:
+        """The channel through a first-order lag of time constant tau (s), over the readings in time order (kept
+        for the next call unless keep is False: a search trying many)."""
+        key = (token, float(tau))
+        if key in self.cache:
+            return self.cache[key]
+        if self.t is None:
+            raise InputError(f"a temperature effect with a lag needs a t column (s) in the measurements (the lag of "
+                             f"{token} runs over time)")
+        order = np.argsort(self.t, kind="stable")
+        out = np.empty(len(order))
+        out[order] = first_order_lag(np.asarray(self.t, float)[order], self.temps[token][order], tau)
+        if keep:
+            self.cache[key] = out
+        return out
+
+
+def first_order_lag(t, x, tau: float) -> np.ndarray:
+    """y with tau dy/dt = x - y, y(t_0) = x(t_0) (at rest), for x linear between its samples at ascending times t
+    (the exact solution: for each step dt, y_k = x_k - tau s + a (y_{k-1} - x_{k-1} + tau s), a = exp(-dt / tau),
+    s the slope of x over the step). Vectorised in runs of at most LAG_SPAN time constants."""
+    t, x = np.asarray(t, float), np.asarray(x, float)
+    n = len(t)
+    y = np.empty(n)
+    if not n:
+        return y
+    dt = np.diff(t)
+    a = np.exp(-dt / tau)
+    slope = np.divide(np.diff(x), dt, out=np.zeros(n - 1), where=dt > 0)
+    # y_k - x_k + tau s_k = a_k (y_{k-1} - x_{k-1} + tau s_k): z_k = y_k - x_k obeys z_k = a_k z_{k-1} + b_k
+    b = (a - 1.0) * tau * slope
+    y[0] = x[0]
+    z, k = 0.0, 1
+    while k < n:
+        z = a[k - 1] * z + b[k - 1]             # the run's first step (any length)
+        y[k] = x[k] + z
+        end = min(n, max(k + 1, int(np.searchsorted(t, t[k] + LAG_SPAN * tau, side="right"))))
+        if end > k + 1:
+            P = np.cumprod(a[k:end - 1])          # >= exp(-LAG_SPAN) within the run
+            zs = P * (z + np.cumsum(b[k:end - 1] / P))
+            y[k + 1:end] = x[k + 1:end] + zs
+            z = zs[-1]
+        k = end
+    return y
+
+
+#: Runs of first_order_lag span at most this many time constants (the products stay above exp(-LAG_SPAN)).
+LAG_SPAN = 30.0
+
+
+@dataclass
 class EffectContext:
     """Where effects are evaluated: n poses (mm, rad; model variable order), times t (s) or None, approach
-    directions dirs {pose variable: (n,) of +1/-1}, and the scales of the effect variables."""
+    directions dirs {pose variable: (n,) of +1/-1}, temperatures temps {temp_<name>: (n,) degC}, and the scales of
+    the effect variables. series: the whole measurement the poses belong to (a lag runs over all of it), rows:
+    where these poses are in it (None: all of it, in order); steady: the temperatures are a steady state (a lagged
+    channel equals its input: the state a compensation is predicted at)."""
     variables: tuple
     poses: np.ndarray
     t: np.ndarray | None
     dirs: dict
     scales: dict
+    temps: dict = field(default_factory=dict)
+    series: Series | None = None
+    rows: np.ndarray | None = None
+    steady: bool = False
     _u: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -148,10 +219,12 @@ class EffectContext:
         return len(self.poses)
 
     def raw(self, token: str) -> np.ndarray:
-        """The variable itself at every pose: mm, rad or s."""
+        """The variable itself at every pose: mm, rad, s or degC."""
         s = self.scales.get(token)
         if s is None:
             raise InputError(f"effects on '{token}' need a '{token}' column in the measurements")
+        if s.unit == "degC":
+            return self.temperature(token)
         if s.column is None:
             if self.t is None:
                 raise InputError("time effects need a t column (s) in the measurements")
@@ -167,6 +240,21 @@ class EffectContext:
             self._u[token] = (self.raw(token) - s.centre) / s.half
         return self._u[token]
 
+    def temperature(self, token: str) -> np.ndarray:
+        """A temperature channel (degC) at every pose."""
+        if token not in self.temps:
+            raise InputError(f"effects on '{token}' need a {token} column (degC) in the measurements")
+        return self.temps[token]
+
+    def lagged(self, token: str, tau: float, keep: bool = True) -> np.ndarray:
+        """A temperature channel through a first-order lag of time constant tau (s; 0: none) at every pose (degC):
+        computed over the whole measurement in time; in a steady state, the channel itself."""
+        if tau <= 0 or self.steady:
+            return self.temperature(token)
+        self.temperature(token)
+        full = self.series.lagged(token, tau, keep)
+        return full if self.rows is None else full[self.rows]
+
     def direction(self, token: str) -> np.ndarray:
         """dir_<VAR> at every pose (+1/-1) for a pose variable token."""
         col = self.scales[token].column if token in self.scales else None
@@ -181,14 +269,12 @@ class EffectContext:
         return col is not None and col in self.dirs
 
     def subset(self, rows) -> "EffectContext":
-        """The context of some poses (index array or mask), same scales."""
+        """The context of some poses (index array or mask), same scales and series."""
         pick = (lambda a: None if a is None else np.asarray(a)[rows])
+        where = (np.arange(self.n) if self.rows is None else self.rows)[rows]
         return EffectContext(self.variables, self.poses[rows], pick(self.t), {k: v[rows] for k, v in self.dirs.items()},
-                             self.scales)
-
-    def at_time_zero(self) -> "EffectContext":
-        """The same poses at t = 0 (the start of the run)."""
-        return EffectContext(self.variables, self.poses, np.zeros(self.n), self.dirs, self.scales)
+                             self.scales, {k: v[rows] for k, v in self.temps.items()}, self.series, where,
+                             self.steady)
 
 
 def var_token(machine, axis_name: str) -> str:
@@ -206,9 +292,11 @@ def axis_of_token(machine, token: str) -> str | None:
     return next((v for v in machine.variables if var_token(machine, v) == token), None)
 
 
-def scales(machine, t=None, tmax: float | None = None) -> dict[str, Scale]:
+def scales(machine, t=None, tmax: float | None = None, temps=None, references=None) -> dict[str, Scale]:
     """Scaling of every effect variable: pose variables from the strokes, time from the data (t in s) or from
-    tmax (s, e.g. read back from a fitted-model file)."""
+    tmax (s, e.g. read back from a fitted-model file), temperature channels (temps: {temp_<name>: (n,) degC}) about
+    their reference (references {temp_<name>: degC}; default: the first reading in time), unscaled (half 1: their
+    coefficients are per degC; the solver scales its columns itself)."""
     out = {}
     for name in machine.variables:
         ax = machine.axis(name)
@@ -223,13 +311,37 @@ def scales(machine, t=None, tmax: float | None = None) -> dict[str, Scale]:
         tmax = float(np.max(np.abs(t)))
     if tmax is not None or t is not None:
         out[TIME] = Scale(TIME, None, 0.0, tmax if tmax and tmax > 0 else 1.0, "s", 1.0)
+    for name, T in (temps or {}).items():
+        first = int(np.argmin(t)) if t is not None and len(t) else 0
+        ref = float((references or {}).get(name, T[first]))
+        out[name] = Scale(name, name, ref, 1.0, "degC", 1.0)
     return out
 
 
-def context(machine, poses, t=None, dirs=None, sc=None) -> EffectContext:
-    """An EffectContext at poses (n, nvar; mm, rad) with times t (s) and approach directions dirs."""
+def filled(temps: dict, t) -> dict:
+    """Temperature channels with the rows where a sensor was not read (NaN) filled: linear in time between the
+    readings around them (held beyond the first and last); without times they stay NaN (an effect of the channel
+    refuses them)."""
+    out = {}
+    for name, T in (temps or {}).items():
+        T = np.asarray(T, float)
+        blank = np.isnan(T)
+        if blank.any() and t is not None and (~blank).any():
+            t = np.asarray(t, float)
+            order = np.argsort(t[~blank], kind="stable")
+            T = np.where(blank, np.interp(t, t[~blank][order], T[~blank][order]), T)
+        out[name] = T
+    return out
+
+
+def context(machine, poses, t=None, dirs=None, sc=None, temps=None, steady: bool = False) -> EffectContext:
+    """An EffectContext at poses (n, nvar; mm, rad) with times t (s), approach directions dirs and temperatures
+    temps ({temp_<name>: (n,) degC, NaN: not read}); sc: the scales (default: from the machine and these data);
+    steady: the temperatures are a steady state (lags settled)."""
+    temps = filled(temps, t)
     return EffectContext(tuple(machine.variables), np.asarray(poses, dtype=float), t, dict(dirs or {}),
-                         sc if sc is not None else scales(machine, t))
+                         sc if sc is not None else scales(machine, t, temps=temps), temps, Series(t, temps),
+                         None, steady)
 
 
 def per_pose(effects, coefs, ctx: EffectContext, errors):
@@ -348,10 +460,10 @@ def chain_distance(machine, effect) -> int:
     """How far apart the parameter's place and the variable's axis are along the kinematic loop tool -> base ->
     workpiece (0: the same axis; the tool length and the chain ends: the loop's length). In time, the tool
     length comes first (0: the spindle's thermal growth, the first thing ISO 230-3 measures), every other error
-    after it."""
+    after it; the same for a temperature channel."""
     loop = [a.name for a in reversed(machine.tool_chain)] + [a.name for a in machine.workpiece_chain]
     var = getattr(effect, "var", None)
-    if var == TIME:
+    if var == TIME or axis_of_token(machine, var) is None:      # time, a temperature: the tool length first
         return 0 if effect.param == TOOL else len(loop)
     if effect.param == TOOL:
         return len(loop)
@@ -401,6 +513,11 @@ class VocabularyEffect:
     def split(cls, param: str, token: str, suffix: str):
         """(var, arg) if `<param>:<token><suffix>` is an id of this family, else None."""
         raise NotImplementedError
+
+    @classmethod
+    def split_rest(cls, param: str, rest: str, toks):
+        """The parts of `<param>:<rest>` for a family whose variable is not a machine token, else None."""
+        return None
 
     @classmethod
     def format(cls, param: str, var: str, arg: float) -> str:

@@ -126,6 +126,10 @@ class CustomEffect:
         return None
 
     @classmethod
+    def split_rest(cls, param, rest, toks):
+        return None
+
+    @classmethod
     def from_id(cls, parts, machine, errors, where):
         return load_custom(machine, parts[0])
 

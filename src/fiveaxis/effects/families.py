@@ -31,10 +31,11 @@ from .periodic import Periodic
 from .polynomial import DEGREES, Polynomial, vocabulary  # noqa: F401
 from .profile import Profile, hat_basis, profile, profile_knots  # noqa: F401
 from .reversal import Reversal, reversals  # noqa: F401
+from .temperature import Temperature
 from .thermal import Thermal
 
 #: Every family by its NAME, in the order a diagnosis lists them.
-FAMILIES = {f.NAME: f for f in (Polynomial, Reversal, Periodic, Thermal, Profile, CustomEffect)}
+FAMILIES = {f.NAME: f for f in (Polynomial, Reversal, Periodic, Thermal, Profile, Temperature, CustomEffect)}
 
 
 def family(name: str):
@@ -56,13 +57,15 @@ def split(ident: str, toks):
 
 def expected(toks) -> str:
     """The grammar in words, from every family's GRAMMAR and EXAMPLE."""
-    fams = [f for f in FAMILIES.values() if f.GRAMMAR]
+    fams = [f for f in FAMILIES.values() if f.GRAMMAR and f.SUFFIX]
     anywhere = [f for f in fams if not f.TIME_ONLY]
     timed = [f for f in fams if f.TIME_ONLY]
+    whole = [f for f in FAMILIES.values() if f.GRAMMAR and not f.SUFFIX]     # their own form after ':'
     suffixes = (", ".join(f.GRAMMAR for f in anywhere) + (f" or, for t, {', '.join(f.GRAMMAR for f in timed)}"
                                                           if timed else ""))
-    return (f"<param>:<var><suffix> with var one of {'|'.join(toks)} and suffix {suffixes}, e.g. "
-            f"{', '.join(f.EXAMPLE for f in anywhere + timed)}")
+    return (f"<param>:<var><suffix> with var one of {'|'.join(toks)} and suffix {suffixes}"
+            + "".join(f"; or <param>:{f.GRAMMAR}" for f in whole)
+            + f", e.g. {', '.join(f.EXAMPLE for f in anywhere + timed + whole)}")
 
 
 def explain(ident: str, toks) -> str:

@@ -68,7 +68,7 @@ VERSION = 1
 POLICY = ("parameters not determined alone by the data carry the minimum-norm solution of the fit (least squares "
           "with unit-norm design columns) and are listed under 'undetermined'; only the combinations the data "
           "determines (and the tool-tip errors at the measured tool lengths) are meaningful for them")
-_SCALE_UNIT = {"mm": "mm", "deg": "rad", "s": "s"}     # Scale.unit (interface) -> model unit of centre/half
+_SCALE_UNIT = {"mm": "mm", "deg": "rad", "s": "s", "degC": "degC"}   # Scale.unit (interface) -> unit of centre/half
 
 
 @dataclass
@@ -276,18 +276,22 @@ def effect_of(rec: EffectRecord, model):
     return fx.family(rec.kind).from_record(rec, model)
 
 
-def errors_at(fm: FittedModel, model, poses, t=None, dirs=None, L=None):
+def errors_at(fm: FittedModel, model, poses, t=None, dirs=None, L=None, temps=None):
     """Error values per pose E (n, n_errors; mm, rad) and tool-length change dL (n,; mm) of the fitted model.
 
     poses (n, nvar) in mm and rad (the positions the axes are at), t (n,) s or None (time effects at t = 0, where
     they are zero), dirs: approach directions for reversal effects, +1/-1 (see _directions; None: reversal effects
-    contribute their mean, 0). L is accepted for symmetry with the measurement (tool lengths, unused: effects depend
-    on the pose, the time and the directions)."""
+    contribute their mean, 0), temps: {temp_<name>: degC, a value or (n,)} (None or a channel left out: at its
+    reference, the temperature effects of that channel add nothing; with t, a history the lags run over; without
+    t, a steady state). L is accepted for symmetry with the measurement (tool lengths, unused: effects depend on
+    the pose, the time, the directions and the temperatures)."""
     poses = model.poses(poses)
     n = len(poses)
     E = np.tile(base_vector(fm, model), (n, 1))
     dL = np.zeros(n)
-    ctx = fx.context(model.machine, poses, t, _directions(dirs, model, n), sc=fm.scales)
+    temps = {k: np.broadcast_to(np.asarray(v, float), (n,)).copy() for k, v in (temps or {}).items()}
+    ctx = fx.context(model.machine, poses, t, _directions(dirs, model, n), sc=fm.scales, temps=temps,
+                     steady=t is None)
     for rec in fm.effects:
         here = fx.family(rec.kind).evaluated_in(rec, ctx)
         if here is None:
@@ -373,7 +377,7 @@ def _get(d, key, kind, where):
 def load(path) -> FittedModel:
     """Read a model file written by `save`; InputError naming the key for anything malformed."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise InputError(f"{path}: model file not found")
     data = read_json(path, "a fitted-model JSON file (`fiveaxis fit ... -o`)")
     w = str(path)
@@ -394,14 +398,15 @@ def load(path) -> FittedModel:
     for tok, sc in _get(data, "scales", "dict", w).items():
         where = f"{w}: scales.{tok}"
         var = _get(sc, "variable", "str", where)
-        unit = next((u for u in ("mm", "rad", "s") if f"centre_{u}" in sc), None)
+        unit = next((u for u in ("mm", "rad", "s", "degC") if f"centre_{u}" in sc), None)
         if unit is None:
-            raise InputError(f"{where}: missing key 'centre_mm', 'centre_rad' or 'centre_s'")
+            raise InputError(f"{where}: missing key 'centre_mm', 'centre_rad', 'centre_s' or 'centre_degC'")
         centre = float(_get(sc, f"centre_{unit}", "num", where))
         half = float(_get(sc, f"half_range_{unit}", "num", where))
-        if half <= 0:
+        if half <= 0 and not (unit == "degC" and half == 0):      # a channel that never changed: 0
             raise InputError(f"{where}: key 'half_range_{unit}': expected a positive number, got {half}")
-        iface, to_unit = {"mm": ("mm", 1.0), "rad": ("deg", 180.0 / math.pi), "s": ("s", 1.0)}[unit]
+        iface, to_unit = {"mm": ("mm", 1.0), "rad": ("deg", 180.0 / math.pi), "s": ("s", 1.0),
+                          "degC": ("degC", 1.0)}[unit]
         scales[tok] = fx.Scale(tok, None if var == "t" else var, centre, half, iface, to_unit)
     effects = []
     for i, e in enumerate(_get(data, "effects", "list", w)):

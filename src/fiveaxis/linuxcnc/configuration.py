@@ -33,6 +33,7 @@ import numpy as np
 
 from ..effects.families import hat_basis
 from ..exceptions import InputError
+from ..inputs import read_text
 from ..outputs import comment_text
 
 #: LinuxCNC reads at most this many lines of a compensation file (EMCMOT_COMP_SIZE).
@@ -459,10 +460,7 @@ def read_comp_file(path) -> tuple:
     arrays; InputError naming the file and line when fewer than 2 lines are read or the nominals do not increase
     ("compensation values must increase")."""
     path = Path(path)
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except FileNotFoundError:
-        raise InputError(f"{path}: compensation file not found") from None
+    lines = read_text(path, "a LinuxCNC compensation file").splitlines()
     rows = []
     for line in lines:
         parts = line.split()

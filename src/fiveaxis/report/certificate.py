@@ -18,7 +18,7 @@ def sensors(meas) -> list[dict]:
     """Per temperature channel of the measurement file (`temp_<name>` columns, degC; blank cells not read): the
     lowest, mean and highest reading and how many rows read it."""
     out = []
-    for name, values in sorted((getattr(meas, "temps", None) or {}).items()):
+    for name, values in sorted((meas.temps if meas is not None else {}).items()):
         v = np.asarray(values, dtype=float)
         v = v[np.isfinite(v)]
         if v.size:

@@ -665,7 +665,15 @@ def _has_iso(rec: dict, key: str) -> bool:
         return bool(iso.get("positioning"))
     if key == "iso230-4":
         return bool(iso.get("circles"))
+    if key == "iso230-3":
+        return bool(rec.get("iso230_3"))
     return True
+
+
+def _iso230_3(rec: dict, figs: dict) -> str:
+    """The ISO 230-3 section (`report --iso230-3 FILE`), built in its own module on this one's helpers."""
+    from .iso230_3 import section_html   # imported here: that module imports this one's helpers
+    return section_html(rec, figs)
 
 
 def render(report) -> str:
@@ -676,8 +684,8 @@ def render(report) -> str:
     sections = (("certificate", "Certificate"), ("instruments", "Instruments"), ("environment", "Environment"),
                 ("verdict", "Verdict"), ("terms", "Terms"), ("data", "Data"), ("fit", "Fitted errors"),
                 ("residuals", "Residuals"), ("rounds", "Diagnosis rounds"), ("iso230-2", "ISO 230-2"),
-                ("iso230-4", "ISO 230-4"), ("sensitivity", "Sensitivity"), ("compensation", "Compensation"),
-                ("uncertainty", "Uncertainty"), ("signatures", "Signatures"))
+                ("iso230-4", "ISO 230-4"), ("iso230-3", "ISO 230-3"), ("sensitivity", "Sensitivity"),
+                ("compensation", "Compensation"), ("uncertainty", "Uncertainty"), ("signatures", "Signatures"))
     only_cert = {"certificate", "instruments", "environment", "uncertainty", "signatures"}
     nav = "".join(f'<a href="#{k}">{t}</a>' for k, t in sections
                   if (k != "sensitivity" or rec["sensitivity"] is not None) and _has_iso(rec, k)
@@ -691,7 +699,7 @@ def render(report) -> str:
     if cert:
         body += [_cert_head(rec), _cert_instruments(rec), _cert_environment(rec)]
     body += [_verdict(rec), _glossary(), _data(rec, figs), _fit(rec), _residuals(rec, figs), _rounds(rec, figs),
-             _iso230(rec, figs), _sensitivity(rec, figs), _compensation(rec, figs)]
+             _iso230(rec, figs), _iso230_3(rec, figs), _sensitivity(rec, figs), _compensation(rec, figs)]
     if cert:
         body += [_cert_statements(rec), _cert_signatures(rec)]
     body.append("<footer>Made by fiveaxis from the measurement file and the machine file named above. Lengths in "

@@ -182,6 +182,8 @@ def diagnosis(j: dict) -> str:
         tips = sorted({h["separate_by"] for h in hid if h["separate_by"]})
         for t in tips:
             lines.append(f"        {t}")
+    if j.get("heat"):
+        lines += _heat_lines(j["heat"])
     if j["verdict"] == "missing effect" and j["candidates"]:
         lines.append(f"    next: fiveaxis diagnose FILE --add {j['candidates'][0]['id']}")
     u = j.get("unexplained")
@@ -208,6 +210,27 @@ def rounds(js: list[dict]) -> str:
     blocks.append(f"[[Calibration loop]] residual RMS {trail} against noise {last['noise_mm'] * 1000:.4g} um; "
                   f"effects found: {', '.join(found) or 'none'}; verdict: {last['verdict']}{stop}")
     return "\n\n".join(blocks)
+
+
+def _heat_lines(h: dict) -> list[str]:
+    """The heat section of a diagnosis JSON record (`fiveaxis.diagnosis.heat.assess`), in words."""
+    lines = ["[[Heat]] temperature channels: " + (", ".join(h["channels"]) or "none measured")]
+    if h["accepted"]:
+        lines.append(f"    accepted temperature effects: {', '.join(h['accepted'])}")
+    s = h.get("sensors")
+    if s:
+        without = ", ".join(f"without {c} {v * 1000:.3g} um" for c, v in s["rms_without_mm"].items())
+        lines.append(f"    sensors needed: {', '.join(s['smallest_set']) or 'none'} ({without}; {s['rule']})")
+        for o in s["not_needed"]:
+            lines.append(f"    not needed: {o['channel']}: {o['why']}")
+    for c in h.get("confounded", []):
+        lines.append(f"    confounded: {c['effect']} and {c['with']} (|cos| {c['cos']:.3f} of their columns)")
+    if h.get("confounded"):
+        lines.append(f"        {h['confounded_note']}")
+    m = h.get("missing_sensor")
+    if m:
+        lines.append(f"    missing sensor: {m['note']}")
+    return lines
 
 
 _WHAT = {"trend": "a cubic trend", "order": "structure (von Neumann)", "direction": "a direction dependence"}
