@@ -320,7 +320,8 @@ def test_bad_statements(tmp_path, capsys):
 # -- the report's section -------------------------------------------------------------------------------------------
 def _cells(page: str, table_id: str) -> list:
     body = re.search(rf'<table id="{table_id}">.*?<tbody>(.*?)</tbody>', page).group(1)
-    return [re.findall(r"<td[^>]*>(.*?)</td>", row) for row in re.findall(r"<tr[^>]*>(.*?)</tr>", body)]
+    return [[re.sub(r"<[^>]+>", "", c) for c in re.findall(r"<td[^>]*>(.*?)</td>", row)]   # text, not <data> tags
+            for row in re.findall(r"<tr[^>]*>(.*?)</tr>", body)]
 
 
 def test_report_section_prints_the_record(tmp_path):
@@ -331,6 +332,8 @@ def test_report_section_prints_the_record(tmp_path):
     rec, figs = section(path, spacing_mm=SPACING)
     page = html._iso230_3({"iso230_3": rec}, figs)
     assert page.startswith('<section id="iso230-3">') and 'id="fig-iso230_3"' in page
+    from test_certificate import check_numbers
+    assert check_numbers(page, {"iso230_3": rec}) == {"iso230_3"}     # every number is the record's, as keyed
     assert html._has_iso({"iso230_3": rec}, "iso230-3") and not html._has_iso({}, "iso230-3")
     step = {"um": 0.05, "urad": 0.5}              # half the last printed decimal (0.1 um; 1 urad: 0.1 um / 100 mm)
     rows = _cells(page, "iso230-3-figures")
