@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 MACHINE ?= li2018
 
-.PHONY: install system-deps warm run test test-fast test-scale test-linuxcnc fuzz derive bench lint clean
+.PHONY: install system-deps warm run test test-fast test-scale test-linuxcnc fuzz derive bench bench-scale lint clean
 
 ## uv installs the same packages as pip (the same versions from the same index) in 8 s against pip's 59 s on a
 ## fresh clone; pip does it where uv cannot be had
@@ -81,12 +81,19 @@ derive: install
 	$(BIN)/fiveaxis derive
 	$(BIN)/fiveaxis table2 --machine $(MACHINE) --latex
 
+## the benchmarks (bench/): each prints its ratios measured in one run; tests/test_bench.py runs every script on
+## tiny sizes so that none rots. bench-scale: fit and diagnose of 10^4..10^6 poses, each in its own process
 bench: install
-	$(BIN)/python -m pip install --quiet -e ".[bench]" || echo "bench: optional baselines did not install"
+	@$(BIN)/uv pip install --quiet --python $(BIN)/python -e ".[bench]" 2>/dev/null || \
+	  $(BIN)/python -m pip install --quiet -e ".[bench]" || echo "bench: optional baselines did not install"
 	$(BIN)/python bench/run.py
+	$(BIN)/python bench/baseline_split.py
 	$(BIN)/python bench/bench_diagnose.py
 	$(BIN)/python bench/bench_profiles.py
 	$(BIN)/python bench/bench_plan.py
+
+bench-scale: install warm
+	$(BIN)/python bench/bench_scale.py
 
 lint: install
 	$(BIN)/lint-imports

@@ -10,12 +10,13 @@
    noise seeds) and of random plans of N poses (10 plans) in which `diagnose` finds it (missing effect; the effect
    or an exact alias of it on top); "poses needed" is the smallest N from which the share stays >= 0.8.
 
-Run: .venv/bin/python bench/bench_plan.py [--quick]
+Run: .venv/bin/python bench/bench_plan.py [--quick | --tiny]   (--tiny: the smoke test's one case of each part,
+one size, one noise seed, 2 random plans; its numbers mean nothing)
 """
 from __future__ import annotations
 
+import argparse
 import math
-import sys
 import time
 
 import numpy as np
@@ -34,12 +35,13 @@ RANDOM_DETECT = 10
 SHARE = 0.8
 
 
-def part_d(quick: bool):
-    print("== D-criterion: plan of N poses vs random plans (median of %d) and the bound of any N-pose plan" % RANDOM)
+def part_d(cases, random: int = RANDOM, fresh_units: int = 20000) -> list:
+    print("== D-criterion: plan of N poses vs random plans (median of %d) and the bound of any N-pose plan" % random)
     print(f"{'machine':12s} {'instrument':10s} {'N':>4s} {'r':>3s} {'plan':>8s} {'bound':>8s} {'bound*':>8s} "
           f"{'rand N':>8s} "
           f"{'rand 2N':>8s} {'rand 3N':>8s}  plan>=rand 3N  worth (random poses)  time")
-    for machine, instrument, n in (CASES_D[::2] if quick else CASES_D):
+    rows = []
+    for machine, instrument, n in cases:
         model = fiveaxis.load(machine)
         t = time.perf_counter()
         res = P.make(model, instrument, n, seed=0, random_plans=1, pool_units=max(30 * n, 1000))
@@ -48,13 +50,13 @@ def part_d(quick: bool):
         rng = np.random.default_rng(7)
         med = {}
         for mult in (1, 2, 3):
-            med[mult] = float(np.median([dsg.criterion(P.random_units(dsg, mult * n, rng))[0] for _ in range(RANDOM)]))
+            med[mult] = float(np.median([dsg.criterion(P.random_units(dsg, mult * n, rng))[0] for _ in range(random)]))
         logdet_w, dmax, M = P.bound(dsg.X[:, :, dsg.cols("base")])
         b = logdet_w + res.r * math.log(n)
         # The bound holds for any plan within the constraints if no fresh candidate has d above r (equivalence
         # theorem): a second, larger pool from another seed, its rows in the same reference coordinates.
-        fresh = P.design(model, P.pool(model, instrument, 20000, 20000, np.random.default_rng(99)), [],
-                         model.machine.fixed)
+        fresh_pool = P.pool(model, instrument, fresh_units, fresh_units, np.random.default_rng(99))
+        fresh = P.design(model, fresh_pool, [], model.machine.fixed)
         Xf = (P._block(fresh.problem).A[:, P._theta_columns(fresh.problem)] * fresh.problem.w[:, None]
               / dsg.ref.scale) @ dsg.ref.basis
         Xf = Xf[np.argsort(fresh.pool.unit[fresh.problem.obs.row], kind="stable")].reshape(fresh.C, fresh.k, -1)
@@ -69,12 +71,15 @@ def part_d(quick: bool):
         print(f"{machine:12s} {instrument:10s} {n:4d} {res.r:3d} {res.D:8.2f} {b:8.2f} {b_all:8.2f} {med[1]:8.2f} "
               f"{med[2]:8.2f} "
               f"{med[3]:8.2f}  {'yes' if res.D >= med[3] else 'NO':13s}  {worth:6.1f} ({worth / n:.2f} N)"
-              f"        {secs:.1f} s   (bound check: max d = {dmax:.4f} on the pool, {d_fresh:.4f} on 40000 fresh "
-              f"candidates; r = {res.r})")
+              f"        {secs:.1f} s   (bound check: max d = {dmax:.4f} on the pool, {d_fresh:.4f} on "
+              f"{2 * fresh_units} fresh candidates; r = {res.r})")
+        rows.append({"machine": machine, "instrument": instrument, "n": n, "D": res.D, "bound": b,
+                     "bound_any": b_all, "random_median": med})
     print("   bound: log det(N M(w*)) over the same candidates: no N-pose plan from them exceeds it; bound*: the same\n"
-          "   widened by r log(max d / r) over 40000 fresh candidates (Atwood 1969): any N poses within the\n"
-          "   constraints.\n"
+          f"   widened by r log(max d / r) over {2 * fresh_units} fresh candidates (Atwood 1969): any N poses within\n"
+          "   the constraints.\n"
           "   Where bound* < rand 3N, no plan of N poses reaches the median random plan of 3N on this criterion.")
+    return rows
 
 
 def found(model, plan, spec, seed) -> bool:
@@ -96,11 +101,11 @@ def needed(shares):
     return ok
 
 
-def part_detect(quick: bool):
-    print(f"\n== Detection of a named effect: share of simulations in which diagnose finds it (plan: {NOISE_SEEDS} "
-          f"noise seeds; random: {RANDOM_DETECT} plans), noise 1 um")
-    sizes = SIZES[::2] if quick else SIZES
-    for machine, instrument, spec in CASES_DETECT:
+def part_detect(cases, sizes, noise_seeds: int = NOISE_SEEDS, random_detect: int = RANDOM_DETECT) -> dict:
+    print(f"\n== Detection of a named effect: share of simulations in which diagnose finds it (plan: {noise_seeds} "
+          f"noise seeds; random: {random_detect} plans), noise 1 um")
+    out = {}
+    for machine, instrument, spec in cases:
         model = fiveaxis.load(machine)
         eff = spec.split("=")[0]
         plan_share, rand_share = [], []
@@ -111,10 +116,10 @@ def part_detect(quick: bool):
                 res = P.make(model, instrument, n, effects=[eff], seed=0, random_plans=1)
             except P.TooFewPoses:
                 continue
-            p = np.mean([found(model, res.plan, spec, 100 + s) for s in range(NOISE_SEEDS)])
+            p = np.mean([found(model, res.plan, spec, 100 + s) for s in range(noise_seeds)])
             rr = np.random.default_rng(1000 + n)
             r = np.mean([found(model, P.subplan(res.design.pool, P.random_units(res.design, len(res.units), rr)),
-                               spec, 200 + s) for s in range(RANDOM_DETECT)])
+                               spec, 200 + s) for s in range(random_detect)])
             plan_share.append((n, p))
             rand_share.append((n, r))
             std = res.effect_std.get(eff, {})
@@ -123,9 +128,21 @@ def part_detect(quick: bool):
                   f"{std.get('unit', '')}", flush=True)
         print(f"   poses needed (share >= {SHARE} from there on): plan {needed(plan_share)}, random "
               f"{needed(rand_share) or f'more than {sizes[-1]}'}")
+        out[(machine, instrument, spec)] = {"plan": plan_share, "random": rand_share}
+    return out
+
+
+def main(argv=None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="every other case and size")
+    ap.add_argument("--tiny", action="store_true", help="one case of each part, one size (the smoke test)")
+    a = ap.parse_args(argv)
+    if a.tiny:
+        return {"d": part_d(CASES_D[:1], random=2, fresh_units=500),
+                "detect": part_detect(CASES_DETECT[:1], [12], noise_seeds=1, random_detect=1)}
+    return {"d": part_d(CASES_D[::2] if a.quick else CASES_D),
+            "detect": part_detect(CASES_DETECT, SIZES[::2] if a.quick else SIZES)}
 
 
 if __name__ == "__main__":
-    quick = "--quick" in sys.argv
-    part_d(quick)
-    part_detect(quick)
+    main()

@@ -15,7 +15,10 @@ Making them without touching the repository:
         --n N --seed 0 -o M-I.csv          (rtest 30, probe-sphere 12, ballbar 96, interferometer 30 with --effects
                                             dx_x:x1, tracker 40)
 Output, one line per program: machine | instrument | mode | the first limit's worst (checker) | the same from the
-reference | strokes (checker) | the largest stroke excess (reference) | the other limits | rule problems."""
+reference | strokes (checker) | the largest stroke excess (reference) | the other limits | rule problems.
+--write MACHINE-INSTRUMENT:N (repeatable) first writes DIR/MACHINE-INSTRUMENT.ngc with `fiveaxis plan` (N poses, seed
+0); the smoke test: DIR new --write ac_trunnion-rtest:12."""
+import argparse
 import re
 import sys
 from pathlib import Path
@@ -23,6 +26,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 import test_plan_programs as T   # noqa: E402
 import fiveaxis                 # noqa: E402
+from fiveaxis.cli import main as cli  # noqa: E402
 from fiveaxis.planning import safety  # noqa: E402
 
 
@@ -73,7 +77,21 @@ def annotate(text, machine, instrument, how):
     return "\n".join(out) + "\n"
 
 
-def main(folder, how):
+def main(argv=None) -> list:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("folder", type=Path)
+    ap.add_argument("how", choices=("new", "first-pose", "as-written"))
+    ap.add_argument("--write", action="append", default=[], metavar="MACHINE-INSTRUMENT:N",
+                    help="write this program with `fiveaxis plan` first")
+    a = ap.parse_args(argv)
+    folder, how = a.folder, a.how
+    for spec in a.write:
+        name, _, n = spec.rpartition(":")
+        machine, instrument = name.split("-", 1)
+        rc = cli(["plan", "--machine", machine, "--instrument", instrument, "--n", n, "--seed", "0", "-o",
+                  str(folder / f"{name}.csv"), "--force"])
+        if rc:
+            sys.exit(f"fiveaxis plan {spec} failed ({rc})")
     rows = []
     for prog in sorted(Path(folder).glob("*.ngc")):
         if prog.name.endswith(".annotated.ngc"):
@@ -104,7 +122,8 @@ def main(folder, how):
                      len([p for p in chk.problems if "without an operator message" in p[1]])))
     for r in rows:
         print(" | ".join(str(x) for x in r))
+    return rows
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], sys.argv[2])
+    main()

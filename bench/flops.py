@@ -5,13 +5,18 @@ count one operation per arithmetic operator (+ - * /, augmented assignments incl
 call, and the operations of the inlined helpers `_sincos` and `_kink` at each call. Comparisons, selects, loads
 and stores are not counted; the scalar pass over poses with a kink or near-cancelling errors is not counted
 either (it runs on a minority of poses), so the count is a lower bound of the work per pose.
+Run: .venv/bin/python bench/flops.py [--machine NAME]
 """
 from __future__ import annotations
 
+import argparse
 import ast
 import inspect
 import os
 import re
+
+import fiveaxis
+from fiveaxis.model.machine import MACHINES_DIR
 
 
 class _Counter(ast.NodeVisitor):
@@ -74,3 +79,26 @@ def cpu() -> dict:
     return {"model": model.group(1).strip() if model else "unknown", "cores": cores, "ghz": ghz,
             "avx2_fma": {"avx2", "fma"} <= flags, "avx512f": "avx512f" in flags,
             "peak_gflops_avx2": cores * ghz * 16.0, "peak_gflops_avx512": cores * ghz * 32.0}
+
+
+def main(argv=None) -> dict:
+    """Print the count of every shipped machine's kernel (or of --machine) and the peak of this CPU."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--machine", action="append", default=None, help="a shipped machine (default: all)")
+    a = ap.parse_args(argv)
+    names = a.machine or sorted(p.stem for p in MACHINES_DIR.glob("*.toml"))
+    info = cpu()
+    out = {"cpu": info, "flops_per_pose": {}}
+    for name in names:
+        k = fiveaxis.load(name).kernels
+        if not hasattr(k, "_gsil_block"):
+            continue
+        out["flops_per_pose"][name] = flops_per_pose(k)
+        print(f"{name}: {out['flops_per_pose'][name]} flops per pose (vectorised pass of _gsil_block)")
+    print(f"CPU {info['model']}, {info['cores']} cores at {info['ghz']:.2f} GHz: peak {info['peak_gflops_avx2']:.1f}"
+          f" GFLOP/s (AVX2 FMA), {info['peak_gflops_avx512']:.1f} (AVX-512)")
+    return out
+
+
+if __name__ == "__main__":
+    main()

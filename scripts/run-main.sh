@@ -28,25 +28,14 @@ fi
 # --- end section: sensitivity
 
 # --- section: measurements (issues 4, 8)
-# Confront the model with measurements: diagnose, add the top candidate, diagnose again, until the verdict is no
-# longer "missing effect" ("no missing effect", or "unexplained structure": then the template of a custom effect).
-# loop FILE MACHINE [options...]: the rounds, reading `diagnose --json`; prints the RMS trail and the verdict.
+# Confront the model with measurements: the calibration loop (fiveaxis.diagnosis.rounds, as `fiveaxis report` runs
+# it): diagnose, add the top candidate, diagnose again, until the verdict is no longer "missing effect" ("no missing
+# effect", or "unexplained structure": then the template of a custom effect); then the RMS trail and the verdict.
+# loop FILE MACHINE [options...]
 loop() {
     local file=$1 machine=$2; shift 2
-    local add=() found=() trail="" noise="" rms="" next="" verdict=""
-    for round in 1 2 3 4; do
-        say "diagnose, round $round: fiveaxis diagnose $file --machine $machine $* ${add[*]}"
-        "$BIN/fiveaxis" diagnose "$file" --machine "$machine" "$@" "${add[@]}" --top 3
-        IFS=$'\t' read -r rms noise next verdict < <("$BIN/fiveaxis" diagnose "$file" --machine "$machine" "$@" \
-            "${add[@]}" --json | "$BIN/python" -c 'import json, sys; j = json.load(sys.stdin); c = j["candidates"]
-print("%.4g\t%.4g\t%s\t%s" % (j["rms_mm_without_outliers"] * 1000, j["noise_mm"] * 1000,
-      c[0]["id"] if j["verdict"] == "missing effect" and c else "-", j["verdict"]))')
-        trail="$trail${trail:+ -> }$rms um"
-        [ "$next" != "-" ] || break
-        add+=(--add "$next")
-        found+=("$next")
-    done
-    say "The error fell: residual RMS $trail against noise $noise um; effects found: ${found[*]:-none}; verdict: $verdict"
+    say "The calibration loop: fiveaxis diagnose $file --machine $machine $* --rounds 4 --top 3"
+    "$BIN/fiveaxis" diagnose "$file" --machine "$machine" "$@" --rounds 4 --top 3
 }
 
 MEAS=examples/li2018_measurements.csv

@@ -32,10 +32,7 @@ def fitted_like(model, seed=0) -> MF.FittedModel:
     records = []
     for ident, value in EFFECTS[machine.name]:
         e = fx.parse(ident, machine, model.errors)
-        values = value if isinstance(value, tuple) else (value,)
-        kind = {"poly": "polynomial", "periodic": "periodic"}[e.kind]
-        records.append(MF.EffectRecord(e.id, kind, e.param, e.var, e.deg if kind == "polynomial" else None, e.names,
-                                       values, (), None if kind == "polynomial" else float(e.arg)))
+        records.append(e.record(value if isinstance(value, tuple) else (value,)))
     return MF.FittedModel(machine.name, str(machine.path), MF.sha256(machine.path), model.convention, errors,
                           {n: "rad" if machine.is_angular(n) else "mm" for n in model.errors}, (), {},
                           tuple(records), fx.scales(machine))

@@ -96,12 +96,14 @@ def test_compensate_outputs(loop):
     ini = (lc / "fiveaxis.ini").read_text()
     assert ini.count("COMP_FILE_TYPE = 1") == 5
     vol = lc / "volumetric"
-    assert sorted(p.name for p in vol.iterdir()) == ["README.txt", "fiveaxis.hal", "fiveaxis.ini", "fiveaxis.tbl",
-                                                     "fiveaxis_kins.comp"]
-    assert (vol / "fiveaxis_kins.comp").read_text().splitlines()[5].startswith("component fiveaxis_kins ")
+    kins = f"{machine}_kins"                     # the module is named after its machine (issue 28, point 9)
+    assert sorted(p.name for p in vol.iterdir()) == sorted(["README.txt", "fiveaxis.hal", "fiveaxis.ini",
+                                                            "fiveaxis.tbl", f"{kins}.comp"])
+    assert (vol / f"{kins}.comp").read_text().splitlines()[5].startswith(f"component {kins} ")
     vini = (vol / "fiveaxis.ini").read_text()
-    assert "KINEMATICS = fiveaxis_kins\n" in vini and f"COORDINATES = X Y Z {' '.join(variables[3:])}\n" in vini
-    assert "$ sudo halcompile --install fiveaxis_kins.comp" in (vol / "README.txt").read_text()
+    assert f"KINEMATICS = {kins}\n" in vini and f"COORDINATES = X Y Z {' '.join(variables[3:])}\n" in vini
+    assert f"$ sudo halcompile --install {kins}.comp" in (vol / "README.txt").read_text()
+    assert s["kinematics_module"]["component"] == kins
     assert s["kinematics_module"]["folder"] == "linuxcnc/volumetric" and s["kinematics_module"]["left_out"] == []
     assert tip["after_kinematics_module"]["max"] < 1e-6
     if machine == "ac_trunnion":
@@ -196,16 +198,18 @@ def test_tool_length_table_on_the_simulated_machine(capsys, tmp_path):
     assert "warning" not in capsys.readouterr().err
     measured = {n: rms_mm(d / f"after_{n}.csv") for n in ("one", "tl")}
     # the model's prediction at the same poses and tool lengths
-    from fiveaxis.compensation import table as C
+    from fiveaxis.compensation import folder as CF
+    from fiveaxis.compensation.chain import actual_tool
+    from fiveaxis.compensation.table import compensated_commands
     from fiveaxis.estimation import fitted_model as MF
     from fiveaxis.measurement.files import read
     fm = MF.load(d / "model.json")
     model = MF.load_model(fm, str(d / "model.json"))
     meas = read(d / "after_tl.csv", model.machine)
-    table = C.load_table(d / "tl", model)
-    cmd = C.compensated_commands(table, meas.poses, meas.L)
+    table = CF.load_table(d / "tl", model)
+    cmd = compensated_commands(table, meas.poses, meas.L)
     E, dL = MF.errors_at(fm, model, cmd, dirs=meas.dirs)
-    P, _ = C.actual_tool(model, cmd, E, dL, meas.L)
+    P, _ = actual_tool(model, cmd, E, dL, meas.L)
     P0, _ = model.ideal_tool(meas.poses, meas.L)
     pred = math.sqrt(np.mean(np.sum((P - P0) ** 2, axis=1)))
     with capsys.disabled():

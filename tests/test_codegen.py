@@ -34,7 +34,7 @@ def test_interrupted_write_leaves_the_old_module(tmp_path, monkeypatch):
     target = tmp_path / "li2018.py"
     target.write_text("old")
 
-    def boom(src, dst):
+    def boom(src, dst, **kw):
         raise KeyboardInterrupt
 
     from fiveaxis import outputs

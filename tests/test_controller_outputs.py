@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fiveaxis.compensation import table as C
+from fiveaxis.compensation import folder as CF
+from fiveaxis.compensation import pipeline as CP
 from fiveaxis.estimation import fitted_model as MF
 from fiveaxis.exceptions import InputError
 from fiveaxis.model.error_model import load
@@ -76,8 +77,8 @@ def test_a_table_worse_than_none_is_refused():
     sim = simulate(model, ["ex_x:x1"], n=50, noise=0.0, seed=3)
     fm = truth_model(sim, model)
     with pytest.raises(InputError, match="damping 0 leaves the corrections unbounded near singular poses"):
-        C.compensate(fm, model, {"X": 2, "Y": 2, "Z": 2}, damping=0.0, comp_points=9, poses=300)
-    comp = C.compensate(fm, model, {"X": 2, "Y": 2, "Z": 2}, comp_points=9, poses=300)
+        CP.compensate(fm, model, {"X": 2, "Y": 2, "Z": 2}, damping=0.0, comp_points=9, poses=300)
+    comp = CP.compensate(fm, model, {"X": 2, "Y": 2, "Z": 2}, comp_points=9, poses=300)
     tip = comp.account["tip_error_mm"]
     assert tip["after_table"]["rms"] < tip["before"]["rms"]
 
@@ -120,7 +121,7 @@ class Killed(BaseException):
 def _consistent_or_refused(folder: Path, a: dict, b: dict, model):
     """Readers accept the folder only when every file is of one set."""
     try:
-        C.load_table(folder, model)
+        CF.load_table(folder, model)
         from fiveaxis.report.compensation import read
         read(folder, "li2018")
     except InputError as exc:
@@ -190,7 +191,7 @@ def _writer(data: bytes):
 
 def _seal(b: dict, folder: Path, hashes: dict) -> str:
     record = json.loads(b["summary.json"])
-    record[C.MANIFEST] = {p.relative_to(folder).as_posix(): h for p, h in hashes.items()}
+    record[CF.MANIFEST] = {p.relative_to(folder).as_posix(): h for p, h in hashes.items()}
     return json.dumps(record)
 
 

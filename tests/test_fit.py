@@ -1,4 +1,6 @@
 """The fit on simulated data: what it determines is right, what it cannot determine gets no number."""
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -7,7 +9,7 @@ from fiveaxis.estimation import fit as F
 from fiveaxis.measurement.simulate import simulate
 from fiveaxis.estimation import result as R
 from fiveaxis.report import text
-from fiveaxis.estimation.problem import resolve_effects
+from fiveaxis.estimation.problem import machine_effects, resolve_effects
 
 
 @pytest.fixture(scope="module")
@@ -103,7 +105,8 @@ def test_identifiable_count_and_bad_effects(model):
     ('[effects.s]\nerror = "dx_x"\nexpr = "x**2"\n', "no parameters"),
     ('[effects.s]\nerror = "dx_x"\nexpr = "p1*(x"\n', "not a valid expression"),
     ('[effects.s]\nerror = "dx_q"\nexpr = "p1*x"\n', "effects.s.error: expected an error name"),
-    ('[model]\neffects = ["ex_x:x7"]\n', "model.effects[0]: expected an effect id"),
+    ('[model]\neffects = ["ex_x:x7"]\n', "model.effects[0]: 'ex_x:x7' is not an effect id"),
+    ('[model]\neffects = ["ex_x:q1"]\n', "model.effects[0]: expected an effect id"),
     ('[model]\neffects = "ex_x:x1"\n', "model.effects: expected a list"),
 ])
 def test_custom_effect_definitions_are_checked(tmp_path, table, expect):
@@ -113,5 +116,6 @@ def test_custom_effect_definitions_are_checked(tmp_path, table, expect):
     path.write_text((MACHINES_DIR / "li2018.toml").read_text() + "\n" + table)
     with pytest.raises(fiveaxis.InputError) as exc:
         machine = load_machine(path)
-        load_custom(machine, "s")
+        machine_effects(SimpleNamespace(machine=machine, errors=machine.error_names))   # ids: by their families
+        load_custom(machine, "s")                      # a custom effect: checked when loaded
     assert expect in str(exc.value) and "\n" not in str(exc.value) and str(path) in str(exc.value)

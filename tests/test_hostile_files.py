@@ -104,7 +104,7 @@ def test_gsa_and_lsa_read_a_model_file_written_by_fit(fitted, capsys):
     rc, out, err = run_cli(capsys, "lsa", "--errors", fitted, "--json")
     assert rc == 0, err
     rc, out, err = run_cli(capsys, "gsa", "--machine", "ac_trunnion", "--errors", fitted)
-    assert rc == 2 and "key machine.name: a model of 'li2018', not of ac_trunnion" in err
+    assert rc == 2 and "key machine.name: fitted for machine 'li2018', not for 'ac_trunnion'" in err
 
 
 def test_errors_of_a_model_file_for_another_version_of_the_machine_file(fitted, tmp_path, capsys):

@@ -11,7 +11,7 @@ import pytest
 from kins_library import EFFECTS, Library, fitted_like, gcc_missing
 from conftest import ROOT, SHIPPED
 from fiveaxis.compensation import kinematics as CK
-from fiveaxis.compensation.table import actual_tool
+from fiveaxis.compensation.chain import actual_tool
 from fiveaxis.estimation import fitted_model as MF
 from fiveaxis.exceptions import InputError
 from fiveaxis.linuxcnc import kinematics as K
@@ -169,20 +169,21 @@ def test_configuration_files(tmp_path):
         values = CK.module_values(fm, model)
         files = VOL.files(model, values, "// source\n", "fitted model m.json")
         ini, hal, readme = files["fiveaxis.ini"], files["fiveaxis.hal"], files["README.txt"]
-        assert "KINEMATICS = fiveaxis_kins\n" in ini and "JOINTS = 5\n" in ini and "HALFILE = fiveaxis.hal" in ini
+        kins = f"{name}_kins"
+        assert f"KINEMATICS = {kins}\n" in ini and "JOINTS = 5\n" in ini and "HALFILE = fiveaxis.hal" in ini
         rot = [v for v in model.variables if model.machine.axis(v).type == "rotary"]
         assert f"COORDINATES = X Y Z {' '.join(rot)}\n" in ini
         for j, v in enumerate(model.variables):
             assert f"[JOINT_{j}]\n# axis {v} of the machine file" in ini
         for pin, value, _ in values.pins():
             assert f"setp {pin} " in hal
-        assert "net fiveaxis-tool-offset motion.tooloffset.z => fiveaxis_kins.tool-offset" in hal
+        assert f"net fiveaxis-tool-offset motion.tooloffset.z => {kins}.tool-offset" in hal
         (lo, hi) = VOL.world_limits(model)[0]
         P, _ = model.ideal_tool(model.machine.random_poses(2000, np.random.default_rng(1)))
         assert lo < P[:, 0].min() and hi > P[:, 0].max()
         commands = [line for line in readme.splitlines() if line.startswith("$ ")]
         assert commands == ["$ sudo apt-get install linuxcnc-uspace-dev",
-                            "$ sudo halcompile --install fiveaxis_kins.comp", "$ linuxcnc fiveaxis.ini",
-                            "$ halcmd show pin fiveaxis_kins"]
+                            f"$ sudo halcompile --install {kins}.comp", "$ linuxcnc fiveaxis.ini",
+                            f"$ halcmd show pin {kins}"]
     assert "(-650, 650)" in str(VOL.world_limits(load("ac_trunnion"))[0]).replace(".0", "")
 

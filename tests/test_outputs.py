@@ -242,7 +242,7 @@ def test_a_refused_rename_names_the_file_not_the_temporary(tmp_path, monkeypatch
     target = tmp_path / "m.toml"
     target.write_text("old")
 
-    def refuse(src, dst):
+    def refuse(src, dst, **kw):
         raise PermissionError(1, "Operation not permitted", src, dst)
 
     monkeypatch.setattr(outputs.os, "replace", refuse)

@@ -12,7 +12,10 @@ from truth import truth_model
 from fiveaxis.estimation.problem import resolve_effects
 from fiveaxis.compensation import kinematics as CK
 from fiveaxis.compensation import prediction as PR
-from fiveaxis.compensation import table as C
+from fiveaxis.compensation import pipeline as CP
+from fiveaxis.compensation.account import account
+from fiveaxis.compensation.correction import fitted_errors
+from fiveaxis.compensation.record import summary
 from fiveaxis.estimation import fit as F
 from fiveaxis.estimation import fitted_model as MF
 from fiveaxis.report import text as T
@@ -32,10 +35,10 @@ def case(request):
     sim = simulate(model, EFFECTS, n=1000, noise=1e-3, seed=4, instrument=request.param)
     res = F.fit(model, sim.meas, resolve_effects(model, EFFECTS))
     fm = MF.from_fit(res)
-    comp = C.compensate(fm, model, {"X": 3, "Y": 3, "Z": 3}, poses=1000)
+    comp = CP.compensate(fm, model, {"X": 3, "Y": 3, "Z": 3}, poses=1000)
     truth = truth_model(sim, model)
     module = (lambda q, dirs, fn: CK.predicted(fm, model, comp.module, fn, q, dirs))
-    true = C.account(model, C.fitted_errors(truth, model), comp.table, comp.lc, 1000, 0, module=module)
+    true = account(model, fitted_errors(truth, model), comp.table, comp.lc, 1000, 0, module=module)
     return request.param, model, sim, fm, comp, true
 
 
@@ -89,13 +92,13 @@ def test_rtest_campaign_is_flagged_and_the_measurement_named(case):
     assert any("not what the machine will show" in w for w in warns)
     best = unc["determining"]["best"]
     assert best["determines_share"] > 0.99 and "tip readings over the whole workspace" in best["measurement"]
-    text = "\n".join(T.compensation(C.summary(comp)).splitlines())
+    text = "\n".join(T.compensation(summary(comp)).splitlines())
     assert "WARNING" in text and best["command"] in text
 
 
 def test_summary_carries_the_prediction(case, tmp_path):
     instrument, model, sim, fm, comp, true = case
-    s = C.summary(comp)
+    s = summary(comp)
     json.dumps(s)                                   # finite numbers only
     assert s["prediction_uncertainty"]["tip_error_mm"]["after_table"]["range_k2"]
     assert "model estimates" in s["predicted_axis_error_note"]
@@ -114,7 +117,7 @@ def test_model_files_without_covariance_say_so(case, tmp_path):
     path.write_text(json.dumps(data))
     old = MF.load(path)
     assert old.covariance is None and PR.band(old, model, sim.meas.poses, None, 150.0, {}, {}) == {}
-    assert "unknown" in PR.text_lines({})[0]
+    assert "unknown" in T.prediction_lines({}, [])[0]
     data = json.loads(MF.load.__globals__["json"].dumps(MF.to_json(fm)))
     data["covariance_mm_rad"]["matrix"][0] = [1.0]
     path.write_text(json.dumps(data))

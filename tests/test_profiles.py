@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 import fiveaxis
-from fiveaxis.compensation import table as CT
+from fiveaxis.compensation import folder as CF
+from fiveaxis.compensation import pipeline as CP
+from fiveaxis.compensation.record import summary
 from fiveaxis.diagnosis import diagnose as D
 from fiveaxis.effects import families as fx
 from fiveaxis.estimation import fit as F
@@ -20,7 +22,6 @@ from fiveaxis.linuxcnc import configuration as lx
 from fiveaxis.measurement import instruments as ins
 from fiveaxis.measurement.files import read
 from fiveaxis.measurement.simulate import simulate, to_frame
-from fiveaxis.model import effect_ids as ids
 
 NOISE = 1e-3
 
@@ -31,10 +32,10 @@ def model():
 
 
 def test_grammar_and_knots(model):
-    e = ids.split("dx_x:xk100", ["x", "y", "z", "A", "C", "t"])
-    assert (e.kind, e.arg, e.text) == ("profile", 100.0, "dx_x:xk100")
-    assert ids.split("dx_x:tk100", ["x", "t"]) is None and ids.split("dx_x:xk0", ["x"]) is None
-    assert "k<spacing>" in ids.explain("dx_x:xq5", ["x"])
+    fam, parts = fx.split("dx_x:xk100", ["x", "y", "z", "A", "C", "t"])
+    assert (fam.NAME, parts, fam.format(*parts)) == ("profile", ("dx_x", "x", 100.0), "dx_x:xk100")
+    assert fx.split("dx_x:tk100", ["x", "t"]) is None and fx.split("dx_x:xk0", ["x"]) is None
+    assert "k<spacing>" in fx.explain("dx_x:xq5", ["x"])
     eff = fx.parse("dx_x:xk100", model.machine, model.errors)
     assert eff.knots == tuple(float(k) for k in range(-400, 401, 100))
     assert eff.names[0] == "dx_x:xk100@-400" and len(eff.names) == 9
@@ -131,15 +132,15 @@ def test_lead_screw_comp_file_leaves_the_noise(model, lead_screw, tmp_path):
     path = MF.save(fm, tmp_path / "model.json")
     fm = MF.load(path)                                                # through the file
     assert [e.kind for e in fm.effects] == ["reversal", "profile"] and fm.effects[1].arg == 100.0
-    comp = CT.compensate(fm, model, counts={v: 9 if v == "X" else 2 for v in model.variables}, poses=200)  # X: knots
+    comp = CP.compensate(fm, model, counts={v: 9 if v == "X" else 2 for v in model.variables}, poses=200)  # X: knots
     (tmp_path / "comp").mkdir()
-    CT.write(comp, tmp_path / "comp")
+    CF.write(comp, tmp_path / "comp", summary(comp))
     nominal, fwd, rev = lx.read_comp_file(tmp_path / "comp" / "linuxcnc" / "joint0-X.comp")
     assert list(nominal) == list(range(-400, 401, 100))               # the trims sit at the profile's knots
     assert np.median(fwd - rev) == pytest.approx(-0.025, abs=0.001)    # the reversal: forward 25 um below reverse
     before = simulate(model, effects, noise=NOISE, seed=33, plan=plan)
     after = simulate(model, effects, noise=NOISE, seed=33, plan=plan,
-                     commands=CT.linuxcnc_function(tmp_path / "comp", model))
+                     commands=CF.linuxcnc_function(tmp_path / "comp", model))
     spread = lambda du: float(np.sqrt(np.mean((du - du.mean()) ** 2)))      # noqa: E731  (the dead path aside)
     assert spread(before.meas.du) > 10 * NOISE
     assert spread(after.meas.du) <= 1.25 * NOISE

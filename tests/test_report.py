@@ -226,3 +226,24 @@ def test_cli_writes_once_and_refuses_to_overwrite(capsys, tmp_path):
     assert rc == 2 and err.count("\n") == 1 and "unknown parameter 'E_QX'" in err
     rc, _, err = run(capsys, "report", small, "-o", tmp_path / "q.html", "--compensation", tmp_path / "nope")
     assert rc == 2 and "compensation folder not found" in err and not (tmp_path / "q.html").exists()
+
+
+@pytest.mark.slow
+def test_calibration_loop_is_written_once(capsys, example):
+    """`diagnose --rounds` (the loop make run shows) and the report run the same loop: the same rounds, the same
+    residuals, the same effects added, each round adding the previous round's best candidate."""
+    rc, out, err = run(capsys, "diagnose", EXAMPLE, "--rounds", "4", "--top", "5", "--json")
+    assert rc == 0, err
+    js = json.loads(out)["rounds"]
+    rounds = example.record["rounds"]
+    assert [j["added"] for j in js] == [r["added"] for r in rounds]
+    assert [j["rms_mm"] * 1e3 for j in js] == pytest.approx([r["rms_um"] for r in rounds], rel=1e-9)
+    for a, b in zip(js, js[1:]):
+        assert a["verdict"] == "missing effect" and b["added"] == a["added"] + [a["candidates"][0]["id"]]
+    assert js[-1]["verdict"] != "missing effect"
+    rc, text, _ = run(capsys, "diagnose", EXAMPLE, "--rounds", "4", "--top", "2")
+    trail = " -> ".join(f"{j['rms_mm_without_outliers'] * 1000:.4g} um" for j in js)
+    assert rc == 0 and text.count("[[Diagnosis]]") == len(js) and f"residual RMS {trail} against noise" in text
+    assert f"effects found: {', '.join(js[-1]['added'])}; verdict: {js[-1]['verdict']}" in text
+    rc, _, err = run(capsys, "diagnose", EXAMPLE, "--rounds", "0")
+    assert rc == 2 and err.count("\n") == 1 and "--rounds" in err

@@ -6,7 +6,9 @@ imported only when its command runs, so `fiveaxis table2` never loads numba and 
 from __future__ import annotations
 
 import argparse
+import atexit
 import importlib
+import os
 import sys
 
 from .exceptions import InputError, one_line
@@ -35,6 +37,10 @@ COMMANDS = {
                                              "target and axis) with ISO 230-9's uncertainty"),
     "iso230-4": ("fiveaxis.commands.iso230", "ISO 230-4 circular test figures (G, F, H) of ballbar circles and the "
                                              "ballbar's diagnostic list"),
+    "iso230-3": ("fiveaxis.commands.iso230_3", "ISO 230-3 thermal tests (ETVE, spindle, moving axis): drift per "
+                                               "direction and phase beside the temperatures"),
+    "iso230-3-simulate": ("fiveaxis.commands.iso230_3", "a simulated ISO 230-3 test file (displacements of a "
+                                                        "five-sensor nest and temperatures over hours)"),
 }
 
 
@@ -86,6 +92,12 @@ TRANSLATIONS = (("(force=True replaces it)", "(use --force to replace it)"),
                 ("temperature_deviation_K and expansion_ppm_per_K: state both",
                  "--temperature-deviation and --expansion-ppm-per-K: state both"),
                 ("target tolerance: expected", "--tolerance: expected"),
+                ("(spacing_mm: state the spacing in mm)", "(state it with --spacing MM)"),
+                ("spacing_mm: expected", "--spacing: expected"),
+                ("spindle_on_min", "--spindle-on"), ("spindle_off_min", "--spindle-off"),
+                ("spindle_speed_rpm: expected", "--spindle-speed: expected"),
+                ("test_hours:", "--hours:"), ("run_hours: expected", "--run-hours: expected"),
+                ("interval_s: expected", "--interval: expected"), ("speed_rpm: expected", "--speed: expected"),
                 ("give the kinematics (", "give --kinematics ("))
 
 
@@ -123,5 +135,34 @@ def main(argv=None) -> int:
         return 2
 
 
+#: numba's threading layer of the command line, unless NUMBA_THREADING_LAYER says otherwise: workqueue is in every
+#: numba build, has no fork handlers and no teardown. TBB (chosen by default where libtbb is installed) joins its
+#: workers before every fork (each rs274 run) and in its module's teardown inside the interpreter's last garbage
+#: collection, where `plan` was seen to hang for minutes under load (issue 28, point 5). The kernels are written for
+#: it: none enters a parallel kernel from several threads (fiveaxis.parallel).
+THREADING_LAYER = "workqueue"
+
+
+def entry() -> None:
+    """The `fiveaxis` program: main(), then an end as soon as it is done. The threading layer is chosen before numba
+    is imported (THREADING_LAYER); after main, stdout and stderr are flushed, the exit handlers run (Dask's,
+    temporary folders', logging's) and the process ends (os._exit) without the interpreter's teardown of ~1,200
+    modules, which took 2 to 4 s after the last line under load and held TBB's finalisation. Tests call main()."""
+    os.environ.setdefault("NUMBA_THREADING_LAYER", THREADING_LAYER)
+    try:
+        rc = main()
+    except SystemExit as exc:                # argparse: --help, --version, usage errors
+        rc = 0 if exc.code is None else exc.code if isinstance(exc.code, int) else 1
+        if not isinstance(exc.code, (int, type(None))):
+            print(exc.code, file=sys.stderr)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):        # a reader that went away, a closed stream: nothing more to say
+            pass
+    atexit._run_exitfuncs()
+    os._exit(rc)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()

@@ -77,14 +77,20 @@ def _tool_lengths(spec):
 
 
 def run_compensate(args) -> int:
+    from ..compensation import folder as F
+    from ..compensation import pipeline as P
     from ..compensation import table as C
+    from ..compensation.record import summary
     from ..estimation import fitted_model as MF
     from ..model.error_model import load
     from ..plots.compensation import figure
     from ..report import text
     fm = MF.load(args.model)
-    model = load(args.machine, fm.convention) if args.machine else MF.load_model(fm, str(args.model))
-    MF.check_model(fm, model, str(args.model))
+    if args.machine:               # before the output folder is made (load_model checks the model file's own)
+        model = load(args.machine, fm.convention)
+        MF.check_model(fm, model, str(args.model))
+    else:
+        model = MF.load_model(fm, str(args.model))
     out = args.output
     if not out.is_dir():
         if not out.parent.is_dir():
@@ -115,15 +121,16 @@ def run_compensate(args) -> int:
     if args.comp_points is not None and not 2 <= args.comp_points <= 256:
         raise InputError(f"--comp-points: expected 2 to 256 (LinuxCNC reads at most 256 lines), got "
                          f"{args.comp_points}")
-    for p in C.outputs(out, args.plot) + [C.volumetric_folder(out)]:
+    for p in F.outputs(out, args.plot) + [F.volumetric_folder(out)]:
         if p.exists() and not args.force:
             raise InputError(f"{p}: exists; not overwriting it (use --force to replace it)")
-    comp = C.compensate(fm, model, counts, limit, C.DAMPING if args.damping is None else args.damping,
-                        args.comp_points, args.poses if args.poses is not None else C.ACCOUNT_POSES, args.seed,
+    comp = P.compensate(fm, model, counts, limit, P.DAMPING if args.damping is None else args.damping,
+                        args.comp_points, args.poses if args.poses is not None else P.ACCOUNT_POSES, args.seed,
                         tool_lengths=lengths)
-    C.write(comp, out, force=args.force, figure=figure if args.plot else None, model_path=str(args.model))
+    record = summary(comp, str(args.model))
+    F.write(comp, out, record, force=args.force, figure=figure if args.plot else None, model_path=str(args.model))
     if args.json:
-        print(json.dumps(C.summary(comp, str(args.model)), indent=1))
+        print(json.dumps(record, indent=1))
     else:
-        print(text.compensation(C.summary(comp, str(args.model)), str(out)))
+        print(text.compensation(record, str(out)))
     return 0

@@ -48,7 +48,8 @@ def run_dask(args) -> int:
     from ..guards import check_size
     from ..model.error_model import load
     from ..sensitivity.indices import reduce_grid
-    from .sensitivity import _grid, _print_ranking, _print_settings
+    from ..report import sensitivity_text as S
+    from .sensitivity import _grid, _iso
     if args.scheduler is not None:
         try:
             parallel.scheduler_address(args.scheduler)     # before the model loads: a typo fails at once
@@ -88,10 +89,7 @@ def run_dask(args) -> int:
     if args.json:
         print(json.dumps(res.to_json(), indent=1))
         return 0
-    _print_ranking(model, res, args.top, "GSIL proportions PG_i (Eq. 14, 16), largest first")
-    _print_settings(res.settings)
-    d = res.settings["dask"]
-    print(f"dask: {d['workers']} workers, {d['threads']} threads, {d['tasks']} tasks of {d['chunk']} poses, "
-          f"{res.settings['evaluated_poses']} poses evaluated (x{res.settings['reduced_factor']}), "
-          f"{res.settings['seconds']} s; peak memory of the workers {d['worker_peak_rss_mb']} MB")
+    out = res.to_json()
+    print("\n".join(S.ranking(out, _iso(model), args.top, "GSIL proportions PG_i (Eq. 14, 16), largest first")
+                    + S.settings(out["settings"]) + S.dask(out["settings"])))
     return 0

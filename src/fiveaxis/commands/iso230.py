@@ -78,16 +78,13 @@ def _plot_folder(folder: Path) -> Path:
 def run_iso230_2(args) -> int:
     from ..iso230 import positioning as P
     from ..iso230 import uncertainty as U
+    from ..report import iso230_text
     statement = U.Statement(args.u_device, args.temperature_deviation, args.expansion_ppm_per_K, args.misalignment,
                             args.drift)
     U.check(statement)
     model, meas = _read(args)
     evs = P.evaluate(meas, model, P.TARGET_TOL_MM if args.tolerance is None else args.tolerance)
-    records, texts = [], []
-    for ev in evs:
-        unc = U.budget(statement, ev.length_mm) or U.none_statement()
-        records.append(P.to_json(ev, unc))
-        texts.append(P.report(ev, unc))
+    records = [P.to_json(ev, U.budget(statement, ev.length_mm) or U.none_statement()) for ev in evs]
     if args.plot is not None:
         from ..plots.iso230 import write_positioning
         folder = _plot_folder(args.plot)
@@ -96,7 +93,7 @@ def run_iso230_2(args) -> int:
     if args.json:
         print(json.dumps({"file": str(args.file), "machine": model.machine.name, "axes": records}, indent=1))
     else:
-        print("\n\n".join(texts))
+        print("\n\n".join(iso230_text.positioning(rec) for rec in records))
         if statement.empty:
             print("(state them with --u-device, --temperature-deviation with --expansion-ppm-per-K, --misalignment, "
                   "--drift)")
@@ -105,6 +102,7 @@ def run_iso230_2(args) -> int:
 
 def run_iso230_4(args) -> int:
     from ..iso230 import circular as C
+    from ..report import iso230_text
     if args.rounds < 1:
         raise InputError(f"--rounds: expected a positive number, got {args.rounds}")
     if args.feed is not None and not 0 < args.feed < float("inf"):
@@ -122,5 +120,5 @@ def run_iso230_4(args) -> int:
     if args.json:
         print(json.dumps(rec, indent=1))
     else:
-        print(C.report(rec))
+        print(iso230_text.circles(rec))
     return 0

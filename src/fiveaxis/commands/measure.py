@@ -70,9 +70,13 @@ def register_diagnose(p):
     _common(p)
     _fit_options(p)
     p.add_argument("--top", type=int, default=10, help="candidates to list (default 10)")
+    p.add_argument("--rounds", type=int, default=1, metavar="N",
+                   help="the calibration loop: diagnose, add the top candidate, diagnose again while an effect is "
+                        "missing, at most N diagnoses (default 1: one diagnosis); --json gives {\"rounds\": [...]}")
     p.add_argument("--json", action="store_true", help="print JSON instead of the report")
     p.add_argument("--plot", type=Path, default=None, metavar="DIR",
-                   help="write residuals.png (residuals against each variable, before/after the top candidate)")
+                   help="write residuals.png (residuals against each variable, before/after the top candidate; "
+                        "of the last round)")
     p.set_defaults(func=run_diagnose)
 
 
@@ -120,6 +124,11 @@ def register_simulate(p):
                    help="interferometer: the linear axes to run (default: every linear axis, a setup each)")
     p.add_argument("--targets", type=int, default=None, help="interferometer: targets per axis (default 11)")
     p.add_argument("--cycles", type=int, default=None, help="interferometer: bidirectional cycles (default 5)")
+    p.add_argument("--temperature", action="append", default=[], metavar="NAME=KIND[:KEY=VALUE,...]",
+                   help="a temperature sensor's history over the run (a temp_NAME column, degC), e.g. "
+                        "spindle=spindle:rise=15,tau=900,off=7200 (warm-up, cool-down), air=air:amp=1.5, "
+                        "bed=bed:rise=2, motor=mix:spindle=0.4,air=1 (docs/measurements.md); repeatable; drive "
+                        "effects with --effect L:temp_spindle~600=0.0012 (mm or rad per degC)")
     p.set_defaults(func=run_simulate)
 
 
@@ -246,23 +255,25 @@ def run_fit(args) -> int:
 
 
 def run_diagnose(args) -> int:
-    from ..diagnosis import diagnose as D
+    from ..diagnosis import rounds as loop
     from ..report import text
     if args.top < 1:
         raise InputError(f"--top: expected a positive number, got {args.top}")
+    if args.rounds < 1:
+        raise InputError(f"--rounds: expected a positive number of diagnoses, got {args.rounds}")
     model, meas, effects, fixed = _load(args)
     preconditions.check(meas)                        # enough distinct poses for the cross-validation
     with _where_blocks(args) as in_blocks:
-        dg = D.diagnose(model, meas, effects, top=args.top, fixed=fixed, in_blocks=in_blocks)
+        dgs = loop.rounds(model, meas, effects, args.rounds, top=args.top, fixed=fixed, in_blocks=in_blocks)
     if args.plot is not None:
         from ..plots.residuals import plot_residuals
-        path = plot_residuals(dg, args.plot)
+        path = plot_residuals(dgs[-1], args.plot)
         print(f"fiveaxis: wrote {path}", file=sys.stderr)
-    j = dg.to_json()
+    js = [dg.to_json() for dg in dgs]
     if args.json:
-        _dump(j)
+        _dump(js[0] if args.rounds == 1 else {"rounds": js})
     else:
-        print(text.diagnosis(j))
+        print(text.diagnosis(js[0]) if args.rounds == 1 else text.rounds(js))
     return 0
 
 
@@ -304,11 +315,11 @@ def run_simulate(args) -> int:
     if args.linuxcnc and args.compensation is None:
         raise InputError("--linuxcnc applies the LinuxCNC files of a compensation folder: give --compensation DIR")
     if args.compensation is not None and args.linuxcnc:
-        from ..compensation.table import linuxcnc_function
+        from ..compensation.folder import linuxcnc_function
         commands = linuxcnc_function(args.compensation, model)
         comp = f", compensated by LinuxCNC with {args.compensation}/linuxcnc"
     elif args.compensation is not None:
-        from ..compensation.table import command_function, load_table
+        from ..compensation.folder import command_function, load_table
         table = load_table(args.compensation, model)
         commands = command_function(args.compensation, model, table)
         comp = f", compensated by {args.compensation}"
@@ -335,11 +346,17 @@ def run_simulate(args) -> int:
             raise InputError(f"--error {spec}: expected NAME=VALUE (mm or rad)") from None
         if not sep or errors[name.strip()] != errors[name.strip()] or abs(errors[name.strip()]) == float("inf"):
             raise InputError(f"--error {spec}: expected NAME=VALUE with a finite value (mm or rad)")
+    temperatures = {}
+    for spec in args.temperature:
+        name, sep, profile = spec.partition("=")
+        if not sep or not name.strip():
+            raise InputError(f"--temperature {spec}: expected NAME=KIND[:KEY=VALUE,...], e.g. spindle=spindle:rise=15")
+        temperatures[name.strip()] = profile
     sim = simulate(model, args.effect, n=args.n, noise=args.noise, seed=args.seed, tool_lengths=lengths,
                    duration=None if args.no_time else args.duration, with_sigma=args.with_sigma,
                    instrument=args.instrument, with_axis=args.with_axis, noise_axis=args.noise_axis, plan=plan,
                    setup_scale=args.setup_scale, errors=errors, setup_kind=args.setup_kind, commands=commands,
-                   options=options)
+                   options=options, temperatures=temperatures)
     meas = sim.meas
     _check_simulated(meas)
     if table is not None:

@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from ..exceptions import InputError
+from .iso230_3 import spindle, thermal_options
 
 
 def register_report(p):
@@ -20,6 +21,9 @@ def register_report(p):
                    help="diagnosis rounds at most: diagnose, add the top candidate, repeat (default 4)")
     p.add_argument("--compensation", type=Path, default=None, metavar="DIR",
                    help="folder of a compensation run: summary.json (predicted error before/after, mm) and maps")
+    p.add_argument("--iso230-3", type=Path, default=None, metavar="FILE",
+                   help="an ISO 230-3 thermal test file (docs/iso230-3.md): its section, with the options below")
+    thermal_options(p)
     p.add_argument("--no-sensitivity", action="store_true", help="leave out the machine's GSIL section")
     p.add_argument("--title", default=None, help="title of the report (default: from the machine file)")
     p.add_argument("-o", "--output", type=Path, required=True, help="the HTML file to write")
@@ -44,8 +48,15 @@ def run_report(args) -> int:
     target(args.output, args.force)
     if args.rounds < 1:
         raise InputError(f"--rounds: expected a positive number, got {args.rounds}")
+    thermal = None
+    if args.iso230_3 is not None:                 # checked before the fit: a bad file ends the run at once
+        from ..report.iso230_3 import section
+        thermal = section(args.iso230_3, args.test, spindle(args), args.spacing)
     rep = record.build(args.file, args.machine, args.convention, args.add, args.compensation, args.rounds,
                        sensitivity=not args.no_sensitivity, title=args.title, frame=args.frame)
+    if thermal is not None:
+        rep.record["iso230_3"], figs = thermal
+        rep.figures.update(figs)
     write_text(args.output, html.render(rep), force=args.force)
     path = args.output
     print(f"fiveaxis: wrote {path} ({path.stat().st_size / 1e6:.2f} MB): {rep.record['verdict']['headline']}",

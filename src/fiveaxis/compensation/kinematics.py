@@ -1,11 +1,10 @@
 """A fitted model in the LinuxCNC kinematics module (fiveaxis.linuxcnc.kinematics): the pins' values, what the
 module cannot hold, and what it is predicted to leave.
 
-The module holds the base error values and the effects that depend on the joint positions (polynomial and
-periodic in an axis; profiles when they come). It refuses, with a one-line reason each (`ModuleValues.left_out`,
-printed by `compensate`, in summary.json): reversal effects (a kinematics module does not see the direction of
-motion; forward and reverse trims for the module's configuration are not written yet), time effects (no time in
-kinematics; taken at t = 0 as in the table) and custom effects of the machine file (not in the module yet). The
+The module holds the base error values and the effects whose family gives them a slot (`module` of each family in
+`fiveaxis.effects`: polynomial and periodic in an axis). It refuses, with the family's one-line reason each
+(`ModuleValues.left_out`, printed by `compensate`, in summary.json): reversal effects, time effects (taken at t = 0
+as in the table), profiles and custom effects of the machine file, and effects beyond the module's slots. The
 prediction (`predicted`) uses exactly what the module holds: the fitted model restricted to those effects,
 evaluated where the module evaluates them (full-turn rotary axes wrapped), through the module's NumPy reference.
 Units: mm and rad.
@@ -16,22 +15,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..effects.families import TIME
+from ..effects import families as fx
 from ..linuxcnc import kinematics as K
 from .chain import DAMPING, actual_tool
 from ..estimation.fitted_model import errors_at
 
-REASONS = {
-    "reversal": "a reversal depends on the direction of motion, which kinematics do not see; not compensated "
-                "with the module (../joint*.comp carry it with forward and reverse trims, but they belong to the "
-                "stock kinematics; reversal trims for the module's configuration are not written yet)",
-    "thermal": "a time effect: kinematics hold no time (taken at t = 0, as in the table)",
-    "time": "a time effect: kinematics hold no time (taken at t = 0, as in the table)",
-    "custom": "custom effects of the machine file are not in the module yet",
-    "profile": "a per-position profile is not in the module yet (../joint*.comp carry it as trims at its knots, but "
-               "they belong to the stock kinematics)",
-    "slots": f"the module has {K.SLOTS} effect slots, all in use",
-}
+SLOTS_FULL = f"the module has {K.SLOTS} effect slots, all in use"
 
 
 def module_values(fm, model, damping: float = DAMPING) -> K.ModuleValues:
@@ -40,31 +29,18 @@ def module_values(fm, model, damping: float = DAMPING) -> K.ModuleValues:
     variables = list(model.variables)
     slots, left = [], []
     for rec in fm.effects:
-        reason = None
-        if rec.kind == "custom":
-            reason = "custom"
-        elif rec.var == TIME or rec.kind == "thermal":
-            reason = "time"
-        elif rec.kind not in ("polynomial", "periodic"):
-            reason = rec.kind if rec.kind in REASONS else "custom"
-        elif len(slots) >= K.SLOTS:
-            reason = "slots"
-        if reason:
-            left.append(f"effect {rec.id} left out of the kinematics module: {REASONS[reason]}")
+        slot = fx.family(rec.kind).module(rec, fm.scales, variables)
+        if isinstance(slot, dict) and len(slots) >= K.SLOTS:
+            slot = SLOTS_FULL
+        if isinstance(slot, str):
+            left.append(f"effect {rec.id} left out of the kinematics module: {slot}")
             continue
-        sc = fm.scales[rec.var]
         param = names.index(rec.param) if rec.param in names else len(names)        # L: the tool length
-        joint = variables.index(sc.column)
-        if rec.kind == "polynomial":
-            slots.append(K.Slot(param, "polynomial", joint, int(rec.deg), 1.0, float(sc.centre), float(sc.half),
-                                float(rec.values[0]), 0.0, rec.id))
-        else:
-            slots.append(K.Slot(param, "periodic", joint, 0, float(rec.arg) / float(sc.to_unit), 0.0, 1.0,
-                                float(rec.values[0]), float(rec.values[1]), rec.id))
+        slots.append(K.Slot(param, **slot, id=rec.id))
     units = tuple("rad" if model.machine.is_angular(n) else "mm" for n in names)
     errors = np.array([fm.errors[n] for n in names], dtype=float)
     return K.ModuleValues(model.machine.name, names, errors, units, tuple(slots), float(model.machine.tool_length),
-                          float(damping), tuple(left))
+                          float(damping), tuple(left), model.convention or "equations")
 
 
 def module_model(fm, values: K.ModuleValues):

@@ -1,6 +1,6 @@
 """What a compensation's prediction cannot know: the fit's uncertainty and the directions the data did not determine.
 
-The account (compensation.table.account) predicts the tool-tip error left after each stage (LinuxCNC's files, the
+The account (compensation.account.account) predicts the tool-tip error left after each stage (LinuxCNC's files, the
 kinematics module, the table) on the fitted model, whose undetermined parameters carry the minimum-norm solution.
 The true machine differs by D = theta_true - theta_fit: to first order the error left at a pose q becomes
 e(q) + J(q) D, J the tip's derivative by the machine's parameters (errors, effect coefficients) at q (the
@@ -94,9 +94,10 @@ def parameter_jacobians(fm, model, q, L, dirs=None):
     V0 = model.ideal_tool(q, L)[1]
     ctx = fx.context(model.machine, q, None, fm_dirs(model, dirs, n), sc=fm.scales)
     for rec in fm.effects:
-        if rec.var == fx.TIME or (rec.kind == "reversal" and dirs is None):
+        here = fx.family(rec.kind).evaluated_in(rec, ctx)        # no time here; without directions no reversal
+        if here is None:
             continue
-        basis = effect_of(rec, model).basis(ctx)              # (n, k)
+        basis = effect_of(rec, model).basis(here)              # (n, k)
         for k, cname in enumerate(rec.names):
             if cname not in col:
                 continue
@@ -273,33 +274,3 @@ def warnings(unc: dict) -> list[str]:
                        f"not compensate with this model{todo}")
             break
     return out
-
-
-def text_lines(unc: dict) -> list[str]:
-    """The prediction's uncertainty as report lines (um, urad)."""
-    if not unc:
-        return ["  the prediction's uncertainty: unknown (the model file has no covariance: fit it again with this "
-                "version)"]
-    p, parts = unc["prior"], unc["tip_parts_rms_mm"]
-    lines = [f"  what the prediction cannot know (true RMS tool-tip error, k = 2 range, um): the fit's uncertainty "
-             f"{1e3 * parts['fit']:.3g} um, the {unc['undetermined_directions']} undetermined directions "
-             f"{1e3 * math.hypot(parts['undetermined'], parts['undetermined_best_value']):.3g} um (their size taken "
-             f"as the determined ones': {1e3 * p['linear_mm']:.3g} um, {1e6 * p['angular_rad']:.3g} urad)"]
-    noise = unc.get("noise_mm")
-    for key, s in unc["tip_error_mm"].items():
-        lo, hi = s["range_k2"]
-        re = s.get("remeasured_range_k2")
-        more = (f"; a tip measurement with {1e3 * noise:.2g} um noise would read {1e3 * re[0]:.3g} to "
-                f"{1e3 * re[1]:.3g}") if re and noise else ""
-        lines.append(f"    {STAGE_LABELS.get(key, key):56s} {1e3 * lo:8.3f} to {1e3 * hi:.3f}{more}")
-    ax = unc["axis_error_rad"]
-    if "after_table" in ax:
-        lo, hi = ax["after_table"]["range_k2"]
-        lines.append(f"  tool-axis error after the table (model estimate): {1e6 * lo:.3g} to {1e6 * hi:.3g} urad RMS "
-                     f"(k = 2)")
-    best = (unc.get("determining") or {}).get("best")
-    if best:
-        lines.append(f"  to determine the undetermined part ({100 * best['determines_share']:.0f} % of it): "
-                     f"{best['measurement']}: {best['command']}")
-    lines += [f"  WARNING: {w}" for w in warnings(unc)]
-    return lines

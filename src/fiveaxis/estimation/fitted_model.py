@@ -33,8 +33,8 @@ The machine file is read back only as a regular `.toml` file of at most 1 MB (MA
 `machine.sha256` before it is parsed. Anything else (an absolute path, `/dev/zero`, a FIFO, another file) is a
 one-line InputError saying which file and why.
 
-Effects (`fiveaxis.effects.families`: one interface for all kinds; each record is rebuilt from its id and evaluated through
-it). A polynomial effect `<param>:<var><deg>` adds c * u^deg to param, u = (var - centre) / half_range (model units:
+Effects (`fiveaxis.effects.families`: the registry of the families; each family reads and writes its records, and each
+record is rebuilt from its id and evaluated through its family). A polynomial effect `<param>:<var><deg>` adds c * u^deg to param, u = (var - centre) / half_range (model units:
 mm, rad, s); its coefficient c is the change of param at u = 1 (mm or rad). A reversal effect `<param>:<var>r` adds
 c * dir, dir = +1 when the axis approached its position moving in +, -1 moving in - (with no directions given it
 contributes its mean over both directions, 0). A periodic effect `<param>:<var>p<P>` adds c_sin sin(2 pi v / P) +
@@ -56,39 +56,19 @@ from pathlib import Path
 import numpy as np
 
 from ..effects import families as fx
+from ..effects.base import EffectRecord
 from ..exceptions import InputError
 from ..inputs import read_bytes, read_json
-from ..model.machine import MACHINES_DIR, MAX_MACHINE_BYTES, machine_from_text
+from ..model.machine import MACHINES_DIR, MAX_MACHINE_BYTES, check_made_for, machine_from_text
 from ..outputs import write_text
 from ..model import error_model
-from ..effects.custom import load_custom
 
 FORMAT = "fiveaxis fitted model"
 VERSION = 1
 POLICY = ("parameters not determined alone by the data carry the minimum-norm solution of the fit (least squares "
           "with unit-norm design columns) and are listed under 'undetermined'; only the combinations the data "
           "determines (and the tool-tip errors at the measured tool lengths) are meaningful for them")
-KINDS = ("polynomial", "reversal", "periodic", "thermal", "profile", "custom")
-_KIND_OF = {"poly": "polynomial", "reversal": "reversal", "periodic": "periodic", "thermal": "thermal",
-            "profile": "profile"}
-#: The key that holds the argument of an effect kind in the file (period, time constant, knot spacing).
-_ARG_KEY = {"periodic": "period", "thermal": "tau_s", "profile": "spacing"}
-_SCALE_UNIT = {"mm": "mm", "deg": "rad", "s": "s"}     # Scale.unit (interface) -> model unit of centre/half
-
-
-@dataclass(frozen=True)
-class EffectRecord:
-    """One added effect and its fitted coefficients (see the module docstring for the three kinds)."""
-    id: str
-    kind: str                       # polynomial | reversal | custom
-    param: str                      # error name, or L (tool length)
-    var: str | None                 # effect variable token (x, A, t), None for custom effects
-    deg: int | None                 # polynomial degree, None otherwise
-    names: tuple[str, ...]          # coefficient names (the fit's parameter names)
-    values: tuple[float, ...]       # coefficients, mm or rad (polynomial/reversal: at u = 1 or s = 1)
-    std: tuple[float | None, ...] = ()   # standard uncertainties (None where not determined alone)
-    arg: float | None = None        # period (var's unit) of a periodic effect, tau (s) of a thermal one, knot spacing
-                                    # (var's unit) of a profile
+_SCALE_UNIT = {"mm": "mm", "deg": "rad", "s": "s", "degC": "degC"}   # Scale.unit (interface) -> unit of centre/half
 
 
 @dataclass
@@ -118,11 +98,11 @@ class FittedModel:
 
     @property
     def has_reversal(self) -> bool:
-        return any(e.kind == "reversal" for e in self.effects)
+        return any(fx.family(e.kind).NEEDS_DIRECTIONS for e in self.effects)
 
     def reversal_variables(self) -> set:
-        """Effect variable tokens (x, A) that have a reversal effect."""
-        return {e.var for e in self.effects if e.kind == "reversal"}
+        """Effect variable tokens (x, A) that have an effect of the approach direction (a reversal)."""
+        return {e.var for e in self.effects if fx.family(e.kind).NEEDS_DIRECTIONS}
 
     def save(self, path, force: bool = False) -> Path:
         """Write the model file (see the module function `save`)."""
@@ -167,11 +147,7 @@ def from_fit(res) -> FittedModel:
         idx = range(k, k + len(cnames))
         vals = tuple(float(theta[i]) for i in idx)
         sd = tuple(_finite(std[i]) if determined[i] else None for i in idx)
-        kind = _KIND_OF.get(getattr(eff, "kind", None), "custom")
-        var = getattr(eff, "var", None)
-        deg = eff.deg if kind == "polynomial" else None
-        arg = float(eff.arg) if kind in _ARG_KEY else None
-        effects.append(EffectRecord(eff.id, kind, eff.param, var, deg, cnames, vals, sd, arg))
+        effects.append(eff.record(vals, sd))
         k += len(cnames)
     n_machine = ne + sum(len(e.names) for e in prob.effects)
     combos = tuple({"formula": c.formula, "terms": dict(c.terms), "value_mm_rad": float(c.value),
@@ -220,12 +196,7 @@ def undetermined_directions(res, n_machine: int) -> np.ndarray:
 # -- checks against a loaded model -------------------------------------------------------------------------------
 def check_model(fm: FittedModel, model, where: str = "model file") -> None:
     """InputError unless fm was fitted for this machine file (same name and SHA-256) and convention."""
-    machine = model.machine
-    sha = sha256(machine.path)
-    if fm.machine != machine.name or fm.machine_sha256 != sha:
-        raise InputError(f"{where}: fitted for machine '{fm.machine}' ({fm.machine_file}, sha256 "
-                         f"{fm.machine_sha256[:12]}...), not for '{machine.name}' ({machine.path}, sha256 "
-                         f"{sha[:12]}...)")
+    check_made_for(model.machine, fm.machine, fm.machine_sha256, where)
     if fm.convention != model.convention:
         raise InputError(f"{where}: fitted under convention '{fm.convention}', the model loaded uses "
                          f"'{model.convention}'")
@@ -301,42 +272,31 @@ def _directions(dirs, model, n) -> dict:
 
 
 def effect_of(rec: EffectRecord, model):
-    """The effect (fiveaxis.effects.families interface) of a record: the vocabulary's from its id, or the machine file's
-    custom effect."""
-    if rec.kind == "custom":
-        return load_custom(model.machine, rec.id)
-    eff = fx.parse(rec.id, model.machine, model.errors, "model file effect")
-    if len(eff.names) != len(rec.values):
-        raise InputError(f"model file effect '{rec.id}': {len(rec.values)} coefficients, but the machine file's "
-                         f"stroke gives it {len(eff.names)}")
-    return eff
+    """The effect of a record (`fiveaxis.effects.base.Effect`), rebuilt by its family."""
+    return fx.family(rec.kind).from_record(rec, model)
 
 
-def errors_at(fm: FittedModel, model, poses, t=None, dirs=None, L=None):
+def errors_at(fm: FittedModel, model, poses, t=None, dirs=None, L=None, temps=None):
     """Error values per pose E (n, n_errors; mm, rad) and tool-length change dL (n,; mm) of the fitted model.
 
     poses (n, nvar) in mm and rad (the positions the axes are at), t (n,) s or None (time effects at t = 0, where
     they are zero), dirs: approach directions for reversal effects, +1/-1 (see _directions; None: reversal effects
-    contribute their mean, 0). L is accepted for symmetry with the measurement (tool lengths, unused: effects depend
-    on the pose, the time and the directions)."""
+    contribute their mean, 0), temps: {temp_<name>: degC, a value or (n,)} (None or a channel left out: at its
+    reference, the temperature effects of that channel add nothing; with t, a history the lags run over; without
+    t, a steady state). L is accepted for symmetry with the measurement (tool lengths, unused: effects depend on
+    the pose, the time, the directions and the temperatures)."""
     poses = model.poses(poses)
     n = len(poses)
     E = np.tile(base_vector(fm, model), (n, 1))
     dL = np.zeros(n)
-    ctx = fx.context(model.machine, poses, t, _directions(dirs, model, n), sc=fm.scales)
+    temps = {k: np.broadcast_to(np.asarray(v, float), (n,)).copy() for k, v in (temps or {}).items()}
+    ctx = fx.context(model.machine, poses, t, _directions(dirs, model, n), sc=fm.scales, temps=temps,
+                     steady=t is None)
     for rec in fm.effects:
-        if t is None and rec.var == fx.TIME:
-            continue                          # no times: the state at t = 0
-        eff = effect_of(rec, model)
-        if rec.kind == "reversal":
-            col = ctx.scales[rec.var].column if rec.var in ctx.scales else None
-            if col not in ctx.dirs:
-                continue                      # no directions: the mean of both, 0
-        if t is None and rec.kind == "custom":
-            ctx_t = fx.context(model.machine, poses, np.zeros(n), ctx.dirs, sc=fm.scales)
-            dE, dl = fx.per_pose([eff], [rec.values], ctx_t, model.errors)
-        else:
-            dE, dl = fx.per_pose([eff], [rec.values], ctx, model.errors)
+        here = fx.family(rec.kind).evaluated_in(rec, ctx)
+        if here is None:
+            continue                          # no times: the state at t = 0; no directions: the mean of both, 0
+        dE, dl = fx.per_pose([effect_of(rec, model)], [rec.values], here, model.errors)
         E += dE
         dL += dl
     return E, dL
@@ -363,13 +323,7 @@ def to_json(fm: FittedModel, folder=None) -> dict:
                        f"centre_{unit}": float(sc.centre), f"half_range_{unit}": float(sc.half)}
     effects = []
     for e in fm.effects:
-        rec = {"id": e.id, "kind": e.kind, "param": e.param}
-        if e.var is not None:
-            rec["variable"] = e.var
-        if e.deg is not None:
-            rec["degree"] = e.deg
-        if e.arg is not None:
-            rec[_ARG_KEY[e.kind]] = e.arg
+        rec = {"id": e.id, "kind": e.kind, "param": e.param, **fx.family(e.kind).write_json(e)}
         rec["coefficients_mm_rad"] = dict(zip(e.names, e.values))
         sd = {n: v for n, v in zip(e.names, e.std) if v is not None}
         if sd:
@@ -423,7 +377,7 @@ def _get(d, key, kind, where):
 def load(path) -> FittedModel:
     """Read a model file written by `save`; InputError naming the key for anything malformed."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise InputError(f"{path}: model file not found")
     data = read_json(path, "a fitted-model JSON file (`fiveaxis fit ... -o`)")
     w = str(path)
@@ -444,46 +398,30 @@ def load(path) -> FittedModel:
     for tok, sc in _get(data, "scales", "dict", w).items():
         where = f"{w}: scales.{tok}"
         var = _get(sc, "variable", "str", where)
-        unit = next((u for u in ("mm", "rad", "s") if f"centre_{u}" in sc), None)
+        unit = next((u for u in ("mm", "rad", "s", "degC") if f"centre_{u}" in sc), None)
         if unit is None:
-            raise InputError(f"{where}: missing key 'centre_mm', 'centre_rad' or 'centre_s'")
+            raise InputError(f"{where}: missing key 'centre_mm', 'centre_rad', 'centre_s' or 'centre_degC'")
         centre = float(_get(sc, f"centre_{unit}", "num", where))
         half = float(_get(sc, f"half_range_{unit}", "num", where))
-        if half <= 0:
+        if half <= 0 and not (unit == "degC" and half == 0):      # a channel that never changed: 0
             raise InputError(f"{where}: key 'half_range_{unit}': expected a positive number, got {half}")
-        iface, to_unit = {"mm": ("mm", 1.0), "rad": ("deg", 180.0 / math.pi), "s": ("s", 1.0)}[unit]
+        iface, to_unit = {"mm": ("mm", 1.0), "rad": ("deg", 180.0 / math.pi), "s": ("s", 1.0),
+                          "degC": ("degC", 1.0)}[unit]
         scales[tok] = fx.Scale(tok, None if var == "t" else var, centre, half, iface, to_unit)
     effects = []
     for i, e in enumerate(_get(data, "effects", "list", w)):
         where = f"{w}: effects[{i}]"
         ident = _get(e, "id", "str", where)
         kind = _get(e, "kind", "str", where)
-        if kind not in KINDS:
-            raise InputError(f"{where}: key 'kind': expected one of {', '.join(KINDS)}, got {kind!r}")
+        if kind not in fx.FAMILIES:
+            raise InputError(f"{where}: key 'kind': expected one of {', '.join(fx.FAMILIES)}, got {kind!r}")
         coefs = _get(e, "coefficients_mm_rad", "dict", where)
         names = tuple(coefs)
         values = tuple(float(_get(coefs, n, "num", f"{where}: coefficients_mm_rad")) for n in names)
         sd = e.get("std_mm_rad", {}) if isinstance(e.get("std_mm_rad", {}), dict) else {}
         stds = tuple(float(sd[n]) if n in sd else None for n in names)
         param = _get(e, "param", "str", where)
-        var = e.get("variable")
-        deg = e.get("degree")
-        if kind == "polynomial" and (not isinstance(var, str) or deg not in fx.DEGREES or var not in scales):
-            raise InputError(f"{where}: a polynomial effect needs 'variable' (one of {', '.join(scales)}) and "
-                             f"'degree' 1 to 3")
-        if kind in ("reversal", "periodic", "thermal", "profile") and not isinstance(var, str):
-            raise InputError(f"{where}: a {kind} effect needs 'variable'")
-        arg = e.get(_ARG_KEY[kind]) if kind in _ARG_KEY else None
-        if arg is not None and (isinstance(arg, bool) or not isinstance(arg, (int, float)) or not arg > 0):
-            raise InputError(f"{where}: expected a positive period, time constant or knot spacing, got "
-                             f"{json.dumps(arg)[:40]}")
-        expected = 2 if kind == "periodic" else 1
-        if kind == "profile" and len(values) < 2:
-            raise InputError(f"{where}: key 'coefficients_mm_rad': a profile has one coefficient per knot (at "
-                             f"least 2), got {len(values)}")
-        if kind not in ("custom", "profile") and len(values) != expected:
-            raise InputError(f"{where}: key 'coefficients_mm_rad': expected {expected} coefficient(s), got "
-                             f"{len(values)}")
+        var, deg, arg = fx.family(kind).read_json(e, values, scales, where)
         effects.append(EffectRecord(ident, kind, param, var, deg, names, values, stds, arg))
     combos = tuple(c for c in data.get("combinations", []) if isinstance(c, dict))
     fit = data.get("fit", {}) if isinstance(data.get("fit", {}), dict) else {}

@@ -138,8 +138,13 @@ def resolve_effects(model, ids, where="--add"):
 
 
 def machine_effects(model) -> list[str]:
-    """Effects the machine file itself adds (`[model] effects = [...]`)."""
-    return list(model.machine.added_effects)
+    """Effects the machine file itself adds (`[model] effects = [...]`), each id checked by its family (InputError
+    naming the file and the key)."""
+    machine = model.machine
+    for i, ident in enumerate(machine.added_effects):
+        if ident not in machine.effects:
+            fx.parse(ident, machine, model.errors, f"{machine.path}: model.effects[{i}]")
+    return list(machine.added_effects)
 
 
 def build(model, meas, added=(), fixed=None) -> Problem:
@@ -147,7 +152,7 @@ def build(model, meas, added=(), fixed=None) -> Problem:
     effects = resolve_effects(model, list(added))
     obs = ob.build(meas, model.machine)
     tip, tool_dir = model.ideal_tool(meas.poses, meas.L)
-    ctx = fx.context(model.machine, meas.poses, meas.t, meas.dirs)
+    ctx = fx.context(model.machine, meas.poses, meas.t, meas.dirs, temps=meas.temps)
     sb = su.block(obs, meas, model.machine, tip)
     names = list(model.errors) + [nm for e in effects for nm in e.names] + list(sb.names)
     w, known = initial_weights(obs)

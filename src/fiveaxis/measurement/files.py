@@ -10,7 +10,8 @@ What a row holds (units in brackets; every column but the pose variables is opti
   - `du` [mm] along the unit direction `ux, uy, uz` (1-D instruments: ballbar, interferometer, tracker);
 - how well: `sigma` [mm] of each of dx, dy, dz and du of the row, `sigma_axis` [rad] of each of di, dj, dk;
 - which artefact placement: `setup` (any text), with optional `setup_kind` (point, rigid, planar) and
-  `setup_frame` (workpiece, machine), constant within a setup.
+  `setup_frame` (workpiece, machine), constant within a setup;
+- temperatures: `temp_<name>` [degC] per sensor (name: a-z, 0-9, _; a blank cell: not read in that row).
 Deviations and directions are in the workpiece frame unless the file is read with frame="machine" (probe cycles,
 bed-mounted trackers); see `fiveaxis.measurement.observations`. Any bad cell is an InputError naming the file, the data row
 (1-based, as a spreadsheet numbers data rows under the header) with its line in a CSV file, and the column.
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from dataclasses import dataclass, field, replace
 from decimal import Decimal
 from pathlib import Path
@@ -27,8 +29,8 @@ import numpy as np
 
 from ..exceptions import InputError
 from ..model.columns import (AXIS_DEVIATIONS, BY_NAME, COLUMNS, DEVIATIONS, DIRECTION, DIRECTION_PREFIX, FRAMES, LINE,
-                             READINGS, SETUP_KINDS)
-from ..inputs import regular_file
+                             READINGS, SETUP_KINDS, TEMPERATURE_PREFIX, TEMPERATURE_RE, temperature_column)
+from ..inputs import MAX_TABLE_BYTES, open_file
 from .column_names import check as check_columns
 
 #: A rotary column "looks like radians" when every |value| is at most this (degrees would be tiny angles) while
@@ -64,6 +66,7 @@ class Measurements:
     frame: str = "workpiece"            # frame of d, dv, u
     quantum: dict | None = None         # resolution of the file's numbers: "poses" (n, nvar), "L" (n,), "u" (n, 3)
     #                                     model units, half a unit of the last digit (None: full precision)
+    temps: dict = field(default_factory=dict)         # temp_<name> -> (n,) degC, NaN where not read
 
     def __post_init__(self):
         n = len(self.poses)
@@ -92,6 +95,7 @@ class Measurements:
                        sigma=pick(self.sigma), dv=pick(self.dv), du=pick(self.du), u=pick(self.u),
                        sigma_axis=pick(self.sigma_axis), setup=pick(self.setup),
                        dirs={k: v[rows] for k, v in self.dirs.items()}, rows=self.rows[rows], warnings=[],
+                       temps={k: v[rows] for k, v in self.temps.items()},
                        quantum=None if self.quantum is None else {k: pick(v) for k, v in self.quantum.items()})
 
     def with_poses(self, poses, L=None) -> "Measurements":
@@ -114,7 +118,8 @@ def concat(a: Measurements, b: Measurements) -> Measurements:
                    sigma_axis=cat(a.sigma_axis, b.sigma_axis), setup=cat(a.setup, b.setup),
                    setup_kind={**a.setup_kind, **b.setup_kind}, setup_frame={**a.setup_frame, **b.setup_frame},
                    dirs=dirs, rows=np.concatenate([a.rows, b.rows + (a.rows.max() if len(a.rows) else 0)]),
-                   warnings=[], quantum=_concat_quantum(a, b))
+                   warnings=[], quantum=_concat_quantum(a, b),
+                   temps={k: np.concatenate([a.temps[k], b.temps[k]]) for k in a.temps if k in b.temps})
 
 
 def _concat_quantum(a: Measurements, b: Measurements) -> dict | None:
@@ -210,7 +215,10 @@ def _read_table(path: Path):
     if suffix in (".parquet", ".pq"):
         import pyarrow.parquet as pq   # optional heavy dependency: only for Parquet files
         try:
-            table = pq.read_table(path)
+            with open_file(path, "a measurement file", MAX_TABLE_BYTES) as fh:
+                table = pq.read_table(fh)
+        except InputError:
+            raise
         except Exception as exc:  # pyarrow raises several types for damaged files
             raise InputError(f"{path}: not a readable Parquet file ({str(exc).splitlines()[0][:120]})") from None
         names = list(table.column_names)
@@ -228,7 +236,8 @@ def _read_table(path: Path):
         raise InputError(f"{path}: unknown file type '{suffix}' (expected .csv or .parquet)")
     rows, lines = [], []
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
+        with open_file(path, "a measurement file", MAX_TABLE_BYTES, text=True, encoding="utf-8-sig",
+                       newline="") as fh:
             reader = csv.reader(fh)
             try:
                 header = next(reader, None)
@@ -388,7 +397,7 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     for what, value, allowed in (("setup kind", setup_kind, SETUP_KINDS), ("setup frame", setup_frame, FRAMES)):
         if value is not None and value not in allowed:
             raise InputError(f"unknown {what} '{value}' (expected one of: {', '.join(allowed)})")
-    names, cols, lines, types = _read_table(regular_file(path, "a measurement file") if path.exists() else path)
+    names, cols, lines, types = _read_table(path)
     variables = tuple(machine.variables)
     warnings = check_columns(path, names, variables, tuple(c.name for c in COLUMNS))     # misspelled columns
     _check_header(path, cols, variables, readings_required)
@@ -410,6 +419,8 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
         f.data[v] = f.numbers(v)
     for c in (c for c in cols if c.startswith(DIRECTION_PREFIX)):
         f.data[c] = f.numbers(c)
+    for c in (c for c in cols if c.startswith(TEMPERATURE_PREFIX)):    # degC within the plausible range
+        f.data[c] = f.cells(temperature_column(c))
     for rule in RULES:
         rule(f, frame, setup_kind, setup_frame, min_rows)
     return f.measurements()
@@ -432,6 +443,10 @@ def _check_resolution(path, resolution, names) -> dict:
 def _check_header(path, cols, variables, readings_required):
     """The header: the pose columns, readings (unless a plan), dir_ columns of known axes, what columns need."""
     for c in cols:
+        if c.startswith(TEMPERATURE_PREFIX) and not re.fullmatch(TEMPERATURE_RE, c):
+            raise InputError(f"{path}: header: column {str(c)[:40]!r}: a temperature channel is named temp_ followed "
+                             f"by a lower-case letter and up to 31 lower-case letters, digits or _ (e.g. "
+                             f"temp_spindle)")
         if c.startswith(DIRECTION_PREFIX) and c[len(DIRECTION_PREFIX):] not in variables:
             raise InputError(f"{path}: header: column {c}: unknown axis '{c[len(DIRECTION_PREFIX):]}' (expected dir_ "
                              f"followed by one of {', '.join(variables)})")
@@ -526,7 +541,7 @@ class _File:
                             has_L="L" in d, warnings=self.warnings, du=d.get(LINE), u=self.u,
                             sigma_axis=d.get("sigma_axis"), setup=self.setup, setup_kind=self.setup_kind,
                             setup_frame=self.setup_frame, dirs=d["_dirs"], rows=np.asarray(self.keep) + 1,
-                            frame=self.frame, quantum=resolution)
+                            frame=self.frame, quantum=resolution, temps=d.get("_temps", {}))
 
 
 # -- the rules that join columns and rows -----------------------------------------------------------------------
@@ -671,9 +686,25 @@ def _rule_setups(f: _File, frame, setup_kind, setup_frame, min_rows):
                 target.setdefault(s, default or allowed[0])
 
 
+def _rule_temperatures(f: _File, *_):
+    """Every temperature channel has a reading; one that never changes is named (no effect of it can be fitted)."""
+    temps = {}
+    for c in (c for c in f.cols if c.startswith(TEMPERATURE_PREFIX)):
+        v = f.data[c]
+        read = v[~np.isnan(v)]
+        if not len(read):
+            raise InputError(f"{f.path}: column {c}: no reading in any row (expected temperatures in degC; a blank "
+                             f"cell is a row where the sensor was not read)")
+        if np.all(read == read[0]):
+            f.warnings.append(f"{f.path}: column {c}: the temperature never changes ({read[0]:g} degC in all "
+                              f"{len(read)} readings): no effect of it can be fitted from this file")
+        temps[c] = v
+    f.data["_temps"] = temps
+
+
 #: The rules, in the order a file is checked (the first broken one is the error).
 RULES = (_rule_frame, _rule_one_kind_per_row, _rule_directions, _rule_sigmas, _rule_enough, _rule_poses,
-         _rule_setups)
+         _rule_setups, _rule_temperatures)
 
 
 def in_frame(meas: Measurements, machine, target: str) -> Measurements:
@@ -714,6 +745,8 @@ def frame(meas: Measurements, machine):
         cols["t"] = meas.t
     for v, vals in meas.dirs.items():
         cols[f"dir_{v}"] = vals.astype(int)
+    for c, vals in meas.temps.items():
+        cols[c] = vals
     if not np.all(np.isnan(meas.d)):
         for j, c in enumerate(DEVIATIONS):
             cols[c] = meas.d[:, j]

@@ -6,6 +6,7 @@ This module is the only part of the runtime that the derivation (`fiveaxis_deriv
 """
 from __future__ import annotations
 
+import hashlib
 import keyword
 import math
 import re
@@ -256,6 +257,28 @@ class Machine:
 def module_name(machine_name: str, convention: str = "equations") -> str:
     """Python module name of a machine model's generated kernels: `li2018`, `li2018__printed`."""
     return machine_name if convention in (None, "", "equations") else f"{machine_name}__{convention}"
+
+
+def check_made_for(machine: Machine, name, sha, where: str, what: str = "fitted") -> None:
+    """InputError unless a file made for a machine (a fitted model, a compensation) names this machine file: its
+    `machine.name` is the machine's and its `machine.sha256` the SHA-256 of the machine file now. where: the file
+    (or "model file"); what: how it was made for the machine ("fitted", "compensation"). The one check of this
+    kind: model files (`compensate`, `gsa --errors`) and compensation folders (`simulate --compensation`) use it."""
+    if name != machine.name:
+        raise InputError(f"{where}: key machine.name: {what} for machine {_short(name)!r}, not for "
+                         f"'{machine.name}' ({machine.path})")
+    now = hashlib.sha256(Path(machine.path).read_bytes()).hexdigest()
+    if sha != now:
+        raise InputError(f"{where}: key machine.sha256: {what} for another version of the machine file (sha256 "
+                         f"{_short(sha, 12)}...), not for {machine.path} (sha256 {now[:12]}...)")
+
+
+def kins_component(machine_name: str, convention: str = "equations") -> str:
+    """The LinuxCNC kinematics module of a machine model: `li2018_kins`, `li2018__printed_kins`; the component
+    halcompile builds, its file name (without .comp) and its pins' prefix. Made of checked names only (the machine's
+    and the convention's: letters, digits, single underscores), so that it is a C and HAL identifier and the
+    modules of two machines install side by side."""
+    return f"{module_name(machine_name, convention)}_kins"
 
 
 def resolve(name_or_path: str | Path) -> Path:
@@ -615,8 +638,8 @@ def parse_machine(data: dict, path: Path) -> Machine:
     for i, ident in enumerate(added):
         if isinstance(ident, str) and ident in effects:
             continue
-        m = effect_ids.split(ident, tokens)
-        if m is None or m.param not in seen_errors | {"L"}:
+        m = effect_ids.envelope(ident)         # the families check the suffix where the effects are resolved
+        if m is None or m[0] not in seen_errors | {"L"} or not any(m[1].startswith(t) for t in tokens):
             _fail(path, f"model.effects[{i}]", f"expected an effect id {effect_ids.expected(sorted(tokens))} with an "
                                                f"error name of this machine or L, or a custom effect name, "
                                                f"got {ident!r}")

@@ -1001,8 +1001,8 @@ def resolve_effects(model, ids, where: str = "effects") -> list:
     """Effects to plan for: the machine file's own and those named; time and direction effects cannot be planned."""
     effects = pr.resolve_effects(model, list(machine_effects(model)) + list(ids), where=where)
     for e in effects:
-        if getattr(e, "kind", "poly") in ("thermal", "reversal") or getattr(e, "var", None) == "t":
-            what = "time" if getattr(e, "var", None) == "t" else "approach-direction (reversal)"
+        what = e.plan_refusal()
+        if what:
             raise InputError(f"{where}: effect '{e.id}': a {what} effect cannot be planned for (a plan fixes poses, "
                              f"not when or from which side they are reached); expected a polynomial or periodic effect "
                              f"of an axis")

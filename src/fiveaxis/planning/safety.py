@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError
+from ..inputs import MAX_PROGRAM_BYTES, read_text
 from ..linuxcnc import rs274
 from ..linuxcnc.program import KINEMATICS, check_mode, poses_of
 from ..linuxcnc.program import letters as program_letters
@@ -173,10 +174,7 @@ def _numbers(text: str, count: int, where: str, key: str) -> np.ndarray:
 def header(path) -> dict:
     """The `(fiveaxis: program ...)` values of a program file (instrument, machine, kinematics), read from its text
     (empty when it has none)."""
-    try:
-        text = Path(path).read_text(encoding="utf-8", errors="replace")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read the program ({exc.strerror})") from None
+    text = read_text(path, "a G-code program", MAX_PROGRAM_BYTES, errors="replace")
     for line in text.splitlines():
         for comment in re.findall(r"\(([^()]*)\)", line):
             tag = parse_tag(comment)

@@ -9,13 +9,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..compensation.table import actual_tool, compensated_commands, fitted_errors
+from ..compensation.chain import actual_tool
+from ..compensation.correction import fitted_errors
+from ..compensation.table import compensated_commands
 from ..linuxcnc.configuration import linuxcnc_commands
 from .sensitivity import _pyplot, _save
 
 
 def figure(comp, path) -> Path:
-    """The error map of a compensation (`fiveaxis.compensation.table.Compensation`) as a PNG at path."""
+    """The error map of a compensation (`fiveaxis.compensation.pipeline.Compensation`) as a PNG at path."""
     return error_map(comp.model, fitted_errors(comp.fm, comp.model), comp.table, comp.lc, path)
 
 

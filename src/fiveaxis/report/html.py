@@ -443,7 +443,15 @@ def _has_iso(rec: dict, key: str) -> bool:
         return bool(iso.get("positioning"))
     if key == "iso230-4":
         return bool(iso.get("circles"))
+    if key == "iso230-3":
+        return bool(rec.get("iso230_3"))
     return True
+
+
+def _iso230_3(rec: dict, figs: dict) -> str:
+    """The ISO 230-3 section (`report --iso230-3 FILE`), built in its own module on this one's helpers."""
+    from .iso230_3 import section_html   # imported here: that module imports this one's helpers
+    return section_html(rec, figs)
 
 
 def render(report) -> str:
@@ -453,7 +461,8 @@ def render(report) -> str:
     nav = "".join(f'<a href="#{k}">{t}</a>' for k, t in (
         ("verdict", "Verdict"), ("terms", "Terms"), ("data", "Data"), ("fit", "Fitted errors"),
         ("residuals", "Residuals"), ("rounds", "Diagnosis rounds"), ("iso230-2", "ISO 230-2"),
-        ("iso230-4", "ISO 230-4"), ("sensitivity", "Sensitivity"), ("compensation", "Compensation"))
+        ("iso230-4", "ISO 230-4"), ("iso230-3", "ISO 230-3"), ("sensitivity", "Sensitivity"),
+        ("compensation", "Compensation"))
         if (k != "sensitivity" or rec["sensitivity"] is not None) and _has_iso(rec, k))
     body = [f"<h1>{_e(rec['title'])}</h1>",
             f'<p class="meta">Machine <b>{_e(m["name"])}</b> ({_e(m["title"])}; file <span class="code">'
@@ -462,7 +471,7 @@ def render(report) -> str:
             f"{_e(rec['fiveaxis_version'])}</p>",
             f"<nav>{nav}</nav>",
             _verdict(rec), _glossary(), _data(rec, figs), _fit(rec), _residuals(rec, figs), _rounds(rec, figs),
-            _iso230(rec, figs), _sensitivity(rec, figs), _compensation(rec, figs),
+            _iso230(rec, figs), _iso230_3(rec, figs), _sensitivity(rec, figs), _compensation(rec, figs),
             "<footer>Made by fiveaxis from the measurement file and the machine file named above. Lengths in "
             "\u00b5m (mm in the data), angles in \u00b5rad (degrees for axis positions). Method: the project's "
             "docs/measurements.md and docs/iso230.md.</footer>"]

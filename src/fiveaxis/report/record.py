@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import __version__
-from ..diagnosis import diagnose as D
+from ..diagnosis import rounds as loop
 from ..diagnosis import separation as sep
 from ..effects.families import describe_param
 from ..estimation.problem import machine_effects, resolve_effects
@@ -40,8 +40,8 @@ from . import figures, iso230
 from ..diagnosis import preconditions
 from ..estimation import design_size
 
-#: Rounds of diagnose -> add the top candidate, at most (as scripts/run-main.sh).
-MAX_ROUNDS = 4
+#: Rounds of diagnose -> add the top candidate, at most (the calibration loop: fiveaxis.diagnosis.rounds).
+MAX_ROUNDS = loop.MAX_ROUNDS
 #: Candidates kept per round.
 TOP = 5
 #: GSIL grid: points per axis over the strokes (X of li2018 is reduced exactly: it appears in no J_i).
@@ -232,22 +232,14 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
     with summary.json (see report.compensation) or None. Rounds: diagnose, add the top candidate, repeat while
     the decision says an effect is missing, at most max_rounds diagnoses; frame: of the readings (None: the
     file's, else workpiece)."""
-    if max_rounds < 1:
-        raise InputError(f"rounds: expected at least 1, got {max_rounds}")
     model = load(machine, convention)
     comp = C.read(compensation, model.machine.name) if compensation is not None else None
     meas = read(data, model.machine, min_rows=2, frame=frame)
     effects = resolve_effects(model, machine_effects(model) + list(added))
     design_size.check(model, meas, effects)
     preconditions.check(meas)
-    rounds, diags = [], []
-    for k in range(1, max_rounds + 1):
-        dg = D.diagnose(model, meas, effects, top=TOP)
-        diags.append(dg)
-        rounds.append(_round_record(model, k, dg.to_json()))
-        if not (dg.missing_effect and dg.candidates) or k == max_rounds:
-            break
-        effects = effects + resolve_effects(model, [dg.candidates[0]["id"]])
+    diags = loop.rounds(model, meas, effects, max_rounds, top=TOP, fixed=dict(model.machine.fixed) or None)
+    rounds = [_round_record(model, k, dg.to_json()) for k, dg in enumerate(diags, 1)]
     final = diags[-1]
     j = fit_json(final.fit)
     advice = sep.parameters(model, meas, final.fit.problem.effects, j["unidentifiable"],

@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import math
 
-from ..compensation.prediction import text_lines as prediction_text
+from ..compensation.prediction import STAGE_LABELS
 from ..diagnosis import residual_tests as st
+from ..effects import families as fx
 from ..effects.families import TIME
 from ..estimation.result import STRONG_CORRELATION
 from ..units import human
@@ -159,7 +160,7 @@ def diagnosis(j: dict) -> str:
                      f"{j['readings']:,} readings (structure tests on the sample)")
     lines.append("[[Candidates]] best first: RMS after adding it, share of the residual it explains")
     for k, c in enumerate(j["candidates"], 1):
-        coef = "" if c["coefficient"] is None or c["family"] in ("periodic", "reversal", "thermal", "custom") \
+        coef = "" if c["coefficient"] is None or not fx.family(c["family"]).RATE_SHOWN \
             else f"coef {c['coefficient']:.3g} {c['unit']}: "
         shown = f"{c['id']} ({c['iso']})" if c.get("iso") else c["id"]
         lines.append(f"    {k:2d}. {shown:18s} -> {c['rms_mm'] * 1000:.4g} um ({c['explained']:.1%}) "
@@ -180,12 +181,55 @@ def diagnosis(j: dict) -> str:
         tips = sorted({h["separate_by"] for h in hid if h["separate_by"]})
         for t in tips:
             lines.append(f"        {t}")
+    if j.get("heat"):
+        lines += _heat_lines(j["heat"])
     if j["verdict"] == "missing effect" and j["candidates"]:
         lines.append(f"    next: fiveaxis diagnose FILE --add {j['candidates'][0]['id']}")
     u = j.get("unexplained")
     if u:
         lines += _unexplained_lines(u)
     return "\n".join(lines)
+
+
+def rounds(js: list[dict]) -> str:
+    """The calibration loop (`fiveaxis.diagnosis.rounds`: diagnose, add the top candidate, again) from the rounds'
+    diagnosis records: each round's diagnosis, then the residual's trail against the noise and what was found."""
+    blocks = []
+    for k, j in enumerate(js, 1):
+        new = [a for a in j["added"] if a not in js[k - 2]["added"]] if k > 1 else []
+        head = f"[[Round {k}]]" + (f" the model + {', '.join(new)} (the best candidate of round {k - 1})" if new
+                                   else " the model as given")
+        blocks.append(head + "\n" + diagnosis(j))
+    first, last = js[0], js[-1]
+    found = [a for a in last["added"] if a not in first["added"]]
+    trail = " -> ".join(f"{j['rms_mm_without_outliers'] * 1000:.4g} um" for j in js)
+    stop = ("" if last["verdict"] != "missing effect" else
+            f" (stopped after {len(js)} rounds: next fiveaxis diagnose FILE --add {last['candidates'][0]['id']})"
+            if last["candidates"] else "")
+    blocks.append(f"[[Calibration loop]] residual RMS {trail} against noise {last['noise_mm'] * 1000:.4g} um; "
+                  f"effects found: {', '.join(found) or 'none'}; verdict: {last['verdict']}{stop}")
+    return "\n\n".join(blocks)
+
+
+def _heat_lines(h: dict) -> list[str]:
+    """The heat section of a diagnosis JSON record (`fiveaxis.diagnosis.heat.assess`), in words."""
+    lines = ["[[Heat]] temperature channels: " + (", ".join(h["channels"]) or "none measured")]
+    if h["accepted"]:
+        lines.append(f"    accepted temperature effects: {', '.join(h['accepted'])}")
+    s = h.get("sensors")
+    if s:
+        without = ", ".join(f"without {c} {v * 1000:.3g} um" for c, v in s["rms_without_mm"].items())
+        lines.append(f"    sensors needed: {', '.join(s['smallest_set']) or 'none'} ({without}; {s['rule']})")
+        for o in s["not_needed"]:
+            lines.append(f"    not needed: {o['channel']}: {o['why']}")
+    for c in h.get("confounded", []):
+        lines.append(f"    confounded: {c['effect']} and {c['with']} (|cos| {c['cos']:.3f} of their columns)")
+    if h.get("confounded"):
+        lines.append(f"        {h['confounded_note']}")
+    m = h.get("missing_sensor")
+    if m:
+        lines.append(f"    missing sensor: {m['note']}")
+    return lines
 
 
 _WHAT = {"trend": "a cubic trend", "order": "structure (von Neumann)", "direction": "a direction dependence"}
@@ -255,7 +299,7 @@ def _unexplained_lines(u: dict) -> list[str]:
 
 
 def compensation(rec: dict, folder: str = "") -> str:
-    """The text of a compensation (um, urad), built from its record (`compensation.table.summary`, what
+    """The text of a compensation (um, urad), built from its record (`compensation.record.summary`, what
     summary.json holds); folder: where it was written, for the last line."""
     tab, lc, mod = rec["table"], rec["linuxcnc"], rec["kinematics_module"]
     tip, ax = rec["predicted_tip_error_mm"], rec["predicted_axis_error_rad"]
@@ -271,7 +315,7 @@ def compensation(rec: dict, folder: str = "") -> str:
     what = lc["kinematics"] + " + " if lc.get("kinematics") else ""
     rows = [("before", "before"),
             (f"after LinuxCNC ({what}{len(lc['comp_files'])} comp files)", "after_linuxcnc"),
-            ("after LinuxCNC with the kinematics module fiveaxis_kins", "after_kinematics_module"),
+            ("after LinuxCNC with the kinematics module", "after_kinematics_module"),
             ("after the volumetric table (multilinear)", "after_table"),
             ("after the exact correction (Newton)", "after_exact_correction")]
     for label, key in rows:
@@ -280,7 +324,7 @@ def compensation(rec: dict, folder: str = "") -> str:
             lines.append(f"    {label:56s} {1e3 * s['max']:8.3f} {1e3 * s['rms']:8.3f} {1e3 * s['p95']:8.3f}")
     lines.append(f"  tool-axis error RMS (urad, model estimates): before {1e6 * ax['before']['rms']:.3g}, after the "
                  f"table {1e6 * ax['after_table']['rms']:.3g} (damping {tab['damping']:g} near singular poses)")
-    lines += prediction_text(rec.get("prediction_uncertainty", {}))
+    lines += prediction_lines(rec.get("prediction_uncertainty", {}), rec.get("prediction_warnings", []))
     if lengths is not None:
         lines.append(f"  tool lengths (mm) {', '.join(f'{x:g}' for x in lengths)} (first grid dimension); "
                      f"predicted tool-tip error by tool length (um):")
@@ -304,3 +348,34 @@ def compensation(rec: dict, folder: str = "") -> str:
         vol = f", {mod['folder']}/ (the kinematics module and a simulated configuration)" if mod.get("folder") else ""
         lines.append(f"  wrote {folder}/table.csv, table.parquet, summary.json, linuxcnc/{vol}")
     return "\n".join(lines)
+
+
+def prediction_lines(unc: dict, warnings: list) -> list[str]:
+    """The prediction's uncertainty (summary.json's `prediction_uncertainty`, mm and rad) and its warnings
+    (`prediction_warnings`) as lines of the compensation's text (um, urad)."""
+    if not unc:
+        return ["  the prediction's uncertainty: unknown (the model file has no covariance: fit it again with this "
+                "version)"]
+    p, parts = unc["prior"], unc["tip_parts_rms_mm"]
+    lines = [f"  what the prediction cannot know (true RMS tool-tip error, k = 2 range, um): the fit's uncertainty "
+             f"{1e3 * parts['fit']:.3g} um, the {unc['undetermined_directions']} undetermined directions "
+             f"{1e3 * math.hypot(parts['undetermined'], parts['undetermined_best_value']):.3g} um (their size taken "
+             f"as the determined ones': {1e3 * p['linear_mm']:.3g} um, {1e6 * p['angular_rad']:.3g} urad)"]
+    noise = unc.get("noise_mm")
+    for key, s in unc["tip_error_mm"].items():
+        lo, hi = s["range_k2"]
+        re = s.get("remeasured_range_k2")
+        more = (f"; a tip measurement with {1e3 * noise:.2g} um noise would read {1e3 * re[0]:.3g} to "
+                f"{1e3 * re[1]:.3g}") if re and noise else ""
+        lines.append(f"    {STAGE_LABELS.get(key, key):56s} {1e3 * lo:8.3f} to {1e3 * hi:.3f}{more}")
+    ax = unc["axis_error_rad"]
+    if "after_table" in ax:
+        lo, hi = ax["after_table"]["range_k2"]
+        lines.append(f"  tool-axis error after the table (model estimate): {1e6 * lo:.3g} to {1e6 * hi:.3g} urad RMS "
+                     f"(k = 2)")
+    best = (unc.get("determining") or {}).get("best")
+    if best:
+        lines.append(f"  to determine the undetermined part ({100 * best['determines_share']:.0f} % of it): "
+                     f"{best['measurement']}: {best['command']}")
+    lines += [f"  WARNING: {w}" for w in warnings]
+    return lines

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError
-from ..inputs import regular_file
+from ..inputs import MAX_TABLE_BYTES, open_file
 from .grid import PoseList
 from ..guards import check_size
 from ..linuxcnc.rs274 import AXES
@@ -94,10 +94,10 @@ def read_csv(path, machine, max_rows: int | None = None) -> Toolpath:
     """A toolpath CSV (see the module docstring); max_rows: refuse longer files (fiveaxis.guards)."""
     path = Path(path)
     variables = machine.variables
-    if path.exists():
-        regular_file(path, "a toolpath CSV")              # a FIFO or a device would block or never end
+    if not path.exists():
+        raise InputError(f"{path}: toolpath file not found")
     try:
-        with open(path, newline="", encoding="utf-8") as f:
+        with open_file(path, "a toolpath CSV", MAX_TABLE_BYTES, text=True, newline="") as f:
             reader = csv.reader(f)
             header = next(reader, None)
             if header is None:
