@@ -44,6 +44,10 @@ def _fit_options(p):
     p.add_argument("--setup-frame", default=None, choices=FRAMES,
                    help="frame the setups' artefacts are fixed in when their rows do not say (setup_frame column): "
                         "workpiece (on the table; default) or machine (on the bed)")
+    p.add_argument("--resolution", action="append", default=[], metavar="COLUMN=STEP",
+                   help="the resolution of a column (mm, deg), e.g. X=0.001 or A=0.0001 (repeatable): for Parquet "
+                        "files, whose numbers say nothing of it (counted as full precision without), or to state a "
+                        "controller's; a CSV column's is read from the digits its cells write")
     p.add_argument("--blocks", default="auto", choices=("auto", "on", "off"),
                    help="build the design in row blocks of 16,384 poses (bounded memory for 10^5-10^7 rows): auto "
                         "(above 16,384 poses; default), on, off (in memory)")
@@ -155,7 +159,7 @@ def _load(args):
     machine = load_machine(args.machine)
     model = load(machine, args.convention)
     meas = read(args.file, model.machine, min_rows=2, frame=args.frame, setup_kind=args.setup_kind,
-                setup_frame=args.setup_frame)
+                setup_frame=args.setup_frame, resolution=_resolution(args.resolution))
     for w in meas.warnings:
         print(f"fiveaxis: warning: {w}", file=sys.stderr)
     added = machine_effects(model) + list(args.add)
@@ -172,6 +176,22 @@ def _implausible(fm, model, path, record: dict) -> None:
         line = f"{path}: {plausible.unit_slip(found)}"
         record.setdefault("warnings", []).append(line)
         print(f"fiveaxis: warning: {one_line(line)}", file=sys.stderr)
+
+
+def _resolution(specs) -> dict:
+    """--resolution COLUMN=STEP (mm, deg) as {column: step}."""
+    out = {}
+    for spec in specs:
+        name, sep, raw = spec.partition("=")
+        try:
+            step = float(raw)
+        except ValueError:
+            step = float("nan")
+        if not sep or not name.strip() or not (0 < step < float("inf")):
+            raise InputError(f"--resolution {spec}: expected COLUMN=STEP with a positive step in the column's unit "
+                             f"(mm, deg), e.g. X=0.001")
+        out[name.strip()] = step
+    return out
 
 
 def _fixed(model, specs) -> dict:
