@@ -152,6 +152,9 @@ say "Calibration report of the R-test on the A/C trunnion (above: $RTEST)"
 say "Calibration report of the compensated A/C trunnion, with the compensation's predicted error maps"
 "$BIN/fiveaxis" report "$CDIR/before.csv" --machine ac_trunnion --compensation "$CDIR/comp" \
     -o "$OUT/ac_trunnion_compensated.html" "${PDF[@]}" --force
+say "Calibration certificate of the ISO 230-2 laser run above ($LASER) with a campaign file: HTML, PDF and DCC XML"
+"$BIN/fiveaxis" report "$LASER" --machine ac_trunnion --campaign examples/campaign.toml --rounds 2 \
+    -o "$OUT/ac_trunnion_laser_certificate.html" "${PDF[@]}" --dcc --force
 say "Reports written (open in a browser):"
 scripts/list-outputs.sh "$OUT"
 # --- end section: report

@@ -62,6 +62,7 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     if damping < 0 or not math.isfinite(damping):
         raise InputError(f"damping: expected a number >= 0, got {damping}")
     lengths = None if tool_lengths is None else check_tool_lengths(tool_lengths)
+    plausible.check_model(fm, model.machine, getattr(fm, "source", "") or "fitted model")   # a unit slip: refused
     errors_fn = fitted_errors(fm, model)
     grid = table_nodes(model.machine, dict(counts or {}), max_nodes)
     plausible.check_errors(model, errors_fn, np.stack([m.ravel() for m in np.meshgrid(*grid, indexing="ij")], axis=1),

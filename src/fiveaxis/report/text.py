@@ -171,8 +171,9 @@ def diagnosis(j: dict) -> str:
             groups = " | ".join(", ".join(g) for g in tip["separates"])
             lines.append(f"        measuring with {tip['measure']} would separate: {groups}")
         if c["aliases"] and "separate_by" in c and not c["separate_by"]:
-            lines.append("        neither another tool length nor wider axis ranges would separate them (their columns stay "
-                         "parallel)")
+            lines.append("        neither another tool length nor wider axis ranges would tell these candidate effects apart "
+                         "(their columns stay parallel); which fitted errors an extra measurement determines is "
+                         "another question (fiveaxis report)")
     if j.get("hidden_by_placement"):
         hid = j["hidden_by_placement"]
         lines.append(f"[[Not visible with this placement]] {len(hid)} candidate(s) the setups' placement unknowns "
