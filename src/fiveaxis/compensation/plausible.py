@@ -15,6 +15,7 @@ import re
 
 import numpy as np
 
+from ..effects import families as fx
 from ..exceptions import InputError
 
 #: Bounds, with why. A real machine's geometric errors are micrometres and microradians; location errors of axes
@@ -73,11 +74,11 @@ def model_findings(fm, machine) -> list[str]:
         if units.get(e.param) != "mm" or not e.values:
             continue
         c = abs(float(e.values[0]))
-        if e.kind == "reversal":
+        if fx.family(e.kind) is fx.Reversal:
             limit, what = MACHINES["backlash_mm"]
             if not 2 * c <= limit:
                 out.append(f"effect {e.id}: a backlash of {_um(2 * c)}: beyond {what}, {_um(limit)}")
-        elif e.kind == "polynomial" and e.var in fm.scales and fm.scales[e.var].column is not None:
+        elif fx.family(e.kind) is fx.Polynomial and e.var in fm.scales and fm.scales[e.var].column is not None:
             axis = machine.axis(fm.scales[e.var].column)
             if axis.type != "linear":
                 continue
