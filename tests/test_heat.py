@@ -251,3 +251,19 @@ def test_temperature_effect_without_times_or_channel(tmp_path):
                                 "X,Y,Z,A,B,temp_spindle,dx,dy,dz"), model.machine), ["L:temp_spindle~60"])
     with pytest.raises(InputError, match="needs a temp_bed column"):
         F.fit(model, meas, ["L:temp_bed"])
+
+
+@pytest.mark.slow
+def test_confounded_when_everything_rises_with_time():
+    """A warm-up without a stop: the temperature rises with time all along, so L:temp_spindle and a time effect
+    explain the same readings; the diagnosis says so and what would separate them."""
+    from fiveaxis.measurement.simulate import simulate
+    model = fiveaxis.load("li2018")
+    sim = simulate(model, ["L:temp_spindle~300=0.0015"], n=600, seed=4, duration=7200.0,
+                   temperatures={"spindle": "spindle:rise=15,tau=1800,off=99999"})
+    dg = D.diagnose(model, sim.meas)
+    conf = dg.heat.get("confounded", [])
+    print(f"monotone warm-up: accepted {dg.decision['accepted']}; confounded {conf}")
+    pairs = [{fx.parse(c[k], model.machine, model.errors).var for k in ("effect", "with")} for c in conf]
+    assert {"temp_spindle", fx.TIME} in pairs
+    assert "cool-down phase, a spindle stop or a second day" in dg.heat["confounded_note"]
