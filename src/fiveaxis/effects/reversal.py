@@ -62,9 +62,10 @@ class Reversal(base.VocabularyEffect):
         if coefs is None:
             return f"{what} changing with the direction of approach of {name} (reversal: backlash or lost motion)"
         size = human(2 * abs(float(np.ravel(coefs)[0])), self.unit_of(machine), 2)
+        half = "; the coefficient is half of it: + approaching forward, - backward"
         if own_positioning(machine, self):
-            return f"the {name} axis reverses with a backlash of {size} (lost motion in its positioning)"
-        return f"{what} changing by {size} with the direction of approach of {name} (reversal)"
+            return f"the {name} axis reverses with a backlash of {size} (lost motion in its positioning{half})"
+        return f"{what} changing by {size} with the direction of approach of {name} (reversal{half})"
 
 
 def reversals(machine, errors, dirs: dict) -> list[Reversal]:
