@@ -143,6 +143,7 @@ def test_etve_test_equals_numpy_evaluation(tmp_path):
     c = columns_of(path)
     dirs = ref_directions(c)
     assert rec["test"] == "etve" and [p["phase"] for p in rec["phases"]] == ["at rest"]
+    assert rec["test_from"] == "no spindle or position information" and "taken as an ETVE test" in rec["notes"][0]
     close(rec["directions"], {k: ref_figures(c["t"], v) for k, v in dirs.items()})
     for d in rec["directions"]:
         assert d[f"ETVE_{d['unit']}"] == pytest.approx(np.ptp(dirs[d["direction"]]), abs=TOL)
@@ -179,7 +180,8 @@ def test_stated_spindle_times_and_minutes_give_the_same_figures(tmp_path):
     del c["spindle_rpm"]
     c["t_min"] = c.pop("t") / 60.0
     stated = write(tmp_path, c, "stated.csv")
-    rec2 = T.evaluate_file(stated, spindle=T.Spindle(off_min=180.0, speed_rpm=8000.0), spacing_mm=SPACING)
+    rec2 = T.evaluate_file(stated, spindle=T.Spindle(on_min=0.0, off_min=180.0, speed_rpm=8000.0),
+                           spacing_mm=SPACING)
     assert rec2["test"] == "spindle" and rec2["time_column"] == "t_min"
     for a, b in zip(rec["phases"], rec2["phases"]):
         assert (a["phase"], a["start_min"], a["end_min"]) == (b["phase"], b["start_min"], pytest.approx(b["end_min"]))
@@ -370,3 +372,22 @@ def test_report_with_a_thermal_test(tmp_path, capsys):
     page = out.read_text()
     assert '<a href="#iso230-3">ISO 230-3</a>' in page and '<section id="iso230-3">' in page
     assert rec["test"] == "spindle" and rec == T.evaluate_file(path, spacing_mm=SPACING)
+
+
+def test_parquet_and_blank_temperatures(tmp_path):
+    """The same test as Parquet gives the same figures; a temperature not read in some rows (blank) is evaluated
+    over the rows where it was read, and the note says how many."""
+    path, sim = simulated(tmp_path, "spindle", hours=4.0, run_hours=2.0, seed=11)
+    df = pd.read_csv(path)
+    df.loc[::3, "temp_column"] = np.nan
+    df.to_csv(tmp_path / "blank.csv", index=False)
+    df.to_parquet(tmp_path / "blank.parquet", index=False)
+    a = T.evaluate_file(tmp_path / "blank.csv", spacing_mm=SPACING)
+    b = T.evaluate_file(tmp_path / "blank.parquet", spacing_mm=SPACING)
+    assert a["directions"] == b["directions"] and a["temperatures"] == b["temperatures"]
+    col = next(c for c in a["temperatures"] if c["channel"] == "temp_column")
+    read = df["temp_column"].dropna().to_numpy()
+    assert col["readings"] == len(read) < len(df)
+    assert (col["first_degC"], col["last_degC"], col["max_degC"]) == pytest.approx((read[0], read[-1], read.max()))
+    assert any(f"temp_column: {len(read)} readings of {len(df)}" in n for n in a["notes"])
+    assert a["series"]["temp_column_degC"][0] is None

@@ -9,6 +9,7 @@ import json
 import sys
 from pathlib import Path
 
+from ..compensation import plausible
 from ..exceptions import InputError
 
 
@@ -97,6 +98,12 @@ def run_iso230_2(args) -> int:
     statement = U.check(U.Statement(**uncertainty_inputs(args)))
     model, meas = _read(args)
     evs = P.evaluate(meas, model, P.TARGET_TOL_MM if args.tolerance is None else args.tolerance)
+    for ev in evs:
+        axis = model.machine.axis(ev.axis)
+        found = plausible.positioning_findings(ev.figures, float(axis.stroke[1] - axis.stroke[0]))
+        if found:                                  # a unit slip: said beside the figures, and on stderr
+            ev.notes.append(f"not a machine's figures: {plausible.unit_slip(found)}")
+            print(f"fiveaxis: warning: {args.file}: {ev.axis}: {plausible.unit_slip(found)}", file=sys.stderr)
     records = [P.to_json(ev, U.budget(statement, ev.length_mm) or U.none_statement()) for ev in evs]
     if args.plot is not None:
         from ..plots.iso230 import write_positioning

@@ -291,7 +291,7 @@ def build_pool(block, w, Q: np.ndarray, rw: np.ndarray, present: set, custom: li
     sums = es.row_sums(params, P, rw, Q, prob.obs.row, prob.meas.n)
     bands = []
     for tok, s in (prob.scales.items() if periodic else ()):
-        if s.column is None and prob.meas.t is None:
+        if s.column is None and prob.meas.t is None or s.unit == "degC":     # periods of pose variables and time
             continue
         b = es.band(tok, prob.ctx.raw(tok) * s.to_unit, sums.live)
         if b is not None:
