@@ -527,7 +527,9 @@ def test_a_quantity_stated_relative_to_others_is_said_so_in_its_group(rtest):
         for m in g["relative"]:
             assert f"{m}: stated above relative to the others of this group" in page or \
                 re.search(rf"{re.escape(m)}(, [^:<]+)*: stated above relative", page)
-    assert "stated relative to the others of its group" in " ".join(rtest.record["verdict"]["unexplained"])
+    n = sum(len(g["relative"]) for g in fit["groups"])
+    assert f"{n} of these parameters {'is' if n == 1 else 'are'} stated relative to the others of " \
+           f"{'its' if n == 1 else 'their'} group" in " ".join(rtest.record["verdict"]["unexplained"])
 
 
 @pytest.mark.slow
