@@ -55,6 +55,12 @@ class Reversal(base.VocabularyEffect):
     def plan_refusal(self) -> str | None:
         return "approach-direction (reversal)"
 
+    @classmethod
+    def extents(cls, rec, scales):
+        """The backlash: twice the coefficient."""
+        col = scales[rec.var].column if rec.var in scales else None
+        return [("backlash", 2 * abs(float(rec.values[0])), col)] if rec.values else []
+
     def describe(self, machine, coefs=None, ctx=None) -> str:
         """E.g. 'the X axis reverses with a backlash of 6.1 um'."""
         what = describe_param(machine, self.param)

@@ -79,9 +79,10 @@ class ThermalData:
         return float(self.t[-1] - self.t[0])
 
 
-def _step(values) -> float:
-    """The step of a column's numbers as written (twice half a unit of the last digit; 0 when all are equal)."""
-    q = F.quantum(values)
+def _step(values, cells) -> float:
+    """The step of a column's numbers as written in its cells (twice half a unit of the last digit the text writes;
+    0 when all are equal or the file is binary: full precision)."""
+    q = F.quantum(values, F.written_digits(cells))
     q = q[np.isfinite(q)]
     return float(2 * q.max()) if len(q) else 0.0
 
@@ -193,8 +194,12 @@ def read(path) -> ThermalData:
     if positions:
         axis = positions[0]
         position = numbers(axis)
-    resolution = {c: _step(v) for c, v in {**sensors, **temps}.items()}
-    resolution[tcol] = _step(t_raw)
+    def cells(name):
+        c = cols[name]
+        return c if isinstance(c, np.ndarray) or len(keep) == len(c) else [c[i] for i in keep]
+
+    resolution = {c: _step(v, cells(c)) for c, v in {**sensors, **temps}.items()}
+    resolution[tcol] = _step(t_raw, cells(tcol))
     return ThermalData(str(path), t, keep + 1, sensors, temps, spindle, axis, position, tcol, resolution, warnings)
 
 
