@@ -275,7 +275,7 @@ def good(n=30):
 
 @pytest.mark.parametrize("change, match", [
     (lambda c: c.update(temp_spindle=np.where(np.arange(30) == 7, 2000.0, c["temp_spindle"])),
-     r"data row 8 \(line 9\), column temp_spindle: 2000 degC is not a temperature"),
+     r"data row 8 \(line 9\), column temp_spindle: expected a temperature from -50 to 200 degC.*got 2000"),
     (lambda c: c.update(temp_bed=np.full(30, 21.3)), r"column temp_bed: the temperature never changes"),
     (lambda c: c.update(dz=np.zeros(30)), r"column dz: the reading never changes"),
     (lambda c: c.update(t=np.where(np.arange(30) == 12, 600.0, c["t"])),
@@ -384,7 +384,13 @@ def test_parquet_and_blank_temperatures(tmp_path):
     df.to_parquet(tmp_path / "blank.parquet", index=False)
     a = T.evaluate_file(tmp_path / "blank.csv", spacing_mm=SPACING)
     b = T.evaluate_file(tmp_path / "blank.parquet", spacing_mm=SPACING)
-    assert a["directions"] == b["directions"] and a["temperatures"] == b["temperatures"]
+    assert a["directions"] == b["directions"]
+    assert [{k: v for k, v in c.items() if k != "resolution_degC"} for c in a["temperatures"]] == \
+        [{k: v for k, v in c.items() if k != "resolution_degC"} for c in b["temperatures"]]
+    # the CSV writes its resolution (0.01 degC, 0.1 um); Parquet's binary numbers do not say it
+    assert {c["resolution_degC"] for c in a["temperatures"]} == {0.01}
+    assert {c["resolution_degC"] for c in b["temperatures"]} == {None}
+    assert b["directions_read"][0]["resolution_um"] is None
     col = next(c for c in a["temperatures"] if c["channel"] == "temp_column")
     read = df["temp_column"].dropna().to_numpy()
     assert col["readings"] == len(read) < len(df)

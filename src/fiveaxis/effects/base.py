@@ -81,6 +81,8 @@ class Effect(Protocol):
     def module(cls, rec: "EffectRecord", scales: dict, variables) -> dict | str: ...   # slot values, or why not
     @classmethod
     def table_knots(cls, rec: "EffectRecord", machine): ...   # positions a comp file needs a line at, or None
+    @classmethod
+    def extents(cls, rec: "EffectRecord", scales: dict) -> list: ...   # [(quantity, size, pose column)]
 
 
 @dataclass(frozen=True)
@@ -643,6 +645,13 @@ class VocabularyEffect:
     def table_knots(cls, rec: EffectRecord, machine):
         """Positions (mm, deg) a compensation file needs a line at to carry it exactly; None: no such positions."""
         return None
+
+    @classmethod
+    def extents(cls, rec: EffectRecord, scales: dict) -> list:
+        """What a machine's plausibility is judged by (`fiveaxis.compensation.plausible`): [(quantity, size in the
+        parameter's unit, the pose column it runs along or None)], quantity "backlash" (the step between the two
+        approach directions) or "change" (over the measured stroke); none by default."""
+        return []
 
     # -- the diagnosis, the plan, the simulation
     @classmethod

@@ -247,9 +247,11 @@ def evaluate(data: TF.ThermalData, test: str | None = None, spindle: Spindle | N
     for name in dirs:
         unit, meaning = DIRECTIONS[name]
         col = {"X": "dx", "Y": "dy", "Z": "dz"}.get(name)
+        steps = [res[col]] if col is not None else [res[{"A": "dy", "B": "dx"}[name]],
+                                                    res[{"A": "dy2", "B": "dx2"}[name]]]
+        step = None if None in steps else (1e3 * steps[0] if col is not None else 1e6 * max(steps) / spacing)
         entry = {"direction": name, "unit": unit, "meaning": meaning, f"noise_{unit}": noise(dirs[name]),
-                 f"resolution_{unit}": 1e3 * res[col] if col is not None else
-                 1e6 * max(res[{"A": "dy", "B": "dx"}[name]], res[{"A": "dy2", "B": "dx2"}[name]]) / spacing}
+                 f"resolution_{unit}": step}
         rec["directions_read"].append(entry)
     ph = phases(data, kind, spindle)
     if kind == "spindle" or data.spindle is not None or not spindle.empty:

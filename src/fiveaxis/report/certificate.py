@@ -31,10 +31,12 @@ def uncertainty_statement(iso: dict | None, fit_scale: str) -> list[str]:
     """The statement of uncertainty, sentence by sentence, true to how each stated U was obtained."""
     lines = [f"The expanded uncertainties U stated in this certificate are standard uncertainties multiplied by the "
              f"coverage factor k = {K}; for a normal distribution the true value lies within value \u00b1 U with a "
-             f"probability of about {COVERAGE_PROBABILITY:.0%}. They were determined in accordance with the GUM "
+             f"probability of about {100 * COVERAGE_PROBABILITY:.0f} %. They were determined in accordance with the GUM "
              f"(JCGM 100:2008).",
              "The uncertainties of the fitted errors are those of the weighted least-squares fit of the model to all "
-             "readings (" + fit_scale + "); they contain the scatter of the readings and its propagation through the "
+             "readings (" + {"sigma column": "weighted by the measurement file's sigma column",
+                             "estimated from the residual": "the readings' noise estimated from the fit's residual"}.get(
+                 fit_scale, fit_scale) + "); they contain the scatter of the readings and its propagation through the "
              "model, not the calibration uncertainty of the instrument itself (see its certificate) nor errors "
              "the model does not contain. Quantities the data determine only relative to others are stated as "
              "such."]

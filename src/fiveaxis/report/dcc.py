@@ -86,11 +86,25 @@ def _quantity(parent, name: str, lang: str, value=None, unit: str = "", U=None, 
     _text(q, "name", name, lang)
     if description:
         _text(q, "description", description, lang)
+    if value is not None and not spelled(unit):
+        none = (f"{value:.6g} +- {U:.2g} in the fit's internal unit '{unit}': not a physical quantity, not stated"
+                if U is not None else f"{value:.6g} in the fit's internal unit '{unit}': not stated")
+        value = None
     if value is None:
         _text(q, "noQuantity", none or "not determined", lang)
     else:
         _real(q, value, unit, U)
     return q
+
+
+def spelled(unit: str) -> bool:
+    """Whether a record's unit has a D-SI spelling (what has not, e.g. a profile's 'scaled', is not a quantity the
+    certificate can state)."""
+    try:
+        dsi_unit(unit)
+    except ValueError:
+        return False
+    return True
 
 
 def _real_list(parent, name: str, values, unit: str, lang: str):

@@ -34,7 +34,8 @@ nav a { margin-right: 14px; color: #1f5aa6; text-decoration: none; }
 table { border-collapse: collapse; margin: 8px 0 14px; font-size: 0.9em; }
 th, td { border-bottom: 1px solid var(--line); padding: 4px 9px; text-align: left; vertical-align: top; }
 th { background: var(--bg-soft); font-weight: 600; }
-td.num, th.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
+td.num, th.num { text-align: right; font-variant-numeric: tabular-nums; }
+td.num { white-space: nowrap; }
 td.code, span.code { font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: 0.95em; white-space: nowrap; }
 tr.undetermined td { color: var(--muted); }
 figure { margin: 12px 0 20px; }
@@ -59,6 +60,8 @@ footer { margin-top: 40px; color: var(--muted); font-size: 0.85em; border-top: 1
   nav { display: none; }
   h2 { break-after: avoid; }
   figure, table, .verdict, .signatures, dl.admin { break-inside: avoid; }
+  table { font-size: 8.5pt; }
+  th, td { padding: 3px 5px; }
 }
 @page { size: A4; margin: 14mm 12mm; }
 """
@@ -380,26 +383,8 @@ def _iso230(rec: dict, figs: dict) -> str:
                       "No uncertainty statement: the measuring device, temperature, expansion, misalignment and drift "
                       "were not stated (<span class=\"code\">--u-device ...</span>, or the campaign's iso230_9).")
                    + "</p>")
-        keys = [("E", "E"), ("M", "M"), ("B", "B"), ("B_mean", "B mean"), ("R", "R"), ("A", "A")]
-        rows = []
         for a, r in enumerate(iso["positioning"]):
-            k0 = f"iso230.positioning.{a}"
-            cells = []
-            for k, _ in keys:
-                cell = _v(rec, f"{k0}.{k}_um", ".3g")
-                if f"{k}_fwd_um" in r:
-                    cell += f" / {_v(rec, f'{k0}.{k}_fwd_um', '.3g')} / {_v(rec, f'{k0}.{k}_bwd_um', '.3g')}"
-                if k in r["uncertainty"].get("U_um", {}):
-                    cell += f" &plusmn; {_v(rec, f'{k0}.uncertainty.U_um.{k}', '.2f')}"
-                cells.append(cell)
-            rows.append([_e(r["axis"]) + (f" ({_e(r['setup'])})" if r.get("setup") else ""),
-                         _v(rec, f"{k0}.targets", "d"), _v(rec, f"{k0}.cycles", "d"),
-                         _v(rec, f"{k0}.measured_length_mm", ".5g")] + cells)
-        out.append(_table(["axis", "targets", "cycles", "length (mm)"]
-                          + [f"{label} (\u00b5m){' bi / fwd / bwd' if k in ('E', 'R', 'A') else ''}"
-                             + (" &plusmn; U" if k in ("E", "M", "B") and stated else "")
-                             for k, label in keys], rows, "iso230-2-figures", numeric=tuple(range(1, 10))))
-        for a, r in enumerate(iso["positioning"]):
+            out.append(_axis_figures(rec, a))
             out.append(_targets(rec, a))
             out.append(f'<p class="note">{_t(r["uncertainty"]["statement"])}.</p>')
         out.append(_figures_and_notes(figs, "iso230_2", iso["positioning"], lambda r: (
@@ -434,8 +419,33 @@ def _iso230(rec: dict, figs: dict) -> str:
     return "".join(out)
 
 
+#: ISO 230-2's axis figures as a laser's report lists them: (figure, record key prefix, meaning).
+AXIS_FIGURES = (("E", "E", "systematic positional deviation"), ("M", "M", "mean bidirectional systematic positional "
+                                                                          "deviation"),
+                ("B", "B", "reversal value (largest |B_i|)"), ("B mean", "B_mean", "mean reversal value"),
+                ("R", "R", "repeatability"), ("A", "A", "accuracy"))
+
+
+def _axis_figures(rec: dict, a: int) -> str:
+    """The a-th axis's ISO 230-2 figures, one row each: bidirectional, forward, backward, U (k = 2) where ISO
+    230-9's budget gives one (um)."""
+    r = rec["iso230"]["positioning"][a]
+    k0 = f"iso230.positioning.{a}"
+    U = r["uncertainty"].get("U_um", {})
+    rows = [[f"<b>{name}</b>", _v(rec, f"{k0}.{key}_um", ".2f"),
+             _v(rec, f"{k0}.{key}_fwd_um", ".2f") if f"{key}_fwd_um" in r else "",
+             _v(rec, f"{k0}.{key}_bwd_um", ".2f") if f"{key}_bwd_um" in r else "",
+             _v(rec, f"{k0}.uncertainty.U_um.{key}", ".2f") if key in U else "&ndash;", _e(what)]
+            for name, key, what in AXIS_FIGURES]
+    return (f"<h3>{_e(r['axis'])}" + (f" ({_e(r['setup'])})" if r.get("setup") else "")
+            + f": {_v(rec, f'{k0}.targets', 'd')} targets over {_v(rec, f'{k0}.measured_length_mm', '.5g')} mm, "
+              f"{_v(rec, f'{k0}.cycles', 'd')} cycles</h3>"
+            + _table(["figure", "bidirectional (\u00b5m)", "forward (\u00b5m)", "backward (\u00b5m)",
+                      "U, k = 2 (\u00b5m)", "meaning"], rows, f"iso230-2-figures-{a}", numeric=(1, 2, 3, 4)))
+
+
 #: The per-target table of ISO 230-2 (the standard's table, transposed): (heading, record key, format).
-TARGET_COLUMNS = (("P_i (mm)", "targets_mm", ".3f"), ("mean x_i fwd", "mean_fwd_um", ".2f"),
+TARGET_COLUMNS = (("P_i", "targets_mm", ".3f"), ("mean x_i fwd", "mean_fwd_um", ".2f"),
                   ("mean x_i bwd", "mean_bwd_um", ".2f"), ("s_i fwd", "s_fwd_um", ".2f"), ("s_i bwd", "s_bwd_um", ".2f"),
                   ("R_i fwd", "R_i_fwd_um", ".2f"), ("R_i bwd", "R_i_bwd_um", ".2f"), ("B_i", "B_i_um", ".2f"),
                   ("mean x_i bidir.", "mean_bidirectional_um", ".2f"), ("R_i bidir.", "R_i_um", ".2f"))
@@ -448,9 +458,9 @@ def _targets(rec: dict, a: int) -> str:
     k0 = f"iso230.positioning.{a}"
     rows = [[f"{i + 1}."] + [_v(rec, f"{k0}.{key}.{i}", fmt) for _, key, fmt in TARGET_COLUMNS]
             for i in range(len(r["targets_mm"]))]
-    head = ["i"] + [h + ("" if key == "targets_mm" else " (\u00b5m)") for h, key, _ in TARGET_COLUMNS]
-    return (f"<h3>{_e(r['axis'])}: per target and approach direction (\u00b5m; {_v(rec, f'{k0}.cycles', 'd')} "
-            f"cycles)</h3>" + _table(head, rows, f"iso230-2-targets-{a}", numeric=tuple(range(1, 11))))
+    head = ["i"] + [h for h, _, _ in TARGET_COLUMNS]
+    return (f"<p>{_e(r['axis'])} per target and approach direction (\u00b5m; P_i in mm):</p>"
+            + _table(head, rows, f"iso230-2-targets-{a}", numeric=tuple(range(1, 11))))
 
 
 def _sensitivity(rec: dict, figs: dict) -> str:

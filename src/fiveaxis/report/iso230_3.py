@@ -64,7 +64,8 @@ def text(rec: dict) -> str:
     lines = [f"{rec['standard']} {rec['test_name']}: {rec['file']}",
              f"  {rec['readings']} readings over {rec['duration_min']:.4g} min (every {rec['interval_s']:g} s)"]
     reads = ", ".join(f"{d['direction']} to {d['resolution_' + d['unit']]:.3g} {d['unit']}"
-                      for d in rec["directions_read"])
+                      if d["resolution_" + d["unit"]] is not None else f"{d['direction']} (binary numbers: "
+                      f"resolution not written)" for d in rec["directions_read"])
     lines.append(f"  directions read: {reads}" + (f"; tilts from sensor pairs {rec['spacing_mm']:g} mm apart"
                                                     if rec["spacing_mm"] else ""))
     sp = rec.get("spindle")

@@ -210,8 +210,8 @@ def _verdict(obj, rounds: list[dict], fit: dict, max_rounds: int) -> dict:
         relative = sum(len(g["relative"]) for g in fit["groups"])
         unexplained.append(f"{len(fit['groups'])} groups of parameters cannot be told apart by this data (their "
                            f"combinations are determined; see the fit)"
-                           + (f"; {relative} of their members are stated relative to the others of their group"
-                              if relative else ""))
+                           + (f"; {relative} of these parameters {'is' if relative == 1 else 'are'} stated relative "
+                              f"to the others of {'its' if relative == 1 else 'their'} group" if relative else ""))
     if explained:
         headline = (f"The model explains the measurements to the noise level: residual RMS {last['rms_um']:.3g} um "
                     f"against noise {last['noise_um']:.3g} um"
