@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import InputError
+from ..exceptions import InputError, one_line
+from ..compensation import plausible
 from ..diagnosis import preconditions
 from ..estimation import design_size
 from ..measurement import instruments as ins
@@ -43,6 +44,10 @@ def _fit_options(p):
     p.add_argument("--setup-frame", default=None, choices=FRAMES,
                    help="frame the setups' artefacts are fixed in when their rows do not say (setup_frame column): "
                         "workpiece (on the table; default) or machine (on the bed)")
+    p.add_argument("--resolution", action="append", default=[], metavar="COLUMN=STEP",
+                   help="the resolution of a column (mm, deg), e.g. X=0.001 or A=0.0001 (repeatable): for Parquet "
+                        "files, whose numbers say nothing of it (counted as full precision without), or to state a "
+                        "controller's; a CSV column's is read from the digits its cells write")
     p.add_argument("--blocks", default="auto", choices=("auto", "on", "off"),
                    help="build the design in row blocks of 16,384 poses (bounded memory for 10^5-10^7 rows): auto "
                         "(above 16,384 poses; default), on, off (in memory)")
@@ -154,13 +159,39 @@ def _load(args):
     machine = load_machine(args.machine)
     model = load(machine, args.convention)
     meas = read(args.file, model.machine, min_rows=2, frame=args.frame, setup_kind=args.setup_kind,
-                setup_frame=args.setup_frame)
+                setup_frame=args.setup_frame, resolution=_resolution(args.resolution))
     for w in meas.warnings:
         print(f"fiveaxis: warning: {w}", file=sys.stderr)
     added = machine_effects(model) + list(args.add)
     effects = resolve_effects(model, added)
     design_size.check(model, meas, effects)          # before a design is built: memory of the setups' unknowns
     return model, meas, effects, _fixed(model, args.fix)
+
+
+def _implausible(fm, model, path, record: dict) -> None:
+    """What the fit holds that no machine shows (compensation.plausible): one warning line with the hint "did you
+    write um in a mm column?", also in the record (`warnings`). compensate refuses such a model."""
+    found = plausible.model_findings(fm, model.machine)
+    if found:
+        line = f"{path}: {plausible.unit_slip(found)}"
+        record.setdefault("warnings", []).append(line)
+        print(f"fiveaxis: warning: {one_line(line)}", file=sys.stderr)
+
+
+def _resolution(specs) -> dict:
+    """--resolution COLUMN=STEP (mm, deg) as {column: step}."""
+    out = {}
+    for spec in specs:
+        name, sep, raw = spec.partition("=")
+        try:
+            step = float(raw)
+        except ValueError:
+            step = float("nan")
+        if not sep or not name.strip() or not (0 < step < float("inf")):
+            raise InputError(f"--resolution {spec}: expected COLUMN=STEP with a positive step in the column's unit "
+                             f"(mm, deg), e.g. X=0.001")
+        out[name.strip()] = step
+    return out
 
 
 def _fixed(model, specs) -> dict:
@@ -222,11 +253,13 @@ def run_fit(args) -> int:
         raise InputError(f"{args.output}: exists; not overwriting it (use --force to replace it)")
     with _where_blocks(args) as in_blocks:
         res = F.fit(model, meas, effects, refine=not args.first_order, fixed=fixed, in_blocks=in_blocks)
+    from ..estimation.fitted_model import from_fit, save
+    fm = from_fit(res)
     if args.output is not None:
-        from ..estimation.fitted_model import from_fit, save
-        save(from_fit(res), args.output, force=args.force)
-        print(f"fiveaxis: wrote {args.output}", file=sys.stderr)
+        save(fm, args.output, force=args.force)
+        print(f"fiveaxis: wrote {one_line(args.output)}", file=sys.stderr)
     j = to_json(res)
+    _implausible(fm, model, args.file, j)
     if args.json:
         _dump(j)
     else:
@@ -250,6 +283,8 @@ def run_diagnose(args) -> int:
         path = plot_residuals(dgs[-1], args.plot)
         print(f"fiveaxis: wrote {path}", file=sys.stderr)
     js = [dg.to_json() for dg in dgs]
+    from ..estimation.fitted_model import from_fit
+    _implausible(from_fit(dgs[0].fit), model, args.file, js[0])         # the data as given: a unit slip
     if args.json:
         _dump(js[0] if args.rounds == 1 else {"rounds": js})
     else:

@@ -90,7 +90,8 @@ def fit_problem(prob: Problem, design, refine: bool = True, max_iter: int = 6) -
     present = [g for g in (ob.LENGTH, ob.ANGLE) if (groups == g).any()]
     unknown = [g for g in present if not prob.known[groups == g].all()]
     w = prob.w.copy()
-    theta, idf, r_first, ref = _solve(design, w, free, fixed_vals, refine, max_iter)
+    known = not unknown
+    theta, idf, r_first, ref = _solve(design, w, free, fixed_vals, refine, max_iter, known)
     m = len(prob.d)
     if m - idf.rank < 1 and unknown:
         raise InputError(f"{prob.meas.path}: {m} reading(s) for {idf.rank} determined parameter(s): the noise cannot "
@@ -112,10 +113,9 @@ def fit_problem(prob: Problem, design, refine: bool = True, max_iter: int = 6) -
                     change = max(change, abs(f - 1))
             if change < 1e-3:
                 break
-            theta, idf, r_first, ref = _solve(design, w, free, fixed_vals, refine, max_iter)
+            theta, idf, r_first, ref = _solve(design, w, free, fixed_vals, refine, max_iter, known)
     prob = replace(prob, w=w)
     design = design.with_problem(prob)
-    known = not unknown
     residual = ref.residual
     dof = max(m - idf.rank, 1)
     chi2 = float(np.sum((residual * w) ** 2))
@@ -142,9 +142,9 @@ def fit_problem(prob: Problem, design, refine: bool = True, max_iter: int = 6) -
     return res
 
 
-def _solve(design, w, free, fixed_vals, refine, max_iter):
+def _solve(design, w, free, fixed_vals, refine, max_iter, known=False):
     """(theta, identifiability, first-order residual, refinement) for the current weights."""
-    theta, idf, r_first = sv.least_squares(design, w, free, fixed_vals)
+    theta, idf, r_first = sv.least_squares(design, w, free, fixed_vals, known=known)
     if refine:
         ref = sv.refine(design, w, free, theta, idf, r_first, max_iter)
     else:

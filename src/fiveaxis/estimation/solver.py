@@ -41,6 +41,13 @@ ZERO_COLUMN_RTOL = 1e-12
 #: A direction (or a column) is determined only when it stands this many times above what moving the poses, tool
 #: lengths and reading directions within their resolution does to it.
 RESOLUTION_MARGIN = 10.0
+#: The rule on evidence: a direction the resolution rule drops is determined all the same when its singular value
+#: stands above EVIDENCE_RESOLUTION times its change within the resolution (the direction is in the design, not made
+#: by the rounding) and the data's component along it stands above EVIDENCE_Z times the noise and EVIDENCE_Z times
+#: the signal the rounding can create along it (u^T dA theta at the other directions' estimate): a signal of 10
+#: sigma along one of 50 directions has a chance below 1e-20 on pure noise.
+EVIDENCE_RESOLUTION = 3.0
+EVIDENCE_Z = 10.0
 #: A null-space component below this (unit-norm coordinates) does not touch a parameter.
 NULL_TOL = 1e-6
 #: Rows per QR of the TSQR (small QRs stay in cache: 512 rows of 45 columns twice as fast as 49,152 rows at once).
@@ -98,11 +105,12 @@ class Identifiability:
 
 
 def identify(R: np.ndarray, E: np.ndarray | None = None, floor: float | None = None,
-             rank: int | None = None) -> Identifiability:
+             rank: int | None = None, evidence: "Evidence | None" = None) -> Identifiability:
     """Rank, condition and null space from rows of the weighted design (its factor R, or raw rows); E: rows of
     the design's change within the data's resolution (same rows' factor or the same raw rows), or None; floor:
     a rank threshold relative to the largest singular value to use instead of RANK_RTOL; rank: at most this many
-    directions (a part of the data keeps the rank the whole data gave)."""
+    directions (a part of the data keeps the rank the whole data gave); evidence: the weighted readings' inner
+    products, for the rule on evidence (`evident`)."""
     norms = np.linalg.norm(R, axis=0)
     if not (norms.size and np.isfinite(norms).all()):
         if norms.size:
@@ -130,12 +138,21 @@ def identify(R: np.ndarray, E: np.ndarray | None = None, floor: float | None = N
         dv = np.linalg.norm(np.where(norms > 0, E / safe, 0.0) @ Vt[:k].T, axis=0)
         moved = RESOLUTION_MARGIN * dv
         resolution = {"rule": f"a direction is determined when its singular value is above {RESOLUTION_MARGIN:g} x "
-                              f"what moving the data within their resolution does to it",
+                              f"what moving the data within their resolution does to it, or (evidence) above "
+                              f"{EVIDENCE_RESOLUTION:g} x that while the readings along it stand above "
+                              f"{EVIDENCE_Z:g} x the noise and {EVIDENCE_Z:g} x what the rounding can create there",
                       "directions_below": int(np.sum((s > threshold) & (s <= moved))),
                       "columns_not_seen": int(unseen.sum()),
                       "largest_change": float(dv.max(initial=0.0) / s[0]) if s[0] > 0 else 0.0}
         threshold = np.maximum(threshold, moved)
     keep = np.flatnonzero(s > threshold) if k else np.zeros(0, int)
+    if E is not None and k and evidence is not None:
+        back = evident(s, Vt[:k], np.where(norms > 0, E / safe, 0.0), norms, keep,
+                       (s > np.full(k, rel * s[0])) & (s > EVIDENCE_RESOLUTION * dv) & (s <= threshold), evidence)
+        if len(back):
+            keep = np.sort(np.concatenate([keep, back]))
+            resolution["directions_below"] -= len(back)
+            resolution["determined_on_evidence"] = int(len(back))
     if rank is not None:
         keep = keep[:rank]
     drop = np.setdiff1d(np.arange(p), keep)
@@ -144,6 +161,47 @@ def identify(R: np.ndarray, E: np.ndarray | None = None, floor: float | None = N
     determined = np.linalg.norm(null, axis=1) < NULL_TOL if null.size else np.ones(p, bool)
     cond = float(s[keep[0]] / s[keep[-1]]) if r else math.inf
     return Identifiability(norms, s[keep], Vt[keep], null, r, cond, determined, resolution)
+
+
+@dataclass
+class Evidence:
+    """What the rule on evidence needs of the weighted readings: g = (A w)^T (d w) (p,), |d w|^2, the number of
+    readings, whether the weights are 1/sigma from the file (else the noise is estimated), and (A w)^T (dA w)
+    (p, p): the design against its change within the resolution."""
+    g: np.ndarray
+    dd: float
+    m: int
+    known: bool
+    cross: np.ndarray
+
+
+def evident(s, Vt, Es, norms, keep, candidates, ev: Evidence) -> np.ndarray:
+    """Directions (indices into s) the resolution rule dropped that the data determine all the same: in the
+    design well above what the rounding does to them (`candidates`: s above EVIDENCE_RESOLUTION |dA v|), and
+    carrying a signal c = u^T (d w) above EVIDENCE_Z times the noise and EVIDENCE_Z times the signal the rounding
+    can create along it, u^T dA theta at the estimate on the other determined directions. Added one at a time,
+    strongest first; the noise is estimated from the residual of the directions kept (with a sigma column: at
+    least 1). Unit-norm coordinates (Es: the scaled change's factor, unused but for its scale)."""
+    safe = np.where(norms > 0, norms, 1.0)
+    live = norms > 0
+    gs = np.where(live, ev.g / safe, 0.0)
+    cross = np.where(np.outer(live, live), ev.cross / np.outer(safe, safe), 0.0)
+    c = (Vt @ gs) / np.where(s > 0, s, 1.0)
+    kept = list(keep)
+    added = []
+    for j in sorted(np.flatnonzero(candidates), key=lambda i: -abs(c[i])):
+        dof = ev.m - len(kept)
+        if dof < 1:
+            break
+        sigma2 = max(ev.dd - float(np.sum(c[kept] ** 2)), 0.0) / dof
+        if ev.known:
+            sigma2 = max(sigma2, 1.0)
+        theta = Vt[kept].T @ (c[kept] / s[kept]) if kept else np.zeros(Vt.shape[1])
+        created = abs(float(Vt[j] @ (cross @ theta))) / s[j]
+        if abs(c[j]) > EVIDENCE_Z * math.sqrt(sigma2) and abs(c[j]) > EVIDENCE_Z * created:
+            kept.append(j)
+            added.append(j)
+    return np.array(sorted(added), int)
 
 
 def solve(idf: Identifiability, g: np.ndarray) -> np.ndarray:
@@ -255,18 +313,23 @@ def _factor_block(block, w, free, fixed_vals):
     Af = A if free.all() else A[:, free]
     rhs = block.prob.d - A[:, ~free] @ fixed_vals if (~free).any() else block.prob.d
     E = block.delta()
-    Rd = tsqr(None, (E if free.all() else E[:, free]) * w[:, None]) if E is not None else None
-    return tsqr(None, Af * w[:, None]), Rd, Af.T @ (w ** 2 * rhs)
+    Ef = None if E is None else (E if free.all() else E[:, free]) * w[:, None]
+    Rd = tsqr(None, Ef) if Ef is not None else None
+    cross = (Af * w[:, None]).T @ Ef if Ef is not None else None
+    return tsqr(None, Af * w[:, None]), Rd, Af.T @ (w ** 2 * rhs), float(np.sum((w * rhs) ** 2)), cross
 
 
-def factor(design, w, free, fixed_vals, floor: float | None = None):
-    """One pass: (identifiability of the weighted free columns, g = (A_free w)^T ((d - A_fixed fixed) w))."""
+def factor(design, w, free, fixed_vals, floor: float | None = None, known: bool = False):
+    """One pass: (identifiability of the weighted free columns, g = (A_free w)^T ((d - A_fixed fixed) w));
+    known: the weights are 1/sigma from the file (for the rule on evidence)."""
     parts = design.map(partial(_factor_block, free=free, fixed_vals=fixed_vals), (w,))
-    g = np.sum([gb for _, _, gb in parts], axis=0) if parts else np.zeros(int(free.sum()))
-    R = merge(R for R, _, _ in parts)
+    g = np.sum([p[2] for p in parts], axis=0) if parts else np.zeros(int(free.sum()))
+    R = merge(p[0] for p in parts)
     if R is None:
         R = np.zeros((0, int(free.sum())))
-    return identify(R, merge(Rd for _, Rd, _ in parts), floor), g
+    crosses = [p[4] for p in parts if p[4] is not None]
+    ev = Evidence(g, float(sum(p[3] for p in parts)), len(w), known, np.sum(crosses, axis=0)) if crosses else None
+    return identify(R, merge(p[1] for p in parts), floor, evidence=ev), g
 
 
 def _linear_block(block, w, theta, free):
@@ -303,9 +366,9 @@ def _stack(parts):
     return r, (np.sum(gs, axis=0) if gs else None)
 
 
-def least_squares(design, w, free, fixed_vals, floor: float | None = None):
+def least_squares(design, w, free, fixed_vals, floor: float | None = None, known: bool = False):
     """The first-order weighted least-squares fit: (theta (p,), identifiability, first-order residual (m,))."""
-    idf, g = factor(design, w, free, fixed_vals, floor)
+    idf, g = factor(design, w, free, fixed_vals, floor, known)
     theta = np.zeros(len(free))
     theta[~free] = fixed_vals
     theta[free] = solve(idf, g)
