@@ -38,7 +38,7 @@ def plan(res: PlanResult) -> str:
              f"    chosen from: {j['candidates']} candidates (greedy D-optimal selection, then "
              f"{res.passes} exchange pass(es))",
              f"    program:     {res.kinematics} kinematics ({KINEMATICS_TEXT[res.kinematics]}; docs/plan.md); "
-             f"every pose and move {res.strokes.text()} from the ends of the strokes"]
+             f"every pose and move keeps {res.strokes.text()} from the ends of the strokes"]
     if res.random_D:
         lines.insert(2, f"    random plan: D = {_fmt_D(res.random_median, min(res.random_rank), res.r)} for "
                         f"{res.n} random poses (median of {len(res.random_D)})"
