@@ -85,6 +85,7 @@ def make_base(base: Path, run) -> None:
         (["simulate", "--instrument", "interferometer", "--n", "200", "--seed", "3", "--effect", "dx_x:x1=0.005",
           "-o", "{base}/iso2.csv"], "iso2.csv"),
         (["simulate", "--instrument", "ballbar", "--n", "200", "--seed", "4", "-o", "{base}/iso4.csv"], "iso4.csv"),
+        (["iso230-3-simulate", "{base}/iso3.csv", "--hours", "4", "--seed", "5"], "iso3.csv"),
     ]
     (base / "comp").mkdir(exist_ok=True)
     for argv, made in steps:
@@ -438,6 +439,22 @@ ISO_FILES = {   # iso230-2 / iso230-4: hostile variants of an interferometer's a
     "good": ("copy", "{base}/{which}.csv", OK),
 }
 ISO_COMMANDS = {"iso230-2": ("iso2", ["iso230-2", "{f}"]), "iso230-4": ("iso4", ["iso230-4", "{f}", "--rounds", "1"])}
+ISO3_FILES = {   # iso230-3: hostile variants of a simulated spindle test (five sensors, temperatures, spindle_rpm)
+    "NaN dz": ("csv-edit", ("iso3.csv", _cell("dz", "nan")), REFUSE),
+    "1e300 dx": ("csv-edit", ("iso3.csv", _cell("dx", 1e300)), REFUSE),
+    "text dx": ("csv-edit", ("iso3.csv", _cell("dx", "x")), REFUSE),
+    "2000 degC": ("csv-edit", ("iso3.csv", _cell("temp_air", 2000.0)), REFUSE),
+    "time back": ("csv-edit", ("iso3.csv", _cell("t", 0.0, 5)), REFUSE),
+    "um in mm": ("csv-edit", ("iso3.csv", lambda df: df.assign(dz=df["dz"] * 1000)), REFUSE),
+    "hours in t": ("csv-edit", ("iso3.csv", lambda df: df.assign(t=df["t"] / 3600)), REFUSE),
+    "stuck sensor": ("csv-edit", ("iso3.csv", lambda df: df.assign(dy=0.0)), REFUSE),
+    "no time": ("csv-edit", ("iso3.csv", lambda df: df.drop(columns=["t"])), REFUSE),
+    "one row": ("csv-edit", ("iso3.csv", lambda df: df.head(1)), REFUSE),
+    "empty": ("text", "", REFUSE), "fifo": ("fifo", None, REFUSE), "dev zero": ("symlink", "/dev/zero", REFUSE),
+    "binary": ("bytes", bytes(range(256)) * 16, REFUSE),
+    "blank temperature": ("csv-edit", ("iso3.csv", _cell("temp_air", "")), OK),
+    "good": ("copy", "{base}/iso3.csv", OK),
+}
 TOOLPATH_CSV = {   # lsa --toolpath X.csv
     "NaN": ("text", "X,Y,Z,A,B\n0,0,0,0,0\nnan,0,0,0,0\n", REFUSE),
     "1e300": ("text", "X,Y,Z,A,B\n0,0,0,0,0\n1e300,0,0,0,0\n", REFUSE),
@@ -489,6 +506,15 @@ OPTION_TRIALS = [   # (command argv, expect, names)
         ("--tolerance", "0"), ("--tolerance", "-1"), ("--tolerance", "nan"), ("--u-device", "-1"),
         ("--u-device", "inf"), ("--temperature-deviation", "nan"), ("--expansion-ppm-per-K", "1e300"),
         ("--misalignment", "-1"), ("--drift", "nan"), ("--frame", "sideways"))],
+    *[(["iso230-3", "{base}/iso3.csv", "--spacing", "100", o, v], REFUSE, (o,)) for o, v in (
+        ("--spindle-off", "nan"), ("--spindle-off", "-5"), ("--spindle-off", "1e9"), ("--spindle-speed", "-1"),
+        ("--test", "bogus"))],
+    (["iso230-3", "{base}/iso3.csv", "--spacing", "100", "--test", "etve"], REFUSE, ("spindle_rpm", "row")),
+    *[(["iso230-3", "{base}/iso3.csv", "--spacing", v], REFUSE, ("--spacing",)) for v in ("nan", "-1", "1e300")],
+    (["iso230-3", "{base}/iso3.csv"], REFUSE, ("--spacing",)),
+    *[(["iso230-3-simulate", "{out}/t.csv", o, v], REFUSE, (o,)) for o, v in (
+        ("--hours", "0"), ("--hours", "nan"), ("--hours", "1e9"), ("--interval", "0"), ("--seed", "-1"),
+        ("--speed", "inf"), ("--spacing", "0"), ("--run-hours", "-1"))],
     *[(["iso230-4", "{base}/iso4.csv", o, v], REFUSE, (o,)) for o, v in (
         ("--rounds", "-1"), ("--rounds", "x"), ("--feed", "0"), ("--feed", "nan"), ("--feed", "-5"))],
     (["lsa", "--pose", "X=nan,Y=0,Z=0,A=0,B=0"], REFUSE, ("--pose",)),
@@ -569,6 +595,9 @@ WRITERS = {
                     "--comp-points", "9"], "table.csv", ()),
     "derive": (["derive", "{base}/planar.toml", "--out", "{out}"], "planar.py", ("exists",)),
     "iso230-2 --plot": (["iso230-2", "{base}/iso2.csv", "--plot", "{out}"], "iso230-2_X_laser-X.png", ("exists",)),
+    "iso230-3 --plot": (["iso230-3", "{base}/iso3.csv", "--spacing", "100", "--plot", "{out}"],
+                        "iso230-3_spindle.png", ("exists",)),
+    "iso230-3-simulate": (["iso230-3-simulate", "{o}"], "t.csv", ()),
 }
 OUTPUT_CASES = ("dangling link", "link to a file", "under a file", "a folder", "exists")
 #: kill -9 while writing: (id, argv, reader argv, files that must come from one run); killed the moment a file in
@@ -623,6 +652,9 @@ def trials() -> list[Trial]:
                 content.replace("{which}", which) if isinstance(content, str) else content
             out.append(Trial(f"{cmd} measurements: {name}", cmd, argv, expect, ("{f}", "column", "row", "du"),
                              (maker, what), suffix=".csv"))
+    for name, (maker, content, expect) in ISO3_FILES.items():
+        out.append(Trial(f"iso230-3 file: {name}", "iso230-3", ["iso230-3", "{f}", "--spacing", "100"], expect,
+                         ("{f}", "column", "row"), (maker, content), suffix=".csv"))
     for name, (maker, content, expect) in TOOLPATH_CSV.items():
         out.append(Trial(f"lsa toolpath csv: {name}", "lsa", ["lsa", "--toolpath", "{f}"], expect,
                          ("{f}", "row", "column"), (maker, content), suffix=".csv"))
@@ -875,7 +907,7 @@ FAST = ("lsa ac_trunnion gcode: py", "lsa ac_trunnion gcode: ;py,", "lsa ac_trun
         "lsa ac_trunnion gcode: NUL", "lsa ac_trunnion gcode: o<abs path>", "gsa machine: dev zero",
         "names machine: fifo", "table2 machine: deep tables", "gsa --errors model: deep JSON",
         "lsa toolpath csv: NaN", "model output: dangling link", "simulate --n 10000000000 -o {out}/s.csv",
-        "compensate model: NaN literal", "sobol --bound inf")
+        "compensate model: NaN literal", "sobol --bound inf", "iso230-3 file: um in mm")
 
 
 def _uses_base(trial: Trial) -> bool:

@@ -100,4 +100,5 @@ def test_file_name_cannot_inject_code_into_a_generated_module(tmp_path):
     tree = ast.parse(module.read_text())
     imported = {a.name for node in ast.walk(tree) if isinstance(node, ast.Import) for a in node.names}
     assert "os" not in imported
-    assert module.read_text().splitlines()[1].startswith("# machine: planar (p\\nimport os")
+    # the name is reduced to a safe alphabet (outputs.comment_text): the line break and the quotes become '_'
+    assert module.read_text().splitlines()[1].startswith("# machine: planar (p_import os_ os.makedirs__PWNED__")

@@ -18,8 +18,9 @@ from fiveaxis.exceptions import InputError
 from fiveaxis.linuxcnc.rs274 import run as run_rs274
 from fiveaxis.measurement import instruments as ins
 from fiveaxis.measurement.files import read, write
-from fiveaxis.planning import motion, safety
+from fiveaxis.planning import files, motion, safety
 from fiveaxis.planning import plan as P
+from fiveaxis.report import plan_text
 
 from conftest import run_cli
 
@@ -199,7 +200,7 @@ def _to_segment(p, a, b):
 def stylus_points_clearance(tip, axis, centre):
     """The probe's stylus (its ball, and 81 points along its shank) against the sphere and its stem (a segment
     below the centre): the smallest gap (mm)."""
-    g = ins.PROBE
+    g = ins.REGISTRY["probe-sphere"].geometry
     s = np.linspace(0, g.shank_length_mm, 81)
     shank = tip[:, None, :] - s[None, :, None] * axis[:, None, :]
     stem_end = centre - np.array([0.0, 0.0, g.stem_length_mm])
@@ -300,7 +301,7 @@ def made(models, machine, instrument, tmp_path_factory, mode=None):
         d = tmp_path_factory.mktemp(f"{machine}-{instrument}-{mode}")
         prog = d / "plan.ngc"
         prog.write_text(motion.program(model, res.plan, res.setup_notes, "test", mode=res.kinematics))
-        csv = write(P.to_frame(res), d / "plan.csv")
+        csv = write(files.to_frame(res), d / "plan.csv")
         _MADE[key] = (res, prog, csv)
     return _MADE[key]
 
@@ -323,8 +324,10 @@ CASES = [(m, i) for m in MACHINES for i in PLANS] + [("li2018", "rtest", "tcp"),
                                                      ("ac_trunnion", "rtest", "joint"), ("ac_trunnion", "ballbar",
                                                                                           "joint")]
 CASES = [c if len(c) == 3 else (*c, None) for c in CASES]
-LIMIT_OF = {"rtest": ins.RTEST.limit_mm, "ballbar": ins.BALLBAR.limit_mm, "probe-sphere": ins.PROBE.clearance_limit_mm,
-            "interferometer": ins.INTERFEROMETER.limit_mm, "tracker": ins.TRACKER.limit_deg}
+GEOMETRY = {name: r.geometry for name, r in ins.REGISTRY.items()}
+LIMIT_OF = {"rtest": GEOMETRY["rtest"].limit_mm, "ballbar": GEOMETRY["ballbar"].limit_mm,
+            "probe-sphere": GEOMETRY["probe-sphere"].clearance_limit_mm,
+            "interferometer": GEOMETRY["interferometer"].limit_mm, "tracker": GEOMETRY["tracker"].limit_deg}
 
 
 @pytest.mark.parametrize("machine, instrument, mode", CASES)
@@ -339,7 +342,7 @@ def test_every_move_keeps_the_instrument_within_its_limits(rs274, models, tmp_pa
     assert f"kinematics={mode}" in prog.read_text()
     back = read(csv, model.machine, readings_required=False)
     chk = safety.check(prog, model, instrument, plan_poses=back.poses, plan_L=back.L)
-    assert chk.ok, safety.report(chk)
+    assert chk.ok, plan_text.check(chk)
     assert chk.kinematics == mode and chk.kinematics_source == "the program's header"
     steps = reference(machine, model, prog, mode, model.machine.tool_length)
     ind = independent_worst(machine, model, steps, instrument)
@@ -352,7 +355,7 @@ def test_every_move_keeps_the_instrument_within_its_limits(rs274, models, tmp_pa
             assert ind["rapids"] == 0                                      # no G0 with the sphere on the table
             assert theirs >= LIMIT_OF[instrument] and mine >= LIMIT_OF[instrument]
             assert abs(mine - theirs) <= 0.05, (mine, theirs)              # the reference's shank is 81 points
-            assert ind["clearance_rotary"][0] >= ins.PROBE.near_mm
+            assert ind["clearance_rotary"][0] >= GEOMETRY["probe-sphere"].near_mm
             assert abs(chk.worst[1].value - ind["clearance_rotary"][0]) <= 0.05
         else:
             if instrument == "interferometer":
@@ -471,7 +474,7 @@ def test_an_edited_program_that_breaks_a_limit_is_refused_with_line_and_deviatio
     if kind == "stroke":
         assert value == pytest.approx(1.5, abs=1e-3) and ind["stroke"] == pytest.approx(1.5, abs=1e-3)
     elif kind == "probe_rapid":
-        assert value < ins.PROBE.near_mm and ind["rapids"] == 1
+        assert value < GEOMETRY["probe-sphere"].near_mm and ind["rapids"] == 1
         assert ind["by_line"][edited] == pytest.approx(value, abs=0.05)
     else:
         assert ind["by_line"][edited] == pytest.approx(value, rel=0.02, abs=2e-3), (value, ind["by_line"][edited])
@@ -516,7 +519,7 @@ def test_plan_writes_a_checked_program_and_check_reports_it(rs274, tmp_path, cap
     import json
     j = json.loads(stdout)
     assert j["ok"] and j["kinematics"] == "tcp" and j["instrument"] == "rtest"
-    assert j["limits"][0]["worst"] <= ins.RTEST.limit_mm and j["strokes"]["moves_outside"] == 0
+    assert j["limits"][0]["worst"] <= GEOMETRY["rtest"].limit_mm and j["strokes"]["moves_outside"] == 0
     assert j["poses"]["marked"] == 12 and j["poses"]["max_linear_mm"] <= 1e-6
     rc, _, err = run_cli(capsys, "plan", "--check", tmp_path / "rt.ngc", "--machine", "ac_trunnion",
                          "--instrument", "ballbar")

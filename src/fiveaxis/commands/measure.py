@@ -11,10 +11,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import InputError
+from ..exceptions import InputError, one_line
+from ..compensation import plausible
 from ..diagnosis import preconditions
 from ..estimation import design_size
-from ..measurement.instruments import NAMES as INSTRUMENTS
+from ..measurement import instruments as ins
 from ..model.columns import FRAMES, MAX_AXIS_DEVIATION, MAX_DEVIATION_MM, MAX_TOOL_LENGTH_MM, SETUP_KINDS
 
 
@@ -91,7 +92,7 @@ def register_simulate(p):
     p.add_argument("--effect", action="append", default=[], metavar="EFFECT[=VALUE]",
                    help="hidden effect, e.g. ex_x:x1=2e-5 (VALUE: change at the end of the stroke, mm or rad; "
                         "default 20 urad or 10 um); repeatable")
-    p.add_argument("--instrument", default="tip", choices=INSTRUMENTS,
+    p.add_argument("--instrument", default="tip", choices=ins.names(),
                    help="what is measured, with its standard plan: tip (random poses, 3-D tip; default), rtest, "
                         "probe-sphere, ballbar, interferometer, tracker (docs/measurements.md)")
     p.add_argument("--poses", type=Path, default=None, metavar="FILE",
@@ -192,6 +193,16 @@ def _prior(model, specs):
     return priors.spec_from(model.machine, [s for s in specs if s not in files], fm, files[0] if files else "")
 
 
+def _implausible(fm, model, path, record: dict) -> None:
+    """What the fit holds that no machine shows (compensation.plausible): one warning line with the hint "did you
+    write um in a mm column?", also in the record (`warnings`). compensate refuses such a model."""
+    found = plausible.model_findings(fm, model.machine)
+    if found:
+        line = f"{path}: {plausible.unit_slip(found)}"
+        record.setdefault("warnings", []).append(line)
+        print(f"fiveaxis: warning: {one_line(line)}", file=sys.stderr)
+
+
 def _resolution(specs) -> dict:
     """--resolution COLUMN=STEP (mm, deg) as {column: step}."""
     out = {}
@@ -268,11 +279,13 @@ def run_fit(args) -> int:
     with _where_blocks(args) as in_blocks:
         res = F.fit(model, meas, effects, refine=not args.first_order, fixed=fixed, in_blocks=in_blocks,
                     prior=prior)
+    from ..estimation.fitted_model import from_fit, save
+    fm = from_fit(res)
     if args.output is not None:
-        from ..estimation.fitted_model import from_fit, save
-        save(from_fit(res), args.output, force=args.force)
-        print(f"fiveaxis: wrote {args.output}", file=sys.stderr)
+        save(fm, args.output, force=args.force)
+        print(f"fiveaxis: wrote {one_line(args.output)}", file=sys.stderr)
     j = to_json(res)
+    _implausible(fm, model, args.file, j)
     if args.json:
         _dump(j)
     else:
@@ -297,6 +310,8 @@ def run_diagnose(args) -> int:
         path = plot_residuals(dgs[-1], args.plot)
         print(f"fiveaxis: wrote {path}", file=sys.stderr)
     js = [dg.to_json() for dg in dgs]
+    from ..estimation.fitted_model import from_fit
+    _implausible(from_fit(dgs[0].fit), model, args.file, js[0])         # the data as given: a unit slip
     if args.json:
         _dump(js[0] if args.rounds == 1 else {"rounds": js})
     else:
@@ -361,8 +376,9 @@ def run_simulate(args) -> int:
         value = getattr(args, key)
         if value is None:
             continue
-        if args.instrument != "interferometer" or args.poses is not None:
-            raise InputError(f"--{key}: an option of the interferometer's standard plan (--instrument interferometer)")
+        owner = next(r for r in ins.REGISTRY.values() if key in r.plan_options)
+        if owner.name != args.instrument or args.poses is not None:
+            raise InputError(f"--{key}: an option of the {owner.name}'s standard plan (--instrument {owner.name})")
         options[key] = [a.strip() for a in value.split(",")] if key == "axes" else value
     errors = {}
     for spec in args.error:

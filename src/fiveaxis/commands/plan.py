@@ -16,11 +16,13 @@ from ..exceptions import InputError
 
 
 def register_plan(p):
-    from ..planning.plan import MAX_POSES, NOISE_MM, PLANNERS
+    from ..measurement.instruments import planners
+    from ..planning.plan import MAX_POSES
+    from ..planning.pool import NOISE_MM
     from ..linuxcnc.program import DWELL_S, FEED_MM_MIN, KINEMATICS
     p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
     p.add_argument("--convention", default="equations", help="convention of the machine file (default: equations)")
-    p.add_argument("--instrument", default=None, choices=PLANNERS,
+    p.add_argument("--instrument", default=None, choices=planners(),
                    help="what will measure: tip (any pose, 3-D tool tip; default), rtest and probe-sphere (tool tip "
                         "on a sphere), ballbar (circles), interferometer (along an axis), tracker (stations); with "
                         "--check: default the program's own")
@@ -74,6 +76,7 @@ def run_check(args) -> int:
     from ..model.machine import load_machine
     from ..measurement.files import read
     from ..planning import safety
+    from ..report import plan_text
     for opt in ("output", "n", "gcode"):
         if getattr(args, opt) is not None:
             raise InputError(f"--check: --{opt.replace('output', 'output/-o')} is for planning, not for checking a "
@@ -91,7 +94,7 @@ def run_check(args) -> int:
         meas = read(args.poses, model.machine, readings_required=False)
         poses, L = meas.poses, meas.L
     res = safety.check(args.check, model, instrument, args.kinematics, args.tool_length, poses, L)
-    print(json.dumps(safety.to_json(res), indent=1) if args.json else safety.report(res))
+    print(json.dumps(safety.to_json(res), indent=1) if args.json else plan_text.check(res))
     if not res.ok:
         raise InputError(f"refused: {safety.first_problem(res)}")
     return 0
@@ -99,7 +102,9 @@ def run_check(args) -> int:
 
 def run_plan(args) -> int:
     from ..planning import plan as P
-    from ..planning import motion, safety
+    from ..planning import files, motion, safety
+    from ..planning.pool import check_host
+    from ..report import plan_text
     from ..model.error_model import load
     from ..model.machine import load_machine
     from ..measurement.files import write
@@ -131,7 +136,7 @@ def run_plan(args) -> int:
     if not (args.dwell >= 0 and args.dwell < float("inf")):
         raise InputError(f"--dwell: expected a finite time >= 0 s, got {args.dwell}")
     machine = load_machine(args.machine)
-    P.check_host(machine, instrument)              # before any derivation of a machine that cannot host it
+    check_host(machine, instrument)                # before any derivation of a machine that cannot host it
     mode = args.kinematics or default_mode(machine)
     check_mode(machine, mode)
     model = load(machine, args.convention)
@@ -152,12 +157,12 @@ def run_plan(args) -> int:
         out["program_check"] = safety.to_json(chk)
         print(json.dumps(out, indent=1))
     else:
-        print(P.report(res))
-        print(safety.report(chk))
+        print(plan_text.plan(res))
+        print(plan_text.check(chk))
     if not chk.ok:                                 # never happens on a shipped machine (tests); refuse to write it
         raise InputError(f"the program for this plan would not keep the instrument safe; nothing written: "
                          f"{safety.first_problem(chk)}")
-    path = write(P.to_frame(res), args.output, force=args.force)
+    path = write(files.to_frame(res), args.output, force=args.force)
     write_text(gcode, text, force=args.force)
     print(f"fiveaxis: wrote {path}: {res.n} poses ({instrument}, {res.plan.frame} frame); "
           f"`fiveaxis simulate --poses {path} --machine {args.machine}` simulates them", file=sys.stderr)

@@ -335,7 +335,8 @@ def to_json(fm: FittedModel, folder=None) -> dict:
     for tok, sc in fm.scales.items():
         unit = _SCALE_UNIT[sc.unit]
         scales[tok] = {"variable": sc.column if sc.column is not None else "t",
-                       f"centre_{unit}": float(sc.centre), f"half_range_{unit}": float(sc.half)}
+                       f"centre_{unit}": float(sc.centre), f"half_range_{unit}": float(sc.half),
+                       **({f"range_{unit}": [float(x) for x in sc.span]} if sc.span else {})}
     effects = []
     for e in fm.effects:
         rec = {"id": e.id, "kind": e.kind, "param": e.param, **fx.family(e.kind).write_json(e)}
@@ -427,7 +428,13 @@ def load(path) -> FittedModel:
             raise InputError(f"{where}: key 'half_range_{unit}': expected a positive number, got {half}")
         iface, to_unit = {"mm": ("mm", 1.0), "rad": ("deg", 180.0 / math.pi), "s": ("s", 1.0),
                           "degC": ("degC", 1.0)}[unit]
-        scales[tok] = fx.Scale(tok, None if var == "t" else var, centre, half, iface, to_unit)
+        span = sc.get(f"range_{unit}")
+        if span is not None and not (isinstance(span, list) and len(span) == 2 and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in span)):
+            raise InputError(f"{where}: key 'range_{unit}': expected [lowest, highest] reading, got "
+                             f"{json.dumps(span)[:40]}")
+        scales[tok] = fx.Scale(tok, None if var == "t" else var, centre, half, iface, to_unit,
+                               tuple(float(x) for x in span) if span else None)
     effects = []
     for i, e in enumerate(_get(data, "effects", "list", w)):
         where = f"{w}: effects[{i}]"

@@ -8,8 +8,8 @@ tcp mode linear in world coordinates; G2/G3 on their circle, the other axes line
 arc_points`), at least MIN_SAMPLES points per move and one every STEP_MM mm / STEP_DEG deg of the program's
 coordinates (SPARSE times fewer where nothing is mounted); tcp samples become joints by the nominal inverse
 kinematics. At every sample the nominal chain
-gives the tool tip and axis (workpiece frame), and the instrument's quantities are compared with its limits
-(`LIMITS`, a table per instrument; the geometry is `fiveaxis.measurement.instruments`'s).
+gives the tool tip and axis (workpiece frame), and the instrument's quantities are compared with its limits (its
+record's `limits`, `fiveaxis.measurement.instruments`).
 
 What the instrument is, and when, comes from the program's machine-readable comments (fiveaxis.planning.motion
 writes them):
@@ -44,7 +44,7 @@ from ..linuxcnc import rs274
 from ..linuxcnc.program import KINEMATICS, check_mode, poses_of
 from ..linuxcnc.program import letters as program_letters
 from ..measurement import instruments as ins
-from ..model import frames
+from ..measurement.instruments.base import numbers
 from ..sensitivity.toolpath import arc_points, move_samples
 
 #: Sampling of the moves: at most this far apart in the program's linear (mm) and rotary (deg) coordinates, and at
@@ -65,85 +65,6 @@ PROBE_LINE_TOL_MM = 5e-4
 MAX_LISTED = 20
 
 
-@dataclass(frozen=True)
-class Limit:
-    """One limit of an instrument: a quantity (key of QUANTITIES) that must stay at or below (bound "max") or at or
-    above ("min") a value, at the samples `when` selects: "mounted" (the instrument mounted, outside probing
-    moves), "rotary" (those of moves that turn a rotary axis), "rapid" (those of G0 moves), "probing" (probing
-    moves and their retracts)."""
-    name: str
-    quantity: str
-    bound: str
-    limit: float
-    unit: str
-    when: str
-
-
-_P = ins.PROBE
-LIMITS = {
-    "tip": (),
-    "rtest": (Limit("tip distance from the sphere centre", "centre_distance", "max", ins.RTEST.limit_mm, "mm",
-                    "mounted"),),
-    "ballbar": (Limit("bar length change", "bar_change", "max", ins.BALLBAR.limit_mm, "mm", "mounted"),),
-    "probe-sphere": (
-        Limit("stylus clearance outside probing moves", "clearance", "min", _P.clearance_limit_mm, "mm", "mounted"),
-        Limit("stylus clearance while a rotary axis moves", "clearance", "min", _P.near_mm, "mm", "rotary"),
-        Limit("stylus clearance on G0 rapids", "clearance", "min", _P.near_mm, "mm", "rapid"),
-        Limit("rotary motion during probing", "probe_rotation", "max", 1e-3, "deg", "probing")),
-    "interferometer": (
-        Limit("reflector off the beam line", "beam_offset", "max", ins.INTERFEROMETER.limit_mm, "mm", "mounted"),
-        Limit("rotary motion with the beam set up", "beam_rotation", "max", ins.INTERFEROMETER.rotary_limit_deg,
-              "deg", "mounted")),
-    "tracker": (Limit("line of sight off the reflector's axis", "sight_angle", "max", ins.TRACKER.limit_deg, "deg",
-                      "mounted"),),
-}
-#: What a mount comment must give, per instrument: key -> number of values.
-MOUNT_KEYS = {"rtest": {"centre": 3}, "probe-sphere": {"centre": 3}, "ballbar": {"pivot": 3, "length": 1},
-              "interferometer": {"axis": 0}, "tracker": {"station": 3}, "tip": {}}
-
-
-# -- geometry -----------------------------------------------------------------------------------------------------
-def _point_segment(p, a, b) -> np.ndarray:
-    """Distances (n,) of points p (n, 3) from segments a-b (n, 3 or 3)."""
-    d = b - a
-    t = np.clip(np.sum((p - a) * d, axis=-1) / np.maximum(np.sum(d * d, axis=-1), 1e-300), 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[..., None] * d), axis=-1)
-
-
-def _segment_segment(p0, p1, q0, q1) -> np.ndarray:
-    """Distances (n,) between segments p0-p1 and q0-q1 (each (n, 3) or (3,)): the closest points' distance, by
-    minimising over one parameter and clipping (Ericson, Real-Time Collision Detection 5.1.9)."""
-    p0, p1, q0, q1 = np.broadcast_arrays(*(np.asarray(x, float) for x in (p0, p1, q0, q1)))
-    d1, d2, r = p1 - p0, q1 - q0, p0 - q0
-    a, e = np.sum(d1 * d1, -1), np.sum(d2 * d2, -1)
-    f, c, b = np.sum(d2 * r, -1), np.sum(d1 * r, -1), np.sum(d1 * d2, -1)
-    den = a * e - b * b
-    s = np.where(den > 1e-12 * np.maximum(a * e, 1e-300), np.clip((b * f - c * e) / np.where(den > 0, den, 1), 0, 1),
-                 0.0)
-    t = (b * s + f) / np.maximum(e, 1e-300)
-    s = np.where(t < 0, np.clip(-c / np.maximum(a, 1e-300), 0, 1), np.where(t > 1, np.clip((b - c) /
-                                                                                          np.maximum(a, 1e-300), 0, 1),
-                                                                             s))
-    t = np.clip(t, 0, 1)
-    return np.linalg.norm((p0 + s[..., None] * d1) - (q0 + t[..., None] * d2), axis=-1)
-
-
-def stylus_clearance(tip, axis, centre) -> np.ndarray:
-    """Clearance (n,) mm between the probe's stylus (ball at the tip, shank from it towards the spindle along the
-    tool axis) and the sphere with its stem (from the centre down, -z of the workpiece frame), all in the
-    workpiece frame: the least of ball-sphere, shank-sphere, ball-stem and shank-stem."""
-    g = ins.PROBE
-    tip = np.atleast_2d(tip)
-    shank_end = tip - g.shank_length_mm * np.atleast_2d(axis)
-    c = np.asarray(centre, float)
-    stem_end = c - np.array([0.0, 0.0, g.stem_length_mm])
-    return np.min(np.stack([
-        np.linalg.norm(tip - c, axis=1) - g.sphere_radius_mm - g.ball_radius_mm,
-        _point_segment(np.broadcast_to(c, tip.shape), tip, shank_end) - g.sphere_radius_mm - g.shank_radius_mm,
-        _point_segment(tip, c, stem_end) - g.stem_radius_mm - g.ball_radius_mm,
-        _segment_segment(tip, shank_end, c, stem_end) - g.stem_radius_mm - g.shank_radius_mm]), axis=0)
-
-
 # -- what the program says ----------------------------------------------------------------------------------------
 _TAG = re.compile(r"^\s*fiveaxis\s*:\s*(\w+)\s*(.*)$", re.IGNORECASE)
 
@@ -159,16 +80,6 @@ def parse_tag(text: str):
             k, v = part.split("=", 1)
             values[k.lower()] = v
     return m.group(1).lower(), values
-
-
-def _numbers(text: str, count: int, where: str, key: str) -> np.ndarray:
-    try:
-        vals = np.array([float(x) for x in text.split(",")])
-    except ValueError:
-        vals = np.array([])
-    if len(vals) != count or not np.all(np.isfinite(vals)):
-        raise InputError(f"{where}: {key}={text}: expected {count} number(s) separated by commas")
-    return vals
 
 
 def header(path) -> dict:
@@ -187,7 +98,7 @@ def header(path) -> dict:
 @dataclass
 class Worst:
     """The worst value of one limit over the samples it applies to (None when none does), and where."""
-    limit: Limit
+    limit: ins.Limit
     value: float | None = None
     line: int = 0
     samples: int = 0
@@ -233,8 +144,9 @@ def check(path, model, instrument: str, kinematics: str | None = None, tool_leng
     that does not state it (default: its `tool` comments, else the machine's L0); plan_poses (n, nvar; mm, rad)
     and plan_L (n,): a plan's poses, compared with the program's measuring poses."""
     path = Path(path)
-    if instrument not in LIMITS:
-        raise InputError(f"instrument '{instrument}': expected one of {', '.join(LIMITS)}")
+    if instrument not in ins.planners():
+        raise InputError(f"instrument '{instrument}': expected one of {', '.join(ins.planners())}")
+    rec = ins.REGISTRY[instrument]
     head = header(path)
     if head.get("instrument") and head["instrument"] != instrument:
         raise InputError(f"{path}: the program is for instrument {head['instrument']}, not {instrument}")
@@ -252,10 +164,10 @@ def check(path, model, instrument: str, kinematics: str | None = None, tool_leng
     check_mode(model.machine, kinematics)
     prog = rs274.interpret(path, probes=True)
     res = CheckResult(path, model.machine.name, instrument, kinematics, source,
-                      worst=[Worst(lim) for lim in LIMITS[instrument]], program=prog)
-    _run(prog, model, instrument, kinematics, tool_length, res)
+                      worst=[Worst(lim) for lim in rec.limits], program=prog)
+    _run(prog, model, rec, kinematics, tool_length, res)
     if plan_poses is not None:
-        res.pose_check = compare_poses(res, model, instrument, np.asarray(plan_poses, float), plan_L)
+        res.pose_check = compare_poses(res, model, rec, np.asarray(plan_poses, float), plan_L)
     return res
 
 
@@ -281,7 +193,7 @@ class _Segment:
     moving: bool               # a rotary axis turns
 
 
-def _run(prog, model, instrument, mode, tool_length, res):
+def _run(prog, model, rec, mode, tool_length, res):
     """Walk the program (events, moves) into segments of samples, then evaluate every sample on the nominal chain at
     once and account the strokes and the limits per move."""
     machine = model.machine
@@ -331,7 +243,7 @@ def _run(prog, model, instrument, mode, tool_length, res):
         if name == "tool":
             if "length" not in vals:
                 raise InputError(f"{where}: a tool comment without length=")
-            L_new = float(_numbers(vals["length"], 1, where, "length")[0])
+            L_new = float(numbers(vals["length"], 1, where, "length")[0])
             if state["mounted"] is not None:
                 res.problems.append((ev.line, "tool change with the instrument mounted"))
             if tool_length is None:
@@ -343,14 +255,7 @@ def _run(prog, model, instrument, mode, tool_length, res):
             if not segs:                   # its reference pose: the first move's end
                 res.problems.append((ev.line, "mounted before any move: the first move starts wherever the machine "
                                               "is, its path unknown"))
-            ref = {"line": ev.line, "at": max(len(segs) - 1, 0)}
-            for key, count in MOUNT_KEYS[instrument].items():
-                if key not in vals:
-                    raise InputError(f"{where}: a {instrument} mount comment without {key}=")
-                ref[key] = vals[key].upper() if count == 0 else _numbers(vals[key], count, where, key)
-            if instrument == "interferometer" and (ref["axis"] not in model.variables or
-                                                   machine.axis(ref["axis"]).type != "linear"):
-                raise InputError(f"{where}: axis={ref['axis']}: expected a linear axis of {machine.name}")
+            ref = {"line": ev.line, "at": max(len(segs) - 1, 0), **rec.read_mount(vals, machine, where)}
             refs.append(ref)
             state["mounted"] = ref
             if segs:
@@ -419,10 +324,10 @@ def _run(prog, model, instrument, mode, tool_length, res):
     if state["mounted"] is not None:
         res.problems.append((state["mounted"]["line"], "mounted and never removed"))
     if segs:
-        _evaluate(res, model, instrument, mode, segs, refs, marks)
+        _evaluate(res, model, mode, segs, refs, marks)
 
 
-def _evaluate(res, model, instrument, mode, segs, refs, marks):
+def _evaluate(res, model, mode, segs, refs, marks):
     """Every sample on the nominal chain at once; the strokes and each limit, worst per move."""
     machine = model.machine
     sizes = np.array([len(sg.pts) for sg in segs])
@@ -434,14 +339,9 @@ def _evaluate(res, model, instrument, mode, segs, refs, marks):
     res.samples = len(q)
     lines = np.array([sg.line for sg in segs])
     seg_of = np.repeat(np.arange(len(segs)), sizes)
-    for ref in refs:                                       # what a mount fixed: the pose, tip, beam direction
+    for ref in refs:                                       # what a mount fixed: the pose and tool tip
         j = starts[ref["at"]] + sizes[ref["at"]] - 1
         ref["q"], ref["tip"] = q[j], tip[j]
-        if instrument == "interferometer":
-            d = np.asarray(machine.axis(ref["axis"]).direction, float)
-            d = d / np.linalg.norm(d)
-            ref["u"] = frames.to_workpiece(machine, q[j][None, :], d[None, :])[0] \
-                if frames.has_workpiece_rotation(machine) else d
     for n, line, k in marks:
         res.poses.setdefault(n, (line, q[starts[k] + sizes[k] - 1], segs[k].L))
     # strokes
@@ -487,7 +387,7 @@ def _evaluate(res, model, instrument, mode, segs, refs, marks):
         if lim.when != "probing":
             for ks in groups.values():
                 idx = np.concatenate([np.arange(starts[k], starts[k] + sizes[k]) for k in ks])
-                vals[idx] = _quantities(lim.quantity, model, q[idx], tip[idx], axis[idx], segs[ks[0]].ref)
+                vals[idx] = lim.measure(model, q[idx], tip[idx], axis[idx], segs[ks[0]].ref)
         for k in np.flatnonzero(use):
             v = vals[starts[k]:starts[k] + sizes[k]]
             w.samples += len(v)
@@ -508,35 +408,8 @@ def _point_line(p, a, d) -> float:
     return float(np.linalg.norm(np.cross(p - a, d / nd)))
 
 
-def _quantities(name, model, q, tip, axis, ref) -> np.ndarray:
-    """The quantity `name` at samples (tips, axes in the workpiece frame) for the mounted reference ref."""
-    if name == "centre_distance":
-        return np.linalg.norm(tip - ref["centre"], axis=1)
-    if name == "bar_change":
-        return np.abs(np.linalg.norm(tip - ref["pivot"], axis=1) - ref["length"][0])
-    if name == "clearance":
-        return stylus_clearance(tip, axis, ref["centre"])
-    if name == "beam_offset":
-        u = ref["u"]
-        r = tip - ref["tip"]
-        return np.linalg.norm(r - (r @ u)[:, None] * u[None, :], axis=1)
-    if name == "beam_rotation":
-        rot = [i for i, v in enumerate(model.variables) if model.machine.axis(v).type == "rotary"]
-        return np.degrees(np.max(np.abs(q[:, rot] - ref["q"][rot]), axis=1)) if rot else np.zeros(len(q))
-    if name == "sight_angle":
-        machine = model.machine
-        if frames.has_workpiece_rotation(machine):
-            tip_m, axis_m = frames.to_machine(machine, q, tip), frames.to_machine(machine, q, axis)
-        else:
-            tip_m, axis_m = tip, axis
-        los = ref["station"] - tip_m
-        c = np.sum(los * axis_m, axis=1) / np.linalg.norm(los, axis=1) / np.linalg.norm(axis_m, axis=1)
-        return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
-    raise ValueError(name)
-
-
 # -- the measuring poses against a plan ---------------------------------------------------------------------------
-def compare_poses(res: CheckResult, model, instrument: str, poses: np.ndarray, L=None) -> dict:
+def compare_poses(res: CheckResult, model, rec, poses: np.ndarray, L=None) -> dict:
     """The program's measuring poses (its `pose` markers) against a plan's: every plan pose marked exactly once,
     the largest difference of the linear axes (mm) and rotary axes (deg). probe-sphere: the plan's pose is the
     sphere centre at the rotary positions, which the program never visits; it is compared with the five probing
@@ -553,18 +426,18 @@ def compare_poses(res: CheckResult, model, instrument: str, poses: np.ndarray, L
         if not 1 <= k <= n:
             continue
         line, q, Lk = res.poses[k]
-        if instrument == "probe-sphere":
+        if rec.probes:
             continue
         d = np.abs(q - poses[k - 1])
         d_mm = max(d_mm, float(np.max(d[~rot], initial=0.0)))
         d_deg = max(d_deg, float(np.degrees(np.max(d[rot], initial=0.0))))
     out = {"poses": n, "marked": len(marked), "missing": missing[:MAX_LISTED], "extra": extra[:MAX_LISTED],
            "max_linear_mm": d_mm, "max_rotary_deg": d_deg}
-    if instrument == "probe-sphere":
+    if rec.probes:
         out.update(_probe_poses(res, model, poses, L))
         d_mm, d_deg = out["max_line_offset_mm"], out["max_rotary_deg"]
-    out["ok"] = not missing and not extra and d_mm <= (PROBE_LINE_TOL_MM if instrument == "probe-sphere" else
-                                                       POSE_TOL_MM) and d_deg <= POSE_TOL_DEG
+    out["ok"] = not missing and not extra and d_mm <= (PROBE_LINE_TOL_MM if rec.probes else POSE_TOL_MM) and \
+        d_deg <= POSE_TOL_DEG
     return out
 
 
@@ -601,7 +474,7 @@ def _probe_poses(res, model, poses, L) -> dict:
     return {"max_line_offset_mm": off, "max_rotary_deg": deg, "without_five_probes": short[:MAX_LISTED]}
 
 
-# -- reports --------------------------------------------------------------------------------------------------------
+# -- records --------------------------------------------------------------------------------------------------------
 def to_json(res: CheckResult) -> dict:
     """The check as a record (mm, degrees)."""
     fin = (lambda x: None if x is None or not math.isfinite(x) else x)
@@ -618,46 +491,6 @@ def to_json(res: CheckResult) -> dict:
             "setup_changes": res.setup_changes, "tool_lengths_mm": res.tool_lengths,
             "problems": [{"line": ln, "what": t} for ln, t in res.problems[:MAX_LISTED]],
             "poses": res.pose_check, "ok": res.ok}
-
-
-def report(res: CheckResult) -> str:
-    """The check for people: the kinematics assumed, the worst value of each limit and where, the strokes, the
-    setup changes, the measuring poses, the verdict."""
-    out = [f"[[Check]] {res.path}: {res.instrument} on {res.machine}, {res.kinematics} kinematics (from "
-           f"{res.kinematics_source}); {res.moves} moves sampled at {res.samples} points (every {STEP_MM:g} mm / "
-           f"{STEP_DEG:g} deg, {SPARSE * STEP_MM:g} mm / {SPARSE * STEP_DEG:g} deg with nothing mounted, at least "
-           f"{MIN_SAMPLES} per move) on the nominal chain"]
-    for w in res.worst:
-        lim = w.limit
-        rel = "at most" if lim.bound == "max" else "at least"
-        if w.value is None:
-            out.append(f"    {lim.name}: no sample applies (limit: {rel} {lim.limit:g} {lim.unit})")
-        else:
-            out.append(f"    {lim.name}: worst {w.value:.4g} {lim.unit} at line {w.line} (limit: {rel} "
-                       f"{lim.limit:g} {lim.unit}){'' if w.ok else f'  EXCEEDED in {w.violations} move(s)'}")
-    if res.stroke_excess <= 1e-6:
-        out.append(f"    strokes: every sample within; smallest margin {max(0.0, -res.stroke_excess):.4g} "
-                   f"{res.stroke_unit} ({res.stroke_axis}, line {res.stroke_line})")
-    else:
-        out.append(f"    strokes: {res.stroke_violations} move(s) outside; worst {res.stroke_axis} "
-                   f"{res.stroke_excess:.4g} {res.stroke_unit} beyond its stroke at line {res.stroke_line}")
-    out.append(f"    setup changes: {res.setup_changes} (tool, mount, unmount)")
-    pc = res.pose_check
-    if pc is not None:
-        if res.instrument == "probe-sphere":
-            out.append(f"    measuring poses: {pc['marked']} of {pc['poses']} marked; probing lines within "
-                       f"{pc['max_line_offset_mm']:.2g} mm of the planned sphere centres, rotary axes within "
-                       f"{pc['max_rotary_deg']:.2g} deg of the plan")
-        else:
-            out.append(f"    measuring poses: {pc['marked']} of {pc['poses']} marked; largest difference from the "
-                       f"plan {pc['max_linear_mm']:.2g} mm, {pc['max_rotary_deg']:.2g} deg")
-        if pc["missing"]:
-            out.append(f"    not measured: pose(s) {', '.join(map(str, pc['missing']))}")
-    for ln, text in res.problems[:MAX_LISTED]:
-        out.append(f"    line {ln}: {text}")
-    out.append("    verdict: " + ("every move keeps the instrument within its limits and the axes within their "
-                                  "strokes" if res.ok else "REFUSED"))
-    return "\n".join(out)
 
 
 def first_problem(res: CheckResult) -> str:

@@ -267,8 +267,9 @@ def diagnosis(j: dict) -> str:
             groups = " | ".join(", ".join(g) for g in tip["separates"])
             lines.append(f"        measuring with {tip['measure']} would separate: {groups}")
         if c["aliases"] and "separate_by" in c and not c["separate_by"]:
-            lines.append("        neither another tool length nor wider axis ranges would separate them (their columns stay "
-                         "parallel)")
+            lines.append("        neither another tool length nor wider axis ranges would tell these candidate effects apart "
+                         "(their columns stay parallel); which fitted errors an extra measurement determines is "
+                         "another question (fiveaxis report)")
     if j.get("hidden_by_placement"):
         hid = j["hidden_by_placement"]
         lines.append(f"[[Not visible with this placement]] {len(hid)} candidate(s) the setups' placement unknowns "
@@ -420,6 +421,15 @@ def compensation(rec: dict, folder: str = "") -> str:
             lines.append(f"    {label:56s} {1e3 * s['max']:8.3f} {1e3 * s['rms']:8.3f} {1e3 * s['p95']:8.3f}")
     lines.append(f"  tool-axis error RMS (urad, model estimates): before {1e6 * ax['before']['rms']:.3g}, after the "
                  f"table {1e6 * ax['after_table']['rms']:.3g} (damping {tab['damping']:g} near singular poses)")
+    warm = rec.get("predicted_at_temperatures")
+    if warm:
+        temps = ", ".join(f"{k} {v:g} degC (reference {warm['references_degC'][k]:g})"
+                          for k, v in warm["temperatures_degC"].items())
+        lines.append(f"  at {temps}: predicted tool-tip error RMS (um):")
+        for label, key in rows:
+            if key in warm["tip_error_mm"]:
+                lines.append(f"    {label:56s} {1e3 * warm['tip_error_mm'][key]['rms']:8.3f}")
+        lines.append(f"  {rec['not_compensated']['temperature_note']}")
     lines += prediction_lines(rec.get("prediction_uncertainty", {}), rec.get("prediction_warnings", []))
     if lengths is not None:
         lines.append(f"  tool lengths (mm) {', '.join(f'{x:g}' for x in lengths)} (first grid dimension); "
