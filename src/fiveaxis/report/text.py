@@ -267,7 +267,9 @@ def compensation(rec: dict, folder: str = "") -> str:
              f"{rec['tool_length_mm']:g} mm",
              f"  table: {grid} = {tab['size']} nodes over the strokes ({', '.join(dims)}); exact-model residual at "
              f"the nodes <= {tab['nodes_max_tip_residual_mm']:.1e} mm",
-             f"  predicted tool-tip error over {rec['workspace']['poses']} random poses (um):   max      RMS      p95"]
+             f"  predicted tool-tip error over {rec['workspace']['poses']} random poses (um):   max      RMS      p95"
+             + ("   RMS after the part's set-up" if "predicted_tip_error_setup_removed_mm" in rec else "")]
+    setup = rec.get("predicted_tip_error_setup_removed_mm", {})
     what = lc["kinematics"] + " + " if lc.get("kinematics") else ""
     rows = [("before", "before"),
             (f"after LinuxCNC ({what}{len(lc['comp_files'])} comp files)", "after_linuxcnc"),
@@ -277,7 +279,8 @@ def compensation(rec: dict, folder: str = "") -> str:
     for label, key in rows:
         if key in tip:
             s = tip[key]
-            lines.append(f"    {label:56s} {1e3 * s['max']:8.3f} {1e3 * s['rms']:8.3f} {1e3 * s['p95']:8.3f}")
+            lines.append(f"    {label:56s} {1e3 * s['max']:8.3f} {1e3 * s['rms']:8.3f} {1e3 * s['p95']:8.3f}"
+                         + (f" {1e3 * setup[key]['rms']:28.3f}" if key in setup else ""))
     lines.append(f"  tool-axis error RMS (urad, model estimates): before {1e6 * ax['before']['rms']:.3g}, after the "
                  f"table {1e6 * ax['after_table']['rms']:.3g} (damping {tab['damping']:g} near singular poses)")
     lines += prediction_text(rec.get("prediction_uncertainty", {}))
