@@ -264,6 +264,6 @@ def test_fit_text_leads_with_physical_quantities(tmp_path):
     r = subprocess.run(FIVEAXIS + ["fit", str(tmp_path / "controller.csv"), "--machine", "ac_trunnion"],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
-    assert "E_X0C" in r.stdout and "relative to" in r.stdout
-    assert "c_x[sphere1] + " not in r.stdout               # the formulas are in the JSON, not in the text
+    assert "E_X0C" in r.stdout and "only as combinations" in r.stdout     # issue 29: printed as the combination
+    assert "c_x[sphere1]" not in r.stdout                  # placements are named, not in formulas of the text
     json.dumps(j)

@@ -35,6 +35,8 @@ from ..model.error_model import load
 from ..plots.residuals import residual_figure, series_of
 from ..sensitivity.grid import Grid
 from ..sensitivity.indices import gsil
+from ..units import human
+from . import text
 from . import compensation as C
 from . import certificate, figures, iso230
 from ..diagnosis import preconditions
@@ -131,11 +133,20 @@ def _fit_record(model, j: dict, groups_advice) -> dict:
         value, unit = people(p.get("value"), p["unit"])
         std, _ = people(p.get("std"), p["unit"])
         entry = iso.names(model).get(name)
+        shown = p["determined"] and p.get("plausible", True)
+        note = p.get("note", "") if p.get("plausible", True) else text.IMPLAUSIBLE
+        if p.get("fixed"):
+            note = "held (--fix or [fit] fixed)"
+        elif p.get("decided_by") in ("prior", "data and prior") and "posterior" in p:
+            note = (f"{note}; posterior {human(p['posterior']['value'], p['unit'])} +- "
+                    f"{human(p['posterior']['expanded_k2'], p['unit'])} (k = 2), the prior's moved by the "
+                    f"combinations ({p['data_share']:.0%} data)")
         params.append({"name": name, "iso": iso.name(model, name),
                        "kind": entry.kind if entry else "effect coefficient",
                        "description": p.get("description") or (describe_param(placed, name) if entry else ""),
-                       "value": value, "u_k2": None if std is None else 2 * std, "unit": unit,
-                       "determined": p["determined"], "note": p.get("note", "")})
+                       "value": value if shown else None, "u_k2": None if std is None or not shown else 2 * std,
+                       "unit": unit, "determined": shown, "note": note,
+                       "decided_by": p.get("decided_by", "data")})
     combos = []
     for c in j["combinations"]:
         value, unit = people(c["value"], c["unit"])
@@ -146,9 +157,13 @@ def _fit_record(model, j: dict, groups_advice) -> dict:
     for q in j["quantities"]:
         value, unit = people(q["value"], q["unit"])
         std, _ = people(q["std"], q["unit"])
+        if q.get("plausible") is False:
+            continue
         quantities.append({"name": q["lead"], "iso": q["iso"], "quantity": q["quantity"],
-                           "relative_to": q["relative_to"], "value": value, "u_k2": 2 * std, "unit": unit,
-                           "formula": q["formula"]})
+                           "relative_to": q["relative_to"] or "nothing else (the other members' share is below "
+                                                             "0.001)",
+                           "value": value, "u_k2": 2 * std, "unit": unit,
+                           "formula": q["formula_iso"]})
     setups = []
     for su_ in j.get("setups", []):
         for name, p in su_["parameters"].items():
