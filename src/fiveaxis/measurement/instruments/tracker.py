@@ -17,7 +17,8 @@ from ...model import frames
 from ...linuxcnc.program import Writer, quantize
 from ...model.inverse import linear_for_tip
 from . import paths
-from .base import Common, Limit, NoCandidates, NoPath, Plan, nearest_path, candidate_plan, quantized, sample_poses
+from .base import (Common, Limit, NoCandidates, NoPath, Plan, candidate_plan, centre_pose, nearest_path, quantized,
+                   sample_poses)
 
 #: Tracker stations of a plan's candidates.
 STATIONS = 4
@@ -197,6 +198,29 @@ def sight(model, q, L, station) -> np.ndarray:
     return sight_angles(tip, axis, np.asarray(station, float)[None, :])[:, 0]
 
 
+def table_axes(model) -> np.ndarray:
+    """Indices of the rotary axes that turn the workpiece, not the spindle: turning them alone leaves the tool tip
+    and axis where they are in the machine frame (at the centre pose)."""
+    q = centre_pose(model)
+    L = model.machine.tool_length
+    out = []
+    for i in paths.rotary_index(model):
+        moved = q.copy()
+        moved[i] += 0.1
+        tips = [paths.tips(model, x, L) for x in (q, moved)]
+        if frames.has_workpiece_rotation(model.machine):
+            tips = [(frames.to_machine(model.machine, x[None, :], t), frames.to_machine(model.machine, x[None, :], a))
+                    for x, (t, a) in zip((q, moved), tips)]
+        if np.allclose(tips[0][0], tips[1][0], atol=1e-9) and np.allclose(tips[0][1], tips[1][1], atol=1e-12):
+            out.append(i)
+    return np.array(out, dtype=int)
+
+
+def _joint_path(q0, q1):
+    """The straight path of the joints from pose q0 to q1."""
+    return lambda s: q0[None, :] + np.asarray(s, float)[:, None] * (q1 - q0)[None, :]
+
+
 #: Where no tracked move reaches the next pose, it is reached through the pose halfway (in the axes), at most this
 #: many halvings deep.
 HALVINGS = 6
@@ -204,7 +228,8 @@ HALVINGS = 6
 
 def _tracked_move(w: Writer, target, station, feed, what: str, depth: int = 0) -> None:
     """To the next pose with the tracker following: one move if its line of sight stays within TRACKER.limit_deg
-    (and the strokes) all along, else through a hub that keeps it (straight to the hub, turn the rotary axes about
+    (and the strokes) all along, else (joint mode) two moves of the joints (the table's axes first: the reflector
+    does not move; every rotary axis first; the linear axes first), else through a hub that keeps it (straight to the hub, turn the rotary axes about
     the tip: together, one axis after the other, or through the centre pose's angles, `paths.rotation_legs`;
     straight on): the point above the station at the start's height, or `paths.hubs`; where none does, through the
     pose halfway in the axes (HALVINGS deep)."""
@@ -216,6 +241,24 @@ def _tracked_move(w: Writer, target, station, feed, what: str, depth: int = 0) -
         return
     here = w.q
     s = np.linspace(0.0, 1.0, paths.STROKE_SAMPLES)
+    # joint mode: two moves of the joints: the table's axes first (the reflector does not move in the machine
+    # frame), every rotary axis first, or the linear axes first; then the rest (in tcp mode these are curves of
+    # many steps: the hubs below turn the axes about a held tip in one move)
+    rot = paths.rotary_index(model)
+    lin = np.setdiff1d(np.arange(len(here)), rot)
+    for first in ((table_axes(model), rot, lin) if mode == "joint" else ()):
+        if not len(first) or np.max(np.abs(here[first] - target[first])) == 0:
+            continue
+        via = np.array(here, float)
+        via[first] = target[first]
+        via = quantize(model, via[None, :], L, mode)[0]
+        legs = [_joint_path(here, via), _joint_path(via, target)]
+        if all(paths.inside(w.strokes, p(s)) and np.max(sight(model, p(s), L, station)) <= lim for p in legs):
+            for p in legs:
+                end = p(np.array([1.0]))[0]
+                if w.words(end) != w.words(w.q):
+                    w.move(end, feed)
+            return
     tip_m, _ = paths.tips(model, here, L)
     if frames.has_workpiece_rotation(model.machine):
         tip_m = frames.to_machine(model.machine, here[None, :], tip_m)
