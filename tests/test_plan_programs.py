@@ -461,7 +461,7 @@ def test_an_edited_program_that_breaks_a_limit_is_refused_with_line_and_deviatio
     lines, edited = _edit(kind, prog.read_text().splitlines(), model, res.kinematics)
     bad = tmp_path / "edited.ngc"
     bad.write_text("\n".join(lines) + "\n")
-    rc, out, err = run_cli(capsys, "plan", "--check", bad, "--machine", machine, "--instrument", instrument)
+    rc, out, err = run_cli("plan", "--check", bad, "--machine", machine, "--instrument", instrument)
     assert rc == 2 and "REFUSED" in out, (what, out)
     assert err.startswith("fiveaxis: error: refused:") and "\n" not in err.strip(), err
     assert f"line {edited}:" in err, (what, err)
@@ -506,11 +506,11 @@ def test_rules_without_a_limit_are_refused(rs274, models, tmp_path_factory, tmp_
 # -- the command --------------------------------------------------------------------------------------------------
 def test_plan_writes_a_checked_program_and_check_reports_it(rs274, tmp_path, capsys):
     out = tmp_path / "rt.csv"
-    rc, stdout, err = run_cli(capsys, "plan", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "12",
+    rc, stdout, err = run_cli("plan", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "12",
                               "-o", out)
     assert rc == 0, err
     assert "[[Check]]" in stdout and "tcp kinematics" in stdout and "verdict: every move keeps" in stdout
-    rc, stdout, err = run_cli(capsys, "plan", "--check", tmp_path / "rt.ngc", "--machine", "ac_trunnion",
+    rc, stdout, err = run_cli("plan", "--check", tmp_path / "rt.ngc", "--machine", "ac_trunnion",
                               "--poses", out, "--json")
     assert rc == 0, err
     import json
@@ -518,10 +518,10 @@ def test_plan_writes_a_checked_program_and_check_reports_it(rs274, tmp_path, cap
     assert j["ok"] and j["kinematics"] == "tcp" and j["instrument"] == "rtest"
     assert j["limits"][0]["worst"] <= ins.RTEST.limit_mm and j["strokes"]["moves_outside"] == 0
     assert j["poses"]["marked"] == 12 and j["poses"]["max_linear_mm"] <= 1e-6
-    rc, _, err = run_cli(capsys, "plan", "--check", tmp_path / "rt.ngc", "--machine", "ac_trunnion",
+    rc, _, err = run_cli("plan", "--check", tmp_path / "rt.ngc", "--machine", "ac_trunnion",
                          "--instrument", "ballbar")
     assert rc == 2 and "for instrument rtest, not ballbar" in err
-    rc, _, err = run_cli(capsys, "plan", "--check", tmp_path / "rt.ngc", "--machine", "li2018")
+    rc, _, err = run_cli("plan", "--check", tmp_path / "rt.ngc", "--machine", "li2018")
     assert rc == 2 and "for machine ac_trunnion, not li2018" in err
 
 

@@ -42,9 +42,20 @@ def coverage(model, meas) -> bytes:
         pairs.append((rotary[0], rotary[1]))
     elif rotary:
         pairs.append((linear[0] if linear else rotary[0], rotary[0]))
+    singles = [] if pairs else list(meas.variables)      # a one-axis machine: its positions along the stroke
     extra = "L" if meas.has_L else ("t" if meas.t is not None else None)
-    n = len(pairs) + (extra is not None)
+    n = len(pairs) + len(singles) + (extra is not None)
     fig, axes = plt.subplots(1, n, figsize=(3.3 * n, 3.5), squeeze=False, layout="constrained")
+    for k, a in enumerate(singles, len(pairs)):
+        ax = axes[0, k]
+        xa, (lo_a, hi_a), ua = _interface(model, meas, a)
+        ax.hist(xa, bins=30, color="tab:blue", alpha=0.8, label="measured pose")
+        ax.axvline(lo_a, ls="--", color="0.3", lw=0.8, label="stroke")
+        ax.axvline(hi_a, ls="--", color="0.3", lw=0.8)
+        ax.set_xlabel(f"{a} ({ua})", fontsize=9)
+        ax.set_ylabel("poses", fontsize=9)
+        ax.set_title(f"poses along {a}", fontsize=9)
+        ax.tick_params(labelsize=8)
     for k, (a, b) in enumerate(pairs):
         ax = axes[0, k]
         xa, (lo_a, hi_a), ua = _interface(model, meas, a)
