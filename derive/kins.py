@@ -23,6 +23,7 @@ from sympy.printing.precedence import precedence
 
 from fiveaxis import outputs
 from fiveaxis.model import provenance
+from fiveaxis.model.columns import TEMPERATURE_RANGE_DEGC
 from fiveaxis.model.machine import Machine, kins_component, load_machine
 
 from .chain import L
@@ -32,6 +33,8 @@ from .model import derive_model
 TEMPLATE = "linuxcnc/fiveaxis_kins.comp.j2"
 #: Effect slots of the module (HAL pins each): how many position-dependent effects one calibration may have.
 SLOTS = 16
+#: Temperature sensors the module reads (a HAL input pin each, degC).
+TEMPS = 8
 #: Newton steps of the inverse at most, and the step below which it stops (mm, rad).
 MAX_ITER = 12
 TOL_MM = "1e-9"
@@ -187,7 +190,8 @@ def render(machine: Machine, convention: str = "equations") -> str:
         generator_version=provenance.GENERATOR_VERSION, sympy_version=sp.__version__,
         variables=variables, rotary_names=[variables[i] for i in rot], rot_index=rot, lin_index=lin,
         rot_fields=[ROTARY_FIELDS[variables[i]] for i in rot], errors=list(model.error_names),
-        slots=SLOTS, max_iter=MAX_ITER, tol_mm=TOL_MM, tol_rad=TOL_RAD, damping=DAMPING,
+        slots=SLOTS, max_iter=MAX_ITER, tol_mm=TOL_MM, tol_rad=TOL_RAD, damping=DAMPING, temps=TEMPS,
+        temp_min=_literal(TEMPERATURE_RANGE_DEGC[0]), temp_max=_literal(TEMPERATURE_RANGE_DEGC[1]),
         tool_length=_literal(machine.tool_length), wrap=wrap, wrap_centre=centre,
         transform_unpack=_unpack(model, used, names), error_unpack=_unpack(model, used, names, errors=True),
         ideal_unpack=_unpack(model, ideal_used, names), factors=factors, ideal_body=ideal_body, axis=axis)

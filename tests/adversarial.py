@@ -88,7 +88,7 @@ def make_base(base: Path, run) -> None:
         (["simulate", "--instrument", "interferometer", "--n", "200", "--seed", "3", "--effect", "dx_x:x1=0.005",
           "-o", "{base}/iso2.csv"], "iso2.csv"),
         (["simulate", "--instrument", "ballbar", "--n", "200", "--seed", "4", "-o", "{base}/iso4.csv"], "iso4.csv"),
-        (["iso230-3-simulate", "--hours", "2", "--seed", "5", "{base}/iso3.csv"], "iso3.csv"),
+        (["iso230-3-simulate", "{base}/iso3.csv", "--hours", "4", "--seed", "5"], "iso3.csv"),
     ]
     (base / "comp").mkdir(exist_ok=True)
     (base / "stage42.toml").write_text(STAGE)
@@ -469,19 +469,20 @@ ISO_FILES = {   # iso230-2 / iso230-4: hostile variants of an interferometer's a
     "good": ("copy", "{base}/{which}.csv", OK),
 }
 ISO_COMMANDS = {"iso230-2": ("iso2", ["iso230-2", "{f}"]), "iso230-4": ("iso4", ["iso230-4", "{f}", "--rounds", "1"])}
-ISO3_FILES = {   # iso230-3: hostile variants of a five-sensor thermal test (iso3.csv: t, dx, dy, dz, dx2, dy2, temp_*)
-    "NaN dx": ("csv-edit", ("iso3.csv", _cell("dx", "nan")), REFUSE),
+ISO3_FILES = {   # iso230-3: hostile variants of a simulated spindle test (five sensors, temperatures, spindle_rpm)
+    "NaN dz": ("csv-edit", ("iso3.csv", _cell("dz", "nan")), REFUSE),
     "1e300 dx": ("csv-edit", ("iso3.csv", _cell("dx", 1e300)), REFUSE),
-    "um in mm": ("csv-edit", ("iso3.csv", lambda df: df.assign(dx=df["dx"] * 1000)), REFUSE),
-    "no dx": ("csv-edit", ("iso3.csv", lambda df: df.drop(columns=["dx"])), REFUSE),
-    "2000 degC": ("csv-edit", ("iso3.csv", _cell("temp_spindle", 2000)), REFUSE),
-    "stuck sensor": ("csv-edit", ("iso3.csv", lambda df: df.assign(temp_spindle=20.0)), REFUSE),
-    "time backwards": ("csv-edit", ("iso3.csv", _cell("t", -5)), REFUSE),
+    "text dx": ("csv-edit", ("iso3.csv", _cell("dx", "x")), REFUSE),
+    "2000 degC": ("csv-edit", ("iso3.csv", _cell("temp_air", 2000.0)), REFUSE),
+    "time back": ("csv-edit", ("iso3.csv", _cell("t", 0.0, 5)), REFUSE),
+    "um in mm": ("csv-edit", ("iso3.csv", lambda df: df.assign(dz=df["dz"] * 1000)), REFUSE),
+    "hours in t": ("csv-edit", ("iso3.csv", lambda df: df.assign(t=df["t"] / 3600)), REFUSE),
+    "stuck sensor": ("csv-edit", ("iso3.csv", lambda df: df.assign(dy=0.0)), REFUSE),
+    "no time": ("csv-edit", ("iso3.csv", lambda df: df.drop(columns=["t"])), REFUSE),
     "one row": ("csv-edit", ("iso3.csv", lambda df: df.head(1)), REFUSE),
-    "text dz": ("csv-edit", ("iso3.csv", _cell("dz", "x")), REFUSE),
     "empty": ("text", "", REFUSE), "fifo": ("fifo", None, REFUSE), "dev zero": ("symlink", "/dev/zero", REFUSE),
     "binary": ("bytes", bytes(range(256)) * 16, REFUSE),
-    "rounded": ("csv-edit", ("iso3.csv", lambda df: df.round(4)), OK),
+    "blank temperature": ("csv-edit", ("iso3.csv", _cell("temp_air", "")), OK),
     "good": ("copy", "{base}/iso3.csv", OK),
 }
 TOOLPATH_CSV = {   # lsa --toolpath X.csv
@@ -536,11 +537,14 @@ OPTION_TRIALS = [   # (command argv, expect, names)
         ("--u-device", "inf"), ("--temperature-deviation", "nan"), ("--expansion-ppm-per-K", "1e300"),
         ("--misalignment", "-1"), ("--drift", "nan"), ("--frame", "sideways"))],
     *[(["iso230-3", "{base}/iso3.csv", "--spacing", "100", o, v], REFUSE, (o,)) for o, v in (
-        ("--spindle-on", "nan"), ("--spindle-off", "-1"), ("--spindle-speed", "-5"), ("--test", "bogus"))],
-    *[(["iso230-3", "{base}/iso3.csv", o, v], REFUSE, (o,)) for o, v in (("--spacing", "-1"), ("--spacing", "nan"))],
+        ("--spindle-off", "nan"), ("--spindle-off", "-5"), ("--spindle-off", "1e9"), ("--spindle-speed", "-1"),
+        ("--test", "bogus"))],
+    (["iso230-3", "{base}/iso3.csv", "--spacing", "100", "--test", "etve"], REFUSE, ("spindle_rpm", "row")),
+    *[(["iso230-3", "{base}/iso3.csv", "--spacing", v], REFUSE, ("--spacing",)) for v in ("nan", "-1", "1e300")],
+    (["iso230-3", "{base}/iso3.csv"], REFUSE, ("--spacing",)),
     *[(["iso230-3-simulate", "{out}/t.csv", o, v], REFUSE, (o,)) for o, v in (
-        ("--hours", "-1"), ("--hours", "nan"), ("--hours", "1e9"), ("--interval", "0"), ("--run-hours", "nan"),
-        ("--spacing", "-1"), ("--speed", "inf"), ("--test", "bogus"))],
+        ("--hours", "0"), ("--hours", "nan"), ("--hours", "1e9"), ("--interval", "0"), ("--seed", "-1"),
+        ("--speed", "inf"), ("--spacing", "0"), ("--run-hours", "-1"))],
     *[(["iso230-4", "{base}/iso4.csv", o, v], REFUSE, (o,)) for o, v in (
         ("--rounds", "-1"), ("--rounds", "x"), ("--feed", "0"), ("--feed", "nan"), ("--feed", "-5"))],
     (["lsa", "--pose", "X=nan,Y=0,Z=0,A=0,B=0"], REFUSE, ("--pose",)),
@@ -621,6 +625,9 @@ WRITERS = {
                     "--comp-points", "9"], "table.csv", ()),
     "derive": (["derive", "{base}/planar.toml", "--out", "{out}"], "planar.py", ("exists",)),
     "iso230-2 --plot": (["iso230-2", "{base}/iso2.csv", "--plot", "{out}"], "iso230-2_X_laser-X.png", ("exists",)),
+    "iso230-3 --plot": (["iso230-3", "{base}/iso3.csv", "--spacing", "100", "--plot", "{out}"],
+                        "iso230-3_spindle.png", ("exists",)),
+    "iso230-3-simulate": (["iso230-3-simulate", "{o}"], "t.csv", ()),
 }
 OUTPUT_CASES = ("dangling link", "link to a file", "under a file", "a folder", "exists")
 #: kill -9 while writing: (id, argv, reader argv, files that must come from one run); killed the moment a file in
@@ -755,8 +762,8 @@ def trials() -> list[Trial]:
             out.append(Trial(f"{cmd} measurements: {name}", cmd, argv, expect, ("{f}", "column", "row", "du"),
                              (maker, what), suffix=".csv"))
     for name, (maker, content, expect) in ISO3_FILES.items():
-        out.append(Trial(f"iso230-3 measurements: {name}", "iso230-3", ["iso230-3", "{f}", "--spacing", "100"],
-                         expect, ("{f}", "column", "row", "header"), (maker, content), suffix=".csv"))
+        out.append(Trial(f"iso230-3 file: {name}", "iso230-3", ["iso230-3", "{f}", "--spacing", "100"], expect,
+                         ("{f}", "column", "row"), (maker, content), suffix=".csv"))
     for name, (maker, content, expect) in TOOLPATH_CSV.items():
         out.append(Trial(f"lsa toolpath csv: {name}", "lsa", ["lsa", "--toolpath", "{f}"], expect,
                          ("{f}", "row", "column"), (maker, content), suffix=".csv"))
@@ -1079,7 +1086,7 @@ FAST = ("lsa ac_trunnion gcode: py", "lsa ac_trunnion gcode: ;py,", "lsa ac_trun
         "lsa ac_trunnion gcode: NUL", "lsa ac_trunnion gcode: o<abs path>", "gsa machine: dev zero",
         "names machine: fifo", "table2 machine: deep tables", "gsa --errors model: deep JSON",
         "lsa toolpath csv: NaN", "model output: dangling link", "simulate --n 10000000000 -o {out}/s.csv",
-        "compensate model: NaN literal", "sobol --bound inf", "plan --check program: fifo",
+        "compensate model: NaN literal", "sobol --bound inf", "iso230-3 file: um in mm", "plan --check program: fifo",
         "plan --check program: dev zero", "round 4: lsa --positions 100000000", "round 4: gsa --le 500 --axis X=0")
 
 

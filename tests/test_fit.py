@@ -52,10 +52,10 @@ def test_undetermined_parameters_get_no_number(clean):
     # L fixed at 200 mm: ey_A cannot be told from the translations of the rotary axes.
     assert any(set(c["terms"]) == {"dx_B", "ey_A", "dx_A"} for c in j["combinations"])
     out = text.fit(R.to_json(res))
-    alone, relative = out.split("[[Determined relative to")[0], out.split("[[Determined relative to")[1]
+    alone, combined = out.split("[[Determined by this data only as combinations")[:2]
     assert "Syz " not in alone                          # never printed as if determined alone
-    line = next(x for x in relative.splitlines() if x.lstrip().startswith("Syz "))
-    assert "relative to E_AY" in line                  # the squareness, relative to the roll of Y it is seen with
+    line = next(x for x in combined.splitlines() if x.lstrip().startswith("E_A(0Y)Z + E_AY = "))
+    assert "(Syz: " in line                            # the squareness, as the combination it is seen in
 
 
 def test_another_tool_length_separates_ey_A(model):

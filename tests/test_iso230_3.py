@@ -143,6 +143,7 @@ def test_etve_test_equals_numpy_evaluation(tmp_path):
     c = columns_of(path)
     dirs = ref_directions(c)
     assert rec["test"] == "etve" and [p["phase"] for p in rec["phases"]] == ["at rest"]
+    assert rec["test_from"] == "no spindle or position information" and "taken as an ETVE test" in rec["notes"][0]
     close(rec["directions"], {k: ref_figures(c["t"], v) for k, v in dirs.items()})
     for d in rec["directions"]:
         assert d[f"ETVE_{d['unit']}"] == pytest.approx(np.ptp(dirs[d["direction"]]), abs=TOL)
@@ -179,7 +180,8 @@ def test_stated_spindle_times_and_minutes_give_the_same_figures(tmp_path):
     del c["spindle_rpm"]
     c["t_min"] = c.pop("t") / 60.0
     stated = write(tmp_path, c, "stated.csv")
-    rec2 = T.evaluate_file(stated, spindle=T.Spindle(off_min=180.0, speed_rpm=8000.0), spacing_mm=SPACING)
+    rec2 = T.evaluate_file(stated, spindle=T.Spindle(on_min=0.0, off_min=180.0, speed_rpm=8000.0),
+                           spacing_mm=SPACING)
     assert rec2["test"] == "spindle" and rec2["time_column"] == "t_min"
     for a, b in zip(rec["phases"], rec2["phases"]):
         assert (a["phase"], a["start_min"], a["end_min"]) == (b["phase"], b["start_min"], pytest.approx(b["end_min"]))
@@ -273,7 +275,7 @@ def good(n=30):
 
 @pytest.mark.parametrize("change, match", [
     (lambda c: c.update(temp_spindle=np.where(np.arange(30) == 7, 2000.0, c["temp_spindle"])),
-     r"data row 8 \(line 9\), column temp_spindle: 2000 degC is not a temperature"),
+     r"data row 8 \(line 9\), column temp_spindle: expected a temperature from -50 to 200 degC.*got 2000"),
     (lambda c: c.update(temp_bed=np.full(30, 21.3)), r"column temp_bed: the temperature never changes"),
     (lambda c: c.update(dz=np.zeros(30)), r"column dz: the reading never changes"),
     (lambda c: c.update(t=np.where(np.arange(30) == 12, 600.0, c["t"])),
@@ -318,7 +320,8 @@ def test_bad_statements(tmp_path, capsys):
 # -- the report's section -------------------------------------------------------------------------------------------
 def _cells(page: str, table_id: str) -> list:
     body = re.search(rf'<table id="{table_id}">.*?<tbody>(.*?)</tbody>', page).group(1)
-    return [re.findall(r"<td[^>]*>(.*?)</td>", row) for row in re.findall(r"<tr[^>]*>(.*?)</tr>", body)]
+    return [[re.sub(r"<[^>]+>", "", c) for c in re.findall(r"<td[^>]*>(.*?)</td>", row)]   # text, not <data> tags
+            for row in re.findall(r"<tr[^>]*>(.*?)</tr>", body)]
 
 
 def test_report_section_prints_the_record(tmp_path):
@@ -329,6 +332,8 @@ def test_report_section_prints_the_record(tmp_path):
     rec, figs = section(path, spacing_mm=SPACING)
     page = html._iso230_3({"iso230_3": rec}, figs)
     assert page.startswith('<section id="iso230-3">') and 'id="fig-iso230_3"' in page
+    from test_certificate import check_numbers
+    assert check_numbers(page, {"iso230_3": rec}) == {"iso230_3"}     # every number is the record's, as keyed
     assert html._has_iso({"iso230_3": rec}, "iso230-3") and not html._has_iso({}, "iso230-3")
     step = {"um": 0.05, "urad": 0.5}              # half the last printed decimal (0.1 um; 1 urad: 0.1 um / 100 mm)
     rows = _cells(page, "iso230-3-figures")
@@ -367,3 +372,28 @@ def test_report_with_a_thermal_test(tmp_path, capsys):
     page = out.read_text()
     assert '<a href="#iso230-3">ISO 230-3</a>' in page and '<section id="iso230-3">' in page
     assert rec["test"] == "spindle" and rec == T.evaluate_file(path, spacing_mm=SPACING)
+
+
+def test_parquet_and_blank_temperatures(tmp_path):
+    """The same test as Parquet gives the same figures; a temperature not read in some rows (blank) is evaluated
+    over the rows where it was read, and the note says how many."""
+    path, sim = simulated(tmp_path, "spindle", hours=4.0, run_hours=2.0, seed=11)
+    df = pd.read_csv(path)
+    df.loc[::3, "temp_column"] = np.nan
+    df.to_csv(tmp_path / "blank.csv", index=False)
+    df.to_parquet(tmp_path / "blank.parquet", index=False)
+    a = T.evaluate_file(tmp_path / "blank.csv", spacing_mm=SPACING)
+    b = T.evaluate_file(tmp_path / "blank.parquet", spacing_mm=SPACING)
+    assert a["directions"] == b["directions"]
+    assert [{k: v for k, v in c.items() if k != "resolution_degC"} for c in a["temperatures"]] == \
+        [{k: v for k, v in c.items() if k != "resolution_degC"} for c in b["temperatures"]]
+    # the CSV writes its resolution (0.01 degC, 0.1 um); Parquet's binary numbers do not say it
+    assert {c["resolution_degC"] for c in a["temperatures"]} == {0.01}
+    assert {c["resolution_degC"] for c in b["temperatures"]} == {None}
+    assert b["directions_read"][0]["resolution_um"] is None
+    col = next(c for c in a["temperatures"] if c["channel"] == "temp_column")
+    read = df["temp_column"].dropna().to_numpy()
+    assert col["readings"] == len(read) < len(df)
+    assert (col["first_degC"], col["last_degC"], col["max_degC"]) == pytest.approx((read[0], read[-1], read.max()))
+    assert any(f"temp_column: {len(read)} readings of {len(df)}" in n for n in a["notes"])
+    assert a["series"]["temp_column_degC"][0] is None

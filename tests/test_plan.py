@@ -9,6 +9,7 @@ import pytest
 
 import fiveaxis
 from fiveaxis.estimation import fit as F
+from fiveaxis.planning import criterion, exchange, files, pool
 from fiveaxis.planning import plan as P
 from conftest import run_cli
 from fiveaxis.diagnosis.diagnose import diagnose
@@ -65,7 +66,7 @@ def test_plan_file_round_trip_gives_the_same_poses_and_criterion(models, plans, 
     criterion computed afresh from its design (setups built by fiveaxis.measurement.setups on the plan alone) equals the one
     the optimiser computed from the pool's rows."""
     res = plans[name]
-    path = write(P.to_frame(res), tmp_path / "plan.csv")
+    path = write(files.to_frame(res), tmp_path / "plan.csv")
     back = plan_of_file(path, res.model)
     np.testing.assert_allclose(back.poses, res.plan.poses, rtol=0, atol=1e-6)
     np.testing.assert_allclose(back.L, res.plan.L)
@@ -76,8 +77,8 @@ def test_plan_file_round_trip_gives_the_same_poses_and_criterion(models, plans, 
     if res.plan.u is not None:
         np.testing.assert_allclose(back.u, res.plan.u, atol=1e-9)
     assert set(back.dirs) == set(res.plan.dirs)
-    prob = build(res.model, P.measurements(back, res.model), res.effects, res.model.machine.fixed)
-    D, rank = P.criterion(res.design.ref, prob)
+    prob = build(res.model, pool.measurements(back, res.model), res.effects, res.model.machine.fixed)
+    D, rank = criterion.criterion(res.design.ref, prob)
     assert rank == res.r
     assert D == pytest.approx(res.D, rel=1e-6, abs=1e-6)
 
@@ -95,7 +96,7 @@ def test_tip_plan_is_close_to_the_d_optimal_bound(plans):
     res = plans["tip"]
     dsg = res.design
     X = dsg.X[:, :, dsg.cols("base")]
-    logdet_w, dmax, _ = P.bound(X, tol=1e-4)
+    logdet_w, dmax, _ = exchange.bound(X, tol=1e-4)
     assert dmax < res.r * 1.001                        # the bound is at its optimum (equivalence theorem)
     bound = logdet_w + res.r * math.log(len(res.units))
     assert res.D <= bound + 1e-9
@@ -105,7 +106,7 @@ def test_tip_plan_is_close_to_the_d_optimal_bound(plans):
 def test_rank_k_updates_match_the_information_recomputed(plans):
     """The objective's rank-k updates (Woodbury, matrix determinant lemma) against log dets computed afresh."""
     dsg = plans["rtest"].design
-    obj = P._Objective(dsg, P.objective_terms(dsg))
+    obj = exchange._Objective(dsg, exchange.objective_terms(dsg))
     rng = np.random.default_rng(0)
     chosen = []
     for step in range(40):
@@ -170,7 +171,7 @@ def test_named_effect_found_at_the_planned_poses_where_random_plans_miss_it(mode
     res = P.make(model, instrument, n, effects=[spec.split("=")[0]], seed=0, random_plans=1)
     assert all(_found(model, res.plan, spec, 100 + s) for s in range(3))
     rr = np.random.default_rng(1000)
-    hits = sum(_found(model, P.subplan(res.design.pool, P.random_units(res.design, len(res.units), rr)), spec,
+    hits = sum(_found(model, pool.subplan(res.design.pool, exchange.random_units(res.design, len(res.units), rr)), spec,
                       200 + s) for s in range(6))
     assert hits <= 2, hits
 

@@ -96,7 +96,7 @@ class TargetErrors:
 
 @pytest.fixture(scope="module")
 def lead_screw(model, tmp_path_factory):
-    plan = ins.interferometer(model, 0, np.random.default_rng(31), targets=9, axes=["X"])
+    plan = ins.plan("interferometer", model, 0, np.random.default_rng(31), targets=9, axes=["X"])
     targets = tuple(np.unique(plan.poses[:, 0]))
     v = np.random.default_rng(32).uniform(-1, 1, 9)
     values = 0.030 * (v - v.min()) / np.ptp(v) - 0.015                   # 30 um spread

@@ -34,3 +34,18 @@ def test_docs_python_examples_run():
                         iso.canonical(m, "E_C0B"), iso.canonical_effect(m, "E_AX:x1")) == \
                     ("E_C0B", "E_AX:x1", "ex_x (E_AX)", "SAOB", "ex_x:x1")
     assert ran >= 1
+
+
+def test_docs_name_files_that_exist():
+    """Every path to a Python file the docs name (`src/fiveaxis/report/dcc.py`, `report/dcc.py`, `tests/...`) exists:
+    a module renamed or moved fails here, not in a reader's hands. Bare names (`grid.py`), templates (`.py.j2`) and
+    patterns (`effects/<family>.py`) are left out."""
+    missing = []
+    for doc in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+        for m in re.finditer(r"`([^`\s]*/[^`\s]*\.py)`", doc.read_text()):
+            path = m.group(1)
+            if re.search(r"[<>{}\[\]*]", path):            # a pattern (effects/<family>.py), not a file
+                continue
+            if not any((base / path).is_file() for base in (ROOT, ROOT / "src" / "fiveaxis", ROOT / "src")):
+                missing.append(f"{doc.name}: {path}")
+    assert missing == []

@@ -54,7 +54,7 @@ def reports(tmp_path_factory, chromium):
 def _n_parameters(page: Path) -> int:
     """The number of fitted parameters, read from the page's own record of the fit (the summary sentence)."""
     import re
-    m = re.search(r"(\d+) parameters, of which the data determines", page.read_text(encoding="utf-8"))
+    m = re.search(r"(\d+)(?:</data>)? parameters, of which the data determines", page.read_text(encoding="utf-8"))
     return int(m.group(1))
 
 

@@ -104,10 +104,16 @@ def test_readme_ballbar_and_rtest_plans_at_full_size(machine, tmp_path):
 def test_resolution_is_read_from_the_file(tmp_path):
     """The rank rule's resolution comes from the digits the file gives (half a unit of the last digit), a column
     of one value counting as exact; the fit says how many directions the resolution took."""
-    from fiveaxis.measurement.files import quantum
-    np.testing.assert_allclose(quantum(np.array([150.0, 71.837, 214.224, -0.5])), 0.0005)
-    np.testing.assert_allclose(quantum(np.array([214.2245, 71.83697, 1.234567])), [5e-5, 5e-6, 5e-7])
-    assert np.all(quantum(np.array([1.0, 1.0, 1.0])) == 0.0)
+    from fiveaxis.measurement.files import quantum, written_digits
+
+    def q(cells):
+        return quantum(np.array([float(c) for c in cells]), written_digits(cells))
+    np.testing.assert_allclose(q(["150.000", "71.837", "214.224", "-0.500"]), 0.0005)
+    np.testing.assert_allclose(q(["150", "71.837", "214.224", "-0.5"]), 0.0005)   # trailing zeros left out
+    np.testing.assert_allclose(q(["214.2245", "71.83697", "1.234567"]), [5e-5, 5e-6, 5e-7])
+    np.testing.assert_allclose(q(["2.142245e+02", "7.183697E1", "1.234567e0"]), [5e-5, 5e-6, 5e-7])
+    np.testing.assert_allclose(q(["200.000", "300.000"]), 0.0005)       # issue 29: not 50 mm from the values
+    assert np.all(q(["1.0", "1.0", "1.0"]) == 0.0)
     model = load("ac_trunnion")
     meas = as_written(model, simulate(model, instrument="rtest", n=400, seed=7), tmp_path, "controller")
     j = to_json(F.fit(model, meas))
@@ -255,6 +261,6 @@ def test_fit_text_leads_with_physical_quantities(tmp_path):
     assert all(abs(c) < 1e3 for comb in j["combinations"] for c in comb["terms"].values())
     rc, out, err = run_cli("fit", tmp_path / "controller.csv", "--machine", "ac_trunnion")
     assert rc == 0, err
-    assert "E_X0C" in out and "relative to" in out
-    assert "c_x[sphere1] + " not in out                    # the formulas are in the JSON, not in the text
+    assert "E_X0C" in out and "only as combinations" in out     # issue 29: printed as the combination
+    assert "c_x[sphere1]" not in out                  # placements are named, not in formulas of the text
     json.dumps(j)

@@ -38,7 +38,25 @@ def register_compensate(p):
     p.add_argument("--plot", action="store_true", help="also write error_map.png")
     options.json_output(p, "print summary.json instead of the report")
     options.force(p)
+    p.add_argument("--temperature", action="append", default=[], metavar="NAME=DEGC",
+                   help="a model with temperature effects: the state the error is also predicted at (each sensor "
+                        "the model reads, e.g. spindle=35; default: its highest reading in the fitted data); "
+                        "repeatable")
     p.set_defaults(func=run_compensate)
+
+
+def _temperatures(specs) -> dict:
+    out = {}
+    for spec in specs:
+        name, sep, raw = spec.partition("=")
+        try:
+            value = float(raw)
+            if not sep or not name.strip() or not math.isfinite(value):
+                raise ValueError
+        except ValueError:
+            raise InputError(f"--temperature {spec!r}: expected NAME=DEGC, e.g. spindle=35") from None
+        out[name.strip()] = value
+    return out
 
 
 def _counts(specs) -> dict:
@@ -124,7 +142,7 @@ def run_compensate(args) -> int:
     try:
         comp = P.compensate(fm, model, counts, limit, P.DAMPING if args.damping is None else args.damping,
                             args.comp_points, args.poses if args.poses is not None else P.ACCOUNT_POSES, args.seed,
-                            tool_lengths=lengths)
+                            tool_lengths=lengths, temperatures=_temperatures(args.temperature))
         record = summary(comp, str(args.model))
         F.write(comp, out, record, force=args.force, figure=figure if args.plot else None,
                 model_path=str(args.model))

@@ -65,6 +65,7 @@ def run_table2(args) -> int:
     from fiveaxis_derive.table2 import reconcile, to_json, to_latex
 
     from ..model.iso_names import table as iso_table
+    from ..report import model_text
     machine = load_machine(args.machine)
     machine.with_convention(args.convention)
     model = derive_model(machine, args.convention)
@@ -74,15 +75,7 @@ def run_table2(args) -> int:
     elif args.reconcile:
         if machine.name != "li2018":
             raise InputError(f"{machine.path}: the printed Table 2 belongs to li2018; nothing to reconcile")
-        rows = reconcile(model)
-        for r in rows:
-            print(f"row {r['no']:2d} {r['status']:8s} {', '.join(f'{n} ({iso[n]})' if iso.get(n) else n for n in r['errors'])}")
-            for d in r["differences"]:
-                print(f"         {d}")
-            if r["status"] != "matches" and r["note"]:
-                print(f"         why: {r['note']}")
-        n_ok = sum(r["status"] == "matches" for r in rows)
-        print(f"{n_ok} of {len(rows)} printed rows match the derivation ({args.convention} convention)")
+        print(model_text.reconcile(reconcile(model), iso, args.convention))
     else:
         print(to_latex(model, iso), end="")
     return 0

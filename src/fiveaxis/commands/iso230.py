@@ -31,19 +31,34 @@ def register_iso230_2(p):
     _common(p)
     p.add_argument("--tolerance", type=float, default=None, metavar="MM",
                    help="positions within this distance are one target (default 0.05 mm)")
-    p.add_argument("--u-device", type=float, default=None, metavar="UM",
-                   help="standard uncertainty of the measuring device at the measured length (um; U/k of its "
-                        "calibration certificate)")
-    p.add_argument("--temperature-deviation", type=float, default=None, metavar="K",
-                   help="deviation of the machine's temperature from 20 degC during the test (K; with "
-                        "--expansion-ppm-per-K)")
-    p.add_argument("--expansion-ppm-per-K", type=float, default=None, metavar="PPM",
-                   help="half-width of the uncertainty of the machine's expansion coefficient (ppm/K, e.g. 2)")
-    p.add_argument("--misalignment", type=float, default=None, metavar="MM",
-                   help="lateral walk of the beam over the measured length (mm): the cosine error's bound")
-    p.add_argument("--drift", type=float, default=None, metavar="UM",
-                   help="environmental variation: drift of the reading of the still axis over a test's duration (um)")
+    uncertainty_options(p)
     p.set_defaults(func=run_iso230_2)
+
+
+#: ISO 230-9's inputs: (option, keyword of iso230.uncertainty.Statement, metavar, help); declared once for
+#: iso230-2 and report (whose campaign file has the same keys under [iso230_9]).
+UNCERTAINTY_OPTIONS = (
+    ("--u-device", "u_device_um", "UM", "standard uncertainty of the measuring device at the measured length (um; "
+                                        "U/k of its calibration certificate)"),
+    ("--temperature-deviation", "temperature_deviation_K", "K", "deviation of the machine's temperature from 20 degC "
+                                                                "during the test (K; with --expansion-ppm-per-K)"),
+    ("--expansion-ppm-per-K", "expansion_ppm_per_K", "PPM", "half-width of the uncertainty of the machine's "
+                                                            "expansion coefficient (ppm/K, e.g. 2)"),
+    ("--misalignment", "misalignment_mm", "MM", "lateral walk of the beam over the measured length (mm): the cosine "
+                                                "error's bound"),
+    ("--drift", "drift_um", "UM", "environmental variation: drift of the reading of the still axis over a test's "
+                                  "duration (um)"))
+
+
+def uncertainty_options(p):
+    """ISO 230-9's inputs of the ISO 230-2 figures' uncertainty as options."""
+    for option, key, metavar, text in UNCERTAINTY_OPTIONS:
+        p.add_argument(option, dest=key, type=float, default=None, metavar=metavar, help=text)
+
+
+def uncertainty_inputs(args) -> dict:
+    """{Statement keyword: value} of the ISO 230-9 options given (checked when the Statement is made)."""
+    return {key: getattr(args, key) for _, key, _, _ in UNCERTAINTY_OPTIONS if getattr(args, key) is not None}
 
 
 def register_iso230_4(p):
@@ -78,9 +93,7 @@ def run_iso230_2(args) -> int:
     from ..iso230 import positioning as P
     from ..iso230 import uncertainty as U
     from ..report import iso230_text
-    statement = U.Statement(args.u_device, args.temperature_deviation, args.expansion_ppm_per_K, args.misalignment,
-                            args.drift)
-    U.check(statement)
+    statement = U.check(U.Statement(**uncertainty_inputs(args)))
     model, meas = _read(args)
     evs = P.evaluate(meas, model, P.TARGET_TOL_MM if args.tolerance is None else args.tolerance)
     for ev in evs:

@@ -16,7 +16,7 @@ from ..exceptions import InputError, one_line
 from ..compensation import plausible
 from ..diagnosis import preconditions
 from ..estimation import design_size
-from ..measurement.instruments import NAMES as INSTRUMENTS
+from ..measurement import instruments as ins
 from ..model.columns import FRAMES, MAX_AXIS_DEVIATION, MAX_DEVIATION_MM, SETUP_KINDS
 
 
@@ -45,6 +45,16 @@ def _fit_options(p):
     p.add_argument("--setup-frame", default=None, choices=FRAMES,
                    help="frame the setups' artefacts are fixed in when their rows do not say (setup_frame column): "
                         "workpiece (on the table; default) or machine (on the bed)")
+    p.add_argument("--prior", action="append", default=[], metavar="SPEC",
+                   help="what is known before the readings (repeatable; default: every error 0 +- the size of its "
+                        "ISO 230 class, [fit] prior of the machine file): MODEL.json (an earlier fit: its values and "
+                        "posterior covariance, e.g. a laser calibration of the linear axes), NAME=SIZE or "
+                        "NAME=VALUE,SIZE (mm or rad; NAME an error, an effect coefficient or a class such as "
+                        "linear_motion_rad), or none (least squares alone)")
+    p.add_argument("--resolution", action="append", default=[], metavar="COLUMN=STEP",
+                   help="the resolution of a column (mm, deg), e.g. X=0.001 or A=0.0001 (repeatable): for Parquet "
+                        "files, whose numbers say nothing of it (counted as full precision without), or to state a "
+                        "controller's; a CSV column's is read from the digits its cells write")
     p.add_argument("--blocks", default="auto", choices=("auto", "on", "off"),
                    help="build the design in row blocks of 16,384 poses (bounded memory for 10^5-10^7 rows): auto "
                         "(above 16,384 poses; default), on, off (in memory)")
@@ -83,7 +93,7 @@ def register_simulate(p):
     p.add_argument("--effect", action="append", default=[], metavar="EFFECT[=VALUE]",
                    help="hidden effect, e.g. ex_x:x1=2e-5 (VALUE: change at the end of the stroke, mm or rad; "
                         "default 20 urad or 10 um); repeatable")
-    p.add_argument("--instrument", default="tip", choices=INSTRUMENTS,
+    p.add_argument("--instrument", default="tip", choices=ins.names(),
                    help="what is measured, with its standard plan: tip (random poses, 3-D tip; default), rtest, "
                         "probe-sphere, ballbar, interferometer, tracker (docs/measurements.md)")
     p.add_argument("--poses", type=Path, default=None, metavar="FILE",
@@ -154,12 +164,31 @@ def _load(args):
             raise InputError(f"--scheduler: {exc}") from None
     machine = load_machine(args.machine)
     model = load(machine, args.convention)
+    prior = _prior(model, args.prior)                # before the data are read: a wrong model file fails at once
     meas = options.measurements(args, model.machine, min_rows=2, frame=args.frame, setup_kind=args.setup_kind,
-                                setup_frame=args.setup_frame)
+                                setup_frame=args.setup_frame, resolution=_resolution(args.resolution))
     added = machine_effects(model) + list(args.add)
     effects = resolve_effects(model, added)
     design_size.check(model, meas, effects)          # before a design is built: memory of the setups' unknowns
-    return model, meas, effects, _fixed(model, args.fix)
+    return model, meas, effects, _fixed(model, args.fix), prior
+
+
+def _prior(model, specs):
+    """The priors of a fit (`fiveaxis.estimation.priors.PriorSpec`): the machine file's [fit] prior, --prior
+    entries; at most one model file (.json), checked against the machine."""
+    from ..estimation import priors
+    files = [s for s in specs if s.lower().endswith(".json")]
+    if len(files) > 1:
+        raise InputError(f"--prior: one model file at most, got {', '.join(files)}")
+    fm = None
+    if files:
+        from ..estimation.fitted_model import check_model, load as load_model_file
+        fm = load_model_file(files[0])
+        check_model(fm, model, f"--prior {files[0]}")
+        if fm.posterior is None:
+            raise InputError(f"--prior {files[0]}: the model file has no posterior_covariance_mm_rad (written before "
+                             f"priors: fit it again with this version)")
+    return priors.spec_from(model.machine, [s for s in specs if s not in files], fm, files[0] if files else "")
 
 
 def _implausible(fm, model, path, record: dict) -> None:
@@ -170,6 +199,22 @@ def _implausible(fm, model, path, record: dict) -> None:
         line = f"{path}: {plausible.unit_slip(found)}"
         record.setdefault("warnings", []).append(line)
         print(f"fiveaxis: warning: {one_line(line)}", file=sys.stderr)
+
+
+def _resolution(specs) -> dict:
+    """--resolution COLUMN=STEP (mm, deg) as {column: step}."""
+    out = {}
+    for spec in specs:
+        name, sep, raw = spec.partition("=")
+        try:
+            step = float(raw)
+        except ValueError:
+            step = float("nan")
+        if not sep or not name.strip() or not (0 < step < float("inf")):
+            raise InputError(f"--resolution {spec}: expected COLUMN=STEP with a positive step in the column's unit "
+                             f"(mm, deg), e.g. X=0.001")
+        out[name.strip()] = step
+    return out
 
 
 def _fixed(model, specs) -> dict:
@@ -226,11 +271,12 @@ def run_fit(args) -> int:
     from ..estimation import fit as F
     from ..estimation.result import to_json
     from ..report import text
-    model, meas, effects, fixed = _load(args)
+    model, meas, effects, fixed, prior = _load(args)
     if args.output is not None and args.output.exists() and not args.force:
         raise InputError(f"{args.output}: exists; not overwriting it (use --force to replace it)")
     with _where_blocks(args) as in_blocks:
-        res = F.fit(model, meas, effects, refine=not args.first_order, fixed=fixed, in_blocks=in_blocks)
+        res = F.fit(model, meas, effects, refine=not args.first_order, fixed=fixed, in_blocks=in_blocks,
+                    prior=prior)
     from ..estimation.fitted_model import from_fit, save
     fm = from_fit(res)
     if args.output is not None:
@@ -252,10 +298,11 @@ def run_diagnose(args) -> int:
         raise InputError(f"--top: expected a positive number, got {args.top}")
     if args.rounds < 1:
         raise InputError(f"--rounds: expected a positive number of diagnoses, got {args.rounds}")
-    model, meas, effects, fixed = _load(args)
+    model, meas, effects, fixed, prior = _load(args)
     preconditions.check(meas)                        # enough distinct poses for the cross-validation
     with _where_blocks(args) as in_blocks:
-        dgs = loop.rounds(model, meas, effects, args.rounds, top=args.top, fixed=fixed, in_blocks=in_blocks)
+        dgs = loop.rounds(model, meas, effects, args.rounds, top=args.top, fixed=fixed, in_blocks=in_blocks,
+                          prior=prior)
     if args.plot is not None:
         from ..plots.residuals import plot_residuals
         path = plot_residuals(dgs[-1], args.plot)
@@ -317,8 +364,9 @@ def run_simulate(args) -> int:
         value = getattr(args, key)
         if value is None:
             continue
-        if args.instrument != "interferometer" or args.poses is not None:
-            raise InputError(f"--{key}: an option of the interferometer's standard plan (--instrument interferometer)")
+        owner = next(r for r in ins.REGISTRY.values() if key in r.plan_options)
+        if owner.name != args.instrument or args.poses is not None:
+            raise InputError(f"--{key}: an option of the {owner.name}'s standard plan (--instrument {owner.name})")
         standard[key] = [a.strip() for a in value.split(",")] if key == "axes" else value
     errors = {}
     for spec in args.error:

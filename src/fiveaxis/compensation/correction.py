@@ -52,11 +52,12 @@ def tip_error_function(model, errors_fn, L=None):
     return tip_error
 
 
-def fitted_errors(fm, model, t=None):
-    """errors_fn of a FittedModel: (positions, dirs) -> (E, dL) (time effects at t, default t = 0)."""
+def fitted_errors(fm, model, t=None, temps=None):
+    """errors_fn of a FittedModel: (positions, dirs) -> (E, dL) (time effects at t, default t = 0; temperature
+    effects at temps {temp_<name>: degC}, a steady state, default: their references)."""
 
     def errors_fn(positions, dirs=None):
-        return errors_at(fm, model, positions, t=t, dirs=dirs)
+        return errors_at(fm, model, positions, t=t, dirs=dirs, temps=temps)
     return errors_fn
 
 

@@ -89,6 +89,10 @@ def write(comp, folder, record: dict, force: bool = False, figure=None, model_pa
     lcol = ("L (the tool length, mm; the slowest-varying: each tool length is a contiguous block), " if has_L
             else "")
     readme = README.format(interpolation=INTERPOLATION_L if has_L else INTERPOLATION, lcol=lcol)
+    heat = record.get("not_compensated", {})
+    if heat.get("temperature_effects"):
+        readme += (f"\nTemperature effects ({', '.join(heat['temperature_effects'])}): "
+                   f"{heat['temperature_note']}. summary.json, predicted_at_temperatures: the error at a warm state.\n")
 
     def text(t):
         return lambda tmp: tmp.write_text(t, encoding="utf-8")

@@ -25,6 +25,7 @@ from ..exceptions import InputError
 from ..linuxcnc import configuration as lx
 from ..linuxcnc import kinematics as lk
 from ..linuxcnc.configuration import MAX_COMP_POINTS, comp_nodes
+from ..model.columns import TEMPERATURE_PREFIX, TEMPERATURE_RANGE_DEGC
 
 
 @dataclass
@@ -50,10 +51,13 @@ MAX_DAMPING = 10.0
 
 def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, damping: float = DAMPING,
                comp_points: int | None = None, poses: int = ACCOUNT_POSES, seed: int = 0,
-               tool_lengths=None) -> Compensation:
+               tool_lengths=None, temperatures=None) -> Compensation:
     """The volumetric table, LinuxCNC's parameters and the predicted error account for a fitted model.
     tool_lengths: None (a table for the machine's tool length L0 only, no L column) or at least 2 ascending tool
-    lengths (mm): the table gets a tool-length dimension with nodes there (see the module docstring)."""
+    lengths (mm): the table gets a tool-length dimension with nodes there (see the module docstring).
+    temperatures: {temp_<name>: degC} a state at which the account is also predicted (`at_temperatures`) when the
+    model has temperature effects (default: each channel's highest reading in the fitted data): the table and
+    LinuxCNC's comp files hold the reference temperatures, the kinematics module reads its sensors."""
     check_model(fm, model)
     if poses < 1:
         raise InputError(f"poses for the account: expected a positive number, got {poses}")
@@ -80,10 +84,41 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     band = (lambda q, dirs, Ls, tips, axes: prediction.band(fm, model, q, dirs, Ls, tips, axes,
                                                             fm.fit.get("noise_mm")))
     acc = account(model, errors_fn, table, lc, poses, seed, damping=damping, module=module, band=band)
+    warm = stated_temperatures(fm, temperatures)
+    if warm:
+        hot = (None if values is None else
+               lambda q, dirs, fn: ck.predicted(fm, model, values, fn, q, dirs, temps=warm))
+        at = account(model, fitted_errors(fm, model, temps=warm), table, lc, poses, seed, damping=damping,
+                     module=hot)
+        acc["at_temperatures"] = {"temperatures_degC": warm, "tip_error_mm": at["tip_error_mm"],
+                                  "axis_error_rad": at["axis_error_rad"]}
     comp = Compensation(fm, model, table, nodes, lc, acc, float(damping), float(model.machine.tool_length),
                         values, text, note)
     plausible.check_compensation(comp, lx.files(lc))
     return comp
+
+
+def stated_temperatures(fm, temperatures=None) -> dict:
+    """{temp_<name>: degC} of the channels the model's effects read (their scales are in degC): as stated
+    (temperatures; names with or without temp_), else each one's highest reading in the fitted data; {} without
+    temperature effects. InputError for a stated channel the model does not read or a temperature outside the
+    plausible range."""
+    read = [e.var for e in fm.effects if e.var in fm.scales and fm.scales[e.var].unit == "degC"]
+    read = list(dict.fromkeys(read))
+    stated = {(k if k.startswith(TEMPERATURE_PREFIX) else TEMPERATURE_PREFIX + k): v
+              for k, v in (temperatures or {}).items()}
+    lo, hi = TEMPERATURE_RANGE_DEGC
+    for name, value in stated.items():
+        if name not in read:
+            raise InputError(f"temperature {name}: the model's effects read no such channel (they read: "
+                             f"{', '.join(read) or 'none'})")
+        if not (isinstance(value, (int, float)) and lo <= value <= hi):
+            raise InputError(f"temperature {name}: expected degC from {lo:g} to {hi:g}, got {value!r}")
+    out = {}
+    for name in read:
+        sc = fm.scales[name]
+        out[name] = float(stated.get(name, sc.span[1] if sc.span else sc.centre))
+    return out
 
 
 def profile_nodes(fm, model, points: int) -> dict:

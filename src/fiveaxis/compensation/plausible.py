@@ -15,6 +15,7 @@ import re
 
 import numpy as np
 
+from ..effects.families import family
 from ..exceptions import InputError
 
 #: Bounds, with why. A real machine's geometric errors are micrometres and microradians; location errors of axes
@@ -72,17 +73,16 @@ def model_findings(fm, machine) -> list[str]:
     for e in fm.effects:
         if units.get(e.param) != "mm" or not e.values:
             continue
-        c = abs(float(e.values[0]))
-        if e.kind == "reversal":
-            limit, what = MACHINES["backlash_mm"]
-            if not 2 * c <= limit:
-                out.append(f"effect {e.id}: a backlash of {_um(2 * c)}: beyond {what}, {_um(limit)}")
-        elif e.kind == "polynomial" and e.var in fm.scales and fm.scales[e.var].column is not None:
-            axis = machine.axis(fm.scales[e.var].column)
+        for quantity, size, column in family(e.kind).extents(e, fm.scales):
+            if quantity == "backlash":
+                limit, what = MACHINES["backlash_mm"]
+                if not size <= limit:
+                    out.append(f"effect {e.id}: a backlash of {_um(size)}: beyond {what}, {_um(limit)}")
+                continue
+            axis = machine.axis(column)
             if axis.type != "linear":
                 continue
             stroke = float(axis.stroke[1] - axis.stroke[0])
-            size = (2 if e.deg % 2 else 1) * c            # its change over u in [-1, 1]: the measured range
             if not size <= deviation_bound(stroke):
                 out.append(f"effect {e.id}: a change of {_um(size)} along {axis.name}, a {stroke:g} mm stroke: "
                            f"beyond {MACHINES['deviation_of_stroke'][1]}")

@@ -28,6 +28,7 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
         nodes[v] = {"min": float(f(a[0])), "max": float(f(a[-1])), "count": int(len(a)), "unit": units[v]}
     tip, axis = comp.account["tip_error_mm"], comp.account["axis_error_rad"]
     time_effects = [e.id for e in fm.effects if e.var == TIME]
+    heat = [e.id for e in fm.effects if e.var in fm.scales and fm.scales[e.var].unit == "degC"]
     dims = (["L"] if tab.tool_lengths is not None else []) + list(tab.variables)
     out = {
         "format": "fiveaxis compensation", "version": 1,
@@ -47,6 +48,8 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
         "workspace": {"poses": comp.account["poses"], "seed": comp.account["seed"],
                       "sampling": "uniform within the strokes; approach directions random per joint"},
         "predicted_tip_error_mm": tip,
+        "predicted_tip_error_setup_removed_mm": comp.account["tip_error_setup_removed_mm"],
+        "part_setup": comp.account["part_setup"],
         "predicted_axis_error_rad": axis,
         "predicted_axis_error_note": "model estimates: the tool axis is known only as far as the data had tool-axis "
                                      "readings or several tool lengths (prediction_uncertainty.axis_error_rad)",
@@ -57,6 +60,11 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
         "not_compensated": {
             "time_effects": time_effects,
             "time_effects_note": "the table and LinuxCNC's files are static: time effects are taken at t = 0",
+            **({"temperature_effects": heat,
+                "temperature_note": "the table and LinuxCNC's compensation files cannot hold a temperature: they are "
+                                    "at the reference temperatures (the model's references, degC); only the "
+                                    "kinematics module reads temperature sensors (its temp pins)"}
+               if heat else {}),
             "reversal_note": "the table is direction-independent (reversal effects at their mean); LinuxCNC's "
                              "forward and reverse trims carry them",
             "undetermined": list(fm.undetermined),
@@ -66,6 +74,12 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
                               "is corrected only partly (damping); the tip is corrected everywhere",
             "kinematics_module": list(comp.module.left_out) if comp.module is not None else [comp.module_note]},
     }
+    if "at_temperatures" in comp.account:
+        at = comp.account["at_temperatures"]
+        out["predicted_at_temperatures"] = dict(at, references_degC={
+            k: float(fm.scales[k].centre) for k in at["temperatures_degC"]},
+            note="the same poses with the machine at these temperatures (a steady state): the table and LinuxCNC's "
+                 "comp files at the references, the kinematics module with its sensors at these temperatures")
     if tab.tool_lengths is None:
         out["not_compensated"]["tool_length_note"] = (
             f"the table is for the tool length {comp.tool_length:g} mm only; other tools get a correction wrong by "

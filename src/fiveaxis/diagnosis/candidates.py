@@ -291,7 +291,7 @@ def build_pool(block, w, Q: np.ndarray, rw: np.ndarray, present: set, custom: li
     sums = es.row_sums(params, P, rw, Q, prob.obs.row, prob.meas.n)
     bands = []
     for tok, s in (prob.scales.items() if periodic else ()):
-        if s.column is None and prob.meas.t is None:
+        if s.column is None and prob.meas.t is None or s.unit == "degC":     # periods of pose variables and time
             continue
         b = es.band(tok, prob.ctx.raw(tok) * s.to_unit, sums.live)
         if b is not None:
@@ -299,7 +299,7 @@ def build_pool(block, w, Q: np.ndarray, rw: np.ndarray, present: set, custom: li
     per = [f for f in es.periodic(sums, bands) if f.effect.id not in present]
     grid = es.tau_grid(prob.meas.t, sums.live) if prob.meas.t is not None else None
     therm = [f for f in es.thermal(sums, grid) if f.effect.id not in present] if grid is not None else []
-    temp, temp_trials = heat.search(sums, prob.ctx, machine, grid, float(rw @ rw), len(rw))
+    temp, temp_trials = heat.search(sums, prob.ctx, machine, grid, float(rw @ rw), len(rw), present)
     temp = [f for f in temp if f.effect.id not in present]
     active = int(np.sum(sums.W2.sum(axis=0) > 0))
     prof = profile_candidates(block, w, present, unseen) if profiles else []

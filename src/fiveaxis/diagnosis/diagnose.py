@@ -113,12 +113,14 @@ def residual_structure(prob, w, residual: np.ndarray, tests=None) -> dict:
 
 
 
-def diagnose(model, meas, added=(), top: int = 10, fixed=None, in_blocks: bool | None = None) -> "Diagnosis":
+def diagnose(model, meas, added=(), top: int = 10, fixed=None, in_blocks: bool | None = None,
+             prior=None) -> "Diagnosis":
     """Fit, then rank every candidate effect by how much of the residual it explains, decide, and give a verdict.
     fixed: {name: value} parameters held at known values (mm, rad); in_blocks: a set too large for memory, in row
-    blocks (None: above `fiveaxis.estimation.design.IN_MEMORY_POSES` poses)."""
+    blocks (None: above `fiveaxis.estimation.design.IN_MEMORY_POSES` poses); prior: the fit's priors
+    (`fiveaxis.estimation.priors.PriorSpec`; None: the defaults)."""
     with F.one_blas_thread():
-        res = F.fit(model, meas, added, fixed=fixed, in_blocks=in_blocks, robust=False)
+        res = F.fit(model, meas, added, fixed=fixed, in_blocks=in_blocks, robust=False, prior=prior)
         return diagnose_fit(robust_fit(res), top)
 
 

@@ -48,11 +48,13 @@ def channels(ctx) -> list[str]:
     return [c for c, T in ctx.temps.items() if np.isfinite(T).all() and np.ptp(T) > 0]
 
 
-def search(sums: es.RowSums, ctx, machine, grid, rss: float, N: int) -> tuple[list, int]:
+def search(sums: es.RowSums, ctx, machine, grid, rss: float, N: int, present=()) -> tuple[list, int]:
     """(found candidates `searches.Found`, trials) of the temperature family on a screen: sums over its poses (the
     parameters' columns with the residual, live poses), ctx the screen's effect context, grid the thermal search's
     `TauGrid` (None: no lags, only tau = 0), rss the weighted residual's sum of squares over N readings (a lag is
-    kept only where it lowers the BIC against none: N ln((rss - g_0) / (rss - g_tau)) > ln N)."""
+    kept only where it lowers the BIC against none: N ln((rss - g_0) / (rss - g_tau)) > ln N); present: ids of
+    the model's effects: a (parameter, channel, axis) the model has already is not offered again with another lag
+    (a second time constant of one sensor on one error would model the sensor's noise, not the machine)."""
     live = sums.live
     cols = np.flatnonzero(sums.W2.sum(axis=0) > 0)
     chans = channels(ctx)
@@ -77,7 +79,13 @@ def search(sums: es.RowSums, ctx, machine, grid, rss: float, N: int) -> tuple[li
                          lambda tau, _j, u=u: (ctx.lagged(ch, tau, keep=False)[live] - ref) * u,
                          [(0, sums.params[cols[j]], ch, tok)], cols[[j]], rss, N)
     trials = (len(cols) + len(scale)) * len(chans) * len(taus)
-    return [f for f in out if f.gain > 0], trials
+    have = set()
+    for ident in present:
+        got = fx.split(ident, fx.tokens(machine))
+        if got is not None and got[0] is fx.Temperature:
+            param, channel, _, axis = got[1]
+            have.add((param, channel, axis))
+    return [f for f in out if f.gain > 0 and (f.effect.param, f.effect.var, f.effect.axis) not in have], trials
 
 
 def _one(sub: es.RowSums, j: int) -> es.RowSums:

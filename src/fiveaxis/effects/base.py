@@ -81,6 +81,8 @@ class Effect(Protocol):
     def module(cls, rec: "EffectRecord", scales: dict, variables) -> dict | str: ...   # slot values, or why not
     @classmethod
     def table_knots(cls, rec: "EffectRecord", machine): ...   # positions a comp file needs a line at, or None
+    @classmethod
+    def extents(cls, rec: "EffectRecord", scales: dict) -> list: ...   # [(quantity, size, pose column)]
 
 
 @dataclass(frozen=True)
@@ -130,8 +132,9 @@ class Scale:
     column: str | None  # pose variable name (X, A) or None for time
     centre: float
     half: float
-    unit: str           # unit at the interface: mm, deg or s
+    unit: str           # unit at the interface: mm, deg, s or degC
     to_unit: float      # interface unit per model unit (180/pi for rotary axes, 1 otherwise)
+    span: tuple | None = None   # a temperature channel: (lowest, highest) reading of the data (degC)
 
     def to_json(self) -> dict:
         return {"token": self.token, "column": self.column, "centre": self.centre, "half": self.half,
@@ -314,7 +317,9 @@ def scales(machine, t=None, tmax: float | None = None, temps=None, references=No
     for name, T in (temps or {}).items():
         first = int(np.argmin(t)) if t is not None and len(t) else 0
         ref = float((references or {}).get(name, T[first]))
-        out[name] = Scale(name, name, ref, 1.0, "degC", 1.0)
+        read = np.asarray(T, float)[np.isfinite(T)]
+        out[name] = Scale(name, name, ref, 1.0, "degC", 1.0,
+                          (float(read.min()), float(read.max())) if len(read) else None)
     return out
 
 
@@ -649,6 +654,13 @@ class VocabularyEffect:
     def table_knots(cls, rec: EffectRecord, machine):
         """Positions (mm, deg) a compensation file needs a line at to carry it exactly; None: no such positions."""
         return None
+
+    @classmethod
+    def extents(cls, rec: EffectRecord, scales: dict) -> list:
+        """What a machine's plausibility is judged by (`fiveaxis.compensation.plausible`): [(quantity, size in the
+        parameter's unit, the pose column it runs along or None)], quantity "backlash" (the step between the two
+        approach directions) or "change" (over the measured stroke); none by default."""
+        return []
 
     # -- the diagnosis, the plan, the simulation
     @classmethod

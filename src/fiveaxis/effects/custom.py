@@ -164,6 +164,11 @@ class CustomEffect:
     def table_knots(cls, rec, machine):
         return None
 
+    @classmethod
+    def extents(cls, rec, scales):
+        """An expression of the user's: no size it can be judged by."""
+        return []
+
 
 def load_custom(machine, name: str) -> CustomEffect:
     """The custom effect `name` of a machine file, deriving its kernels on first use (needs SymPy then)."""

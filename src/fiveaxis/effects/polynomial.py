@@ -59,6 +59,16 @@ class Polynomial(base.VocabularyEffect):
     def plausibility(self) -> int:
         return self.deg
 
+    @classmethod
+    def extents(cls, rec, scales):
+        """The change over u in [-1, 1] (the measured stroke): 2|c| for odd degrees, |c| for even ones; along a pose
+        variable only (not time)."""
+        s = scales.get(rec.var)
+        if s is None or s.column is None or not rec.values:
+            return []
+        c = abs(float(rec.values[0]))
+        return [("change", (2 if int(rec.deg) % 2 else 1) * c, s.column)]
+
     def record(self, values, std=()) -> EffectRecord:
         return EffectRecord(self.id, self.NAME, self.param, self.var, self.deg, tuple(self.names), tuple(values),
                             tuple(std), None)

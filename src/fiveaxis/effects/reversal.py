@@ -55,6 +55,12 @@ class Reversal(base.VocabularyEffect):
     def plan_refusal(self) -> str | None:
         return "approach-direction (reversal)"
 
+    @classmethod
+    def extents(cls, rec, scales):
+        """The backlash: twice the coefficient."""
+        col = scales[rec.var].column if rec.var in scales else None
+        return [("backlash", 2 * abs(float(rec.values[0])), col)] if rec.values else []
+
     def describe(self, machine, coefs=None, ctx=None) -> str:
         """E.g. 'the X axis reverses with a backlash of 6.1 um'."""
         what = describe_param(machine, self.param)
@@ -62,9 +68,10 @@ class Reversal(base.VocabularyEffect):
         if coefs is None:
             return f"{what} changing with the direction of approach of {name} (reversal: backlash or lost motion)"
         size = human(2 * abs(float(np.ravel(coefs)[0])), self.unit_of(machine), 2)
+        half = "; the coefficient is half of it: + approaching forward, - backward"
         if own_positioning(machine, self):
-            return f"the {name} axis reverses with a backlash of {size} (lost motion in its positioning)"
-        return f"{what} changing by {size} with the direction of approach of {name} (reversal)"
+            return f"the {name} axis reverses with a backlash of {size} (lost motion in its positioning{half})"
+        return f"{what} changing by {size} with the direction of approach of {name} (reversal{half})"
 
 
 def reversals(machine, errors, dirs: dict) -> list[Reversal]:

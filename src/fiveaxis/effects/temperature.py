@@ -46,7 +46,7 @@ class Temperature(base.VocabularyEffect):
     SUFFIX: ClassVar[str] = ""
     SEARCHED: ClassVar[bool] = True       # the lag (0 included) is searched by a diagnosis
     RATE_SHOWN: ClassVar[bool] = True
-    MODULE_KIND: ClassVar[int] = 0
+    MODULE_KIND: ClassVar[int] = 4
     ARG_KEY: ClassVar[str] = "lag_s"
 
     @property
@@ -168,14 +168,8 @@ class Temperature(base.VocabularyEffect):
         return ctx if rec.var in ctx.temps else None
 
     # -- the controller
-    MODULE_REASON: ClassVar[str] = "a temperature effect is not in the module yet"
-
     @classmethod
     def module(cls, rec, scales, variables):
-        return cls.MODULE_REASON
-
-    @classmethod
-    def _module(cls, rec, scales, variables):
         """A temperature slot: kind MODULE_KIND, the channel (its index among the record's channels is set by the
         caller from `channel`), the lag, the reference and scale (degC), the axis (joint, centre, half) or none."""
         sc = scales[rec.var]

@@ -5,10 +5,11 @@ geometric error values by name (mm, rad), the added effects with their coefficie
 them at any pose (the scaling of each effect variable), standard uncertainties, and what the data did not determine.
 
 Policy for parameters the data does not determine alone (they sit in the null space of the fit's design): they carry
-the minimum-norm solution of the fit (least squares with unit-norm design columns: of all parameter vectors that
-explain the data equally well, the shortest), and they are listed by name under `undetermined`. Their individual
-values mean nothing; the tool-tip errors they predict at the measured tool lengths do (those depend only on the
-combinations the data determines, listed under `combinations`).
+the fit's maximum a posteriori value (`fiveaxis.estimation.priors`: every error's prior, 0 and its ISO 230 class
+size by default; of all parameter vectors that explain the data equally well, the one the prior finds likeliest; a
+fit with `--prior none` keeps the minimum-norm solution), and they are listed by name under `undetermined`. Their
+values are the prior's, moved by the combinations the data determine (listed under `combinations`); the tool-tip
+errors they predict at the measured tool lengths depend only on those combinations.
 
 The file is JSON, mm and rad, with the unit in every key that holds a number:
     {"format": "fiveaxis fitted model", "version": 1,
@@ -21,12 +22,17 @@ The file is JSON, mm and rad, with the unit in every key that holds a number:
      "scales": {token: {"variable", "centre_<unit>", "half_range_<unit>"}},
      "fit": {"n_poses", "rms_mm", "noise_mm", "rank", "n_parameters", "measured_tool_lengths_mm": [min, max]},
      "covariance_mm_rad": {"names": [...], "matrix": [[...]]},
-     "undetermined_directions_mm_rad": {"names": [...], "basis": [[...], ...]}}
+     "undetermined_directions_mm_rad": {"names": [...], "basis": [[...], ...]},
+     "posterior_covariance_mm_rad": {"names": [...], "matrix": [[...]]},
+     "priors_mm_rad": {name: {"value", "std", "source"}}}
 `errors_mm_rad` is also what `gsa --errors model.json` reads. `covariance_mm_rad` is the fit's covariance of the
 machine's parameters (errors, then effect coefficients; zero along what the data does not determine);
 `undetermined_directions_mm_rad` spans the changes of those parameters the data cannot see (the fit's null space,
 setup placements taken out): what a compensation's prediction cannot know (compensation.prediction). Both are
-optional (model files written before them have neither).
+optional (model files written before them have neither). `posterior_covariance_mm_rad` is the fit's posterior
+covariance (the data and the priors: finite along every direction a prior covers) and `priors_mm_rad` the priors
+the fit used; `--prior model.json` takes the values and the posterior covariance as the next fit's prior (optional
+too: without them a model file cannot be a prior).
 
 The machine file is read back only as a regular `.toml` file of at most 1 MB (MAX_MACHINE_BYTES), named by
 `machine.file` relative to the model file's folder, or the shipped machine of the same name; its SHA-256 must be
@@ -65,9 +71,10 @@ from ..model import error_model
 
 FORMAT = "fiveaxis fitted model"
 VERSION = 1
-POLICY = ("parameters not determined alone by the data carry the minimum-norm solution of the fit (least squares "
-          "with unit-norm design columns) and are listed under 'undetermined'; only the combinations the data "
-          "determines (and the tool-tip errors at the measured tool lengths) are meaningful for them")
+POLICY = ("parameters not determined alone by the data carry the fit's maximum a posteriori value (their prior, "
+          "moved by the combinations the data determine; the minimum-norm solution of a fit without priors) and are "
+          "listed under 'undetermined'; the combinations the data determine (and the tool-tip errors at the "
+          "measured tool lengths) are what the data say of them")
 _SCALE_UNIT = {"mm": "mm", "deg": "rad", "s": "s", "degC": "degC"}   # Scale.unit (interface) -> unit of centre/half
 
 
@@ -91,6 +98,8 @@ class FittedModel:
     covariance: np.ndarray | None = None    # (p, p) mm, rad: the fit's covariance (0 along undetermined directions)
     undetermined_basis: np.ndarray | None = None   # (k, p): orthonormal rows spanning the undetermined changes
     source: str = ""                # the model file this record was read from ("" for a fit's own record)
+    posterior: np.ndarray | None = None     # (p, p) mm, rad: the posterior covariance (data and priors)
+    priors: dict = field(default_factory=dict)    # name -> {"value", "std", "source"} the fit's priors (mm, rad)
 
     @property
     def effect_ids(self) -> tuple[str, ...]:
@@ -160,14 +169,20 @@ def from_fit(res) -> FittedModel:
     noise = res.noise(0)
     if noise is not None:
         fit["noise_mm"] = float(noise)
-    cov = np.asarray(res.cov, dtype=float)[:n_machine, :n_machine]
+    data_cov = res.cov if getattr(res, "cov_data", None) is None else res.cov_data
+    cov = np.asarray(data_cov, dtype=float)[:n_machine, :n_machine]
+    post = np.asarray(res.cov, dtype=float)[:n_machine, :n_machine]
+    pr = prob.prior
+    priors = {} if pr is None else {n: {"value": float(pr.mean[i]), "std": _finite(pr.sd[i]), "source": pr.source[i]}
+                                    for i, n in enumerate(names[:n_machine])}
     return FittedModel(machine.name, str(Path(machine.path).resolve()), sha256(machine.path), model.convention,
                        errors, units,
                        tuple(n for i, n in enumerate(names[:n_machine]) if not determined[i]),
                        {n: float(std[i]) for i, n in enumerate(names[:n_machine])
                         if determined[i] and math.isfinite(std[i])},
                        tuple(effects), dict(prob.scales), combos, fit, POLICY, tuple(names[:n_machine]),
-                       np.where(np.isfinite(cov), cov, 0.0), undetermined_directions(res, n_machine))
+                       np.where(np.isfinite(cov), cov, 0.0), undetermined_directions(res, n_machine), "",
+                       None if res.posterior is None else np.where(np.isfinite(post), post, 0.0), priors)
 
 
 #: A direction of the machine's parameters whose length (relative to the largest) is below this is not one.
@@ -326,7 +341,8 @@ def to_json(fm: FittedModel, folder=None) -> dict:
     for tok, sc in fm.scales.items():
         unit = _SCALE_UNIT[sc.unit]
         scales[tok] = {"variable": sc.column if sc.column is not None else "t",
-                       f"centre_{unit}": float(sc.centre), f"half_range_{unit}": float(sc.half)}
+                       f"centre_{unit}": float(sc.centre), f"half_range_{unit}": float(sc.half),
+                       **({f"range_{unit}": [float(x) for x in sc.span]} if sc.span else {})}
     effects = []
     for e in fm.effects:
         rec = {"id": e.id, "kind": e.kind, "param": e.param, **fx.family(e.kind).write_json(e)}
@@ -348,6 +364,11 @@ def to_json(fm: FittedModel, folder=None) -> dict:
     if fm.undetermined_basis is not None:
         out["undetermined_directions_mm_rad"] = {"names": list(fm.parameter_names),
                                                  "basis": [[float(x) for x in row] for row in fm.undetermined_basis]}
+    if fm.posterior is not None:
+        out["posterior_covariance_mm_rad"] = {"names": list(fm.parameter_names),
+                                              "matrix": [[float(x) for x in row] for row in fm.posterior]}
+    if fm.priors:
+        out["priors_mm_rad"] = {n: dict(v) for n, v in fm.priors.items()}
     return _clean(out)
 
 
@@ -441,7 +462,13 @@ def load(path) -> FittedModel:
             raise InputError(f"{where}: key 'half_range_{unit}': expected a positive number, got {half}")
         iface, to_unit = {"mm": ("mm", 1.0), "rad": ("deg", 180.0 / math.pi), "s": ("s", 1.0),
                           "degC": ("degC", 1.0)}[unit]
-        scales[tok] = fx.Scale(tok, None if var == "t" else var, centre, half, iface, to_unit)
+        span = sc.get(f"range_{unit}")
+        if span is not None and not (isinstance(span, list) and len(span) == 2 and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in span)):
+            raise InputError(f"{where}: key 'range_{unit}': expected [lowest, highest] reading, got "
+                             f"{json.dumps(span)[:40]}")
+        scales[tok] = fx.Scale(tok, None if var == "t" else var, centre, half, iface, to_unit,
+                               tuple(float(x) for x in span) if span else None)
     effects = []
     for i, e in enumerate(_get(data, "effects", "list", w)):
         where = f"{w}: effects[{i}]"
@@ -460,9 +487,10 @@ def load(path) -> FittedModel:
         effects.append(EffectRecord(ident, kind, param, var, deg, names, values, stds, arg))
     combos = tuple(c for c in data.get("combinations", []) if isinstance(c, dict))
     fit = data.get("fit", {}) if isinstance(data.get("fit", {}), dict) else {}
-    names, cov, basis = _uncertainty(data, w)
+    names, cov, basis, post = _uncertainty(data, w)
+    priors = data.get("priors_mm_rad", {}) if isinstance(data.get("priors_mm_rad", {}), dict) else {}
     return FittedModel(name, mfile, sha, conv, errors, units, undetermined, std, tuple(effects), scales, combos,
-                       fit, str(data.get("policy", POLICY)), names, cov, basis, str(path))
+                       fit, str(data.get("policy", POLICY)), names, cov, basis, str(path), post, priors)
 
 
 def _matrix(block, key, rows, cols, where) -> np.ndarray:
@@ -482,9 +510,10 @@ def _matrix(block, key, rows, cols, where) -> np.ndarray:
 
 
 def _uncertainty(data: dict, w: str):
-    """(parameter names, covariance, undetermined basis) of a model file; () / None where the keys are absent."""
-    names, cov, basis = (), None, None
-    for key in ("covariance_mm_rad", "undetermined_directions_mm_rad"):
+    """(parameter names, covariance, undetermined basis, posterior covariance) of a model file; () / None where the
+    keys are absent."""
+    names, cov, basis, post = (), None, None, None
+    for key in ("covariance_mm_rad", "undetermined_directions_mm_rad", "posterior_covariance_mm_rad"):
         if key not in data:
             continue
         block = _get(data, key, "dict", w)
@@ -494,6 +523,8 @@ def _uncertainty(data: dict, w: str):
         names = these
         if key == "covariance_mm_rad":
             cov = _matrix(block, "matrix", len(names), len(names), f"{w}: {key}")
+        elif key == "posterior_covariance_mm_rad":
+            post = _matrix(block, "matrix", len(names), len(names), f"{w}: {key}")
         else:
             basis = _matrix(block, "basis", None, len(names), f"{w}: {key}")
-    return names, cov, basis
+    return names, cov, basis, post

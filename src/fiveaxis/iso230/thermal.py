@@ -48,6 +48,8 @@ DIRECTIONS = {
     "A": ("urad", "tilt about X, in the YZ plane (Y1 - Y2) / l (urad = um/m)"),
     "B": ("urad", "tilt about Y, in the ZX plane (X2 - X1) / l (urad = um/m)"),
 }
+#: The spindle's states, by code.
+STATES = ("at rest", "running", "stopped")
 #: A span shorter than this has no last-hour change (s).
 HOUR_S = 3600.0
 #: A phase still changing over its last hour by more than this share of its largest drift is said not to have
@@ -138,9 +140,10 @@ def _check_spindle(st: Spindle, data: TF.ThermalData) -> Spindle:
     end = data.t[-1] / 60.0
     for key in ("on_min", "off_min"):
         v = getattr(st, key)
-        if v is not None and not data.t[0] / 60.0 < v <= end:
+        first = data.t[0] / 60.0
+        if v is not None and not (first <= v <= end if key == "on_min" else first < v <= end):
             raise InputError(f"spindle_{key}: {v:g} min is not within the test (its readings run from "
-                             f"{data.t[0] / 60.0:g} to {end:g} min)")
+                             f"{data.t[0] / 60.0:g} to {end:g} min)", key=f"spindle_{key}")
     return st
 
 
@@ -168,35 +171,47 @@ def test_kind(data: TF.ThermalData, test: str | None, spindle: Spindle) -> str:
     return test
 
 
+def _test_from(data: TF.ThermalData, test: str | None, spindle: Spindle) -> str:
+    """Why the test is the one evaluated (the JSON's test_from)."""
+    if test is not None:
+        return "stated"
+    if data.axis is not None:
+        return f"column {data.axis}"
+    if data.spindle is not None and bool(np.any(data.spindle != 0)):
+        return f"column {TF.SPINDLE}"
+    if spindle.on_min is not None or spindle.off_min is not None:
+        return "stated spindle times"
+    return "no spindle or position information"
+
+
 def phases(data: TF.ThermalData, test: str, spindle: Spindle) -> list[Phase]:
     """The spindle's phases: runs of readings in one state (running: speed != 0; stopped), each with its reference
     reading; one phase 'at rest' for the ETVE test and a moving axis without spindle information."""
     n = data.n
     if data.spindle is not None and test != "etve":
         on = data.spindle != 0
-        state = ["running" if x else ("stopped" if on[:i].any() else "at rest") for i, x in enumerate(on)]
+        ran = np.concatenate([[False], np.cumsum(on)[:-1] > 0])      # the spindle ran before this reading
+        code = np.where(on, 1, np.where(ran, 2, 0))
     elif test == "spindle" or (test == "axis" and not spindle.empty):
         t_min = data.t / 60.0
         start = spindle.on_min if spindle.on_min is not None else data.t[0] / 60.0
         stop = spindle.off_min if spindle.off_min is not None else math.inf
-        state = ["at rest" if x < start else ("running" if x < stop else "stopped") for x in t_min]
+        code = np.where(t_min < start, 0, np.where(t_min < stop, 1, 2))
     else:
         return [Phase("moving" if test == "axis" else "at rest", np.arange(n), 0)]
-    out, i = [], 0
-    while i < n:
-        j = i
-        while j + 1 < n and state[j + 1] == state[i]:
-            j += 1
-        idx = np.arange(i, j + 1)
+    cuts = [0, *(np.flatnonzero(np.diff(code)) + 1).tolist(), n]
+    out = []
+    for i, j in zip(cuts[:-1], cuts[1:]):
+        idx = np.arange(i, j)
+        state = STATES[int(code[i])]
         speed = None
-        if state[i] == "running":
+        if state == "running":
             if data.spindle is not None:
                 sp = np.abs(data.spindle[idx])
                 speed = (float(sp.min()), float(sp.max()))
             elif spindle.speed_rpm is not None:
                 speed = (spindle.speed_rpm, spindle.speed_rpm)
-        out.append(Phase(state[i], idx, i - 1 if i > 0 else 0, speed))
-        i = j + 1
+        out.append(Phase(state, idx, i - 1 if i > 0 else 0, speed))
     return out
 
 
@@ -227,15 +242,17 @@ def evaluate(data: TF.ThermalData, test: str | None = None, spindle: Spindle | N
     rec = {"standard": STANDARD, "test": kind, "test_name": TESTS[kind], "file": data.path, "readings": data.n,
            "start_min": float(t[0] / 60.0), "end_min": float(t[-1] / 60.0), "duration_min": data.duration_s / 60.0,
            "interval_s": float(np.median(steps)), "longest_gap_s": float(steps.max()), "time_column": data.time_column,
-           "spacing_mm": spacing, "spindle": None, "notes": []}
+           "spacing_mm": spacing, "spindle": None, "test_from": _test_from(data, test, spindle), "notes": []}
     res = data.resolution
     rec["directions_read"] = []
     for name in dirs:
         unit, meaning = DIRECTIONS[name]
         col = {"X": "dx", "Y": "dy", "Z": "dz"}.get(name)
+        steps = [res[col]] if col is not None else [res[{"A": "dy", "B": "dx"}[name]],
+                                                    res[{"A": "dy2", "B": "dx2"}[name]]]
+        step = None if None in steps else (1e3 * steps[0] if col is not None else 1e6 * max(steps) / spacing)
         entry = {"direction": name, "unit": unit, "meaning": meaning, f"noise_{unit}": noise(dirs[name]),
-                 f"resolution_{unit}": 1e3 * res[col] if col is not None else
-                 1e6 * max(res[{"A": "dy", "B": "dx"}[name]], res[{"A": "dy2", "B": "dx2"}[name]]) / spacing}
+                 f"resolution_{unit}": step}
         rec["directions_read"].append(entry)
     ph = phases(data, kind, spindle)
     if kind == "spindle" or data.spindle is not None or not spindle.empty:
@@ -275,6 +292,10 @@ def evaluate(data: TF.ThermalData, test: str | None = None, spindle: Spindle | N
     if data.axis is not None:
         rec["series"][f"{data.axis}_mm"] = data.position.tolist()
     rec["notes"] = _notes(rec, data, ph)
+    if test is None and kind == "etve":
+        rec["notes"].insert(0, "taken as an ETVE test (the machine at rest): the file has no spindle_rpm column where "
+                               "the spindle runs, no position column and no spindle times were stated; if the "
+                               "spindle ran, state when it started and stopped (--spindle-on, --spindle-off)")
     return rec
 
 

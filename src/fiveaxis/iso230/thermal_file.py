@@ -31,6 +31,7 @@ from ..exceptions import InputError
 from ..inputs import regular_file
 from ..measurement import files as F
 from ..measurement.column_names import check as check_columns
+from ..model.columns import TEMPERATURE_PREFIX, TEMPERATURE_RE, temperature_column
 
 #: The displacement columns: the sensors near the mandrel's free end, then the second radial pair.
 SENSORS = ("dx", "dy", "dz")
@@ -38,10 +39,6 @@ UPPER = ("dx2", "dy2")
 TIME_COLUMNS = {"t": 1.0, "t_min": 60.0}          # column -> seconds per unit
 SPINDLE = "spindle_rpm"
 POSITIONS = ("X", "Y", "Z")
-#: Temperature channels: prefix, whole name, and the temperatures a machine tool's sensors read (degC).
-TEMPERATURE_PREFIX = "temp_"
-TEMPERATURE_RE = r"temp_[a-z][a-z0-9_]{0,31}"
-TEMPERATURE_RANGE_DEGC = (-50.0, 200.0)
 #: A displacement changing by more than this over a test is not a machine's thermal drift (mm).
 MAX_DRIFT_MM = 2.0
 #: A displacement reading beyond this is not a non-contact sensor's reading (mm).
@@ -67,7 +64,7 @@ class ThermalData:
     axis: str | None = None            # the moving linear axis (column X, Y or Z)
     position: np.ndarray | None = None  # (n,) mm
     time_column: str = "t"
-    resolution: dict = field(default_factory=dict)   # column -> the step of its numbers (file units, 0: one value)
+    resolution: dict = field(default_factory=dict)   # column -> the step its cells write (file units; None: binary)
     warnings: list = field(default_factory=list)
 
     @property
@@ -79,11 +76,17 @@ class ThermalData:
         return float(self.t[-1] - self.t[0])
 
 
-def _step(values) -> float:
-    """The step of a column's numbers as written (twice half a unit of the last digit; 0 when all are equal)."""
-    q = F.quantum(values)
+def _step(cells, keep, values) -> float | None:
+    """The step of a column's numbers as its cells write them (a unit of the last digit, `measurement.files`'
+    reading of the text); None when the cells are binary numbers (Parquet), which say nothing of it."""
+    if not isinstance(cells, np.ndarray):
+        cells = [cells[i] for i in keep]
+    written = F.written_digits(cells)
+    if written is None:
+        return None
+    q = F.quantum(values, written)
     q = q[np.isfinite(q)]
-    return float(2 * q.max()) if len(q) else 0.0
+    return float(2 * q.max()) if len(q) else None
 
 
 def read(path) -> ThermalData:
@@ -164,14 +167,11 @@ def read(path) -> ThermalData:
                              f"thermal drift ({MAX_DRIFT_MM:g} mm): expected mm; did you write um in a mm column?")
         sensors[c] = v
     temps = {}
-    lo, hi = TEMPERATURE_RANGE_DEGC
     for c in (c for c in names if c.startswith(TEMPERATURE_PREFIX)):
         v = numbers(c, blank_ok=True)
-        bad = np.flatnonzero(~np.isnan(v) & ((v < lo) | (v > hi)))
-        if len(bad):
-            i = int(bad[0])
-            raise InputError(f"{where(i)}, column {c}: {v[i]:.6g} degC is not a temperature a machine's sensor reads "
-                             f"(expected degrees Celsius from {lo:g} to {hi:g})")
+        column = temperature_column(c)                  # the bound every measurement file's channel has
+        F._range_check(path, c, np.where(np.isnan(v), column.bound[0], v), keep, lines, *column.bound,
+                       column.bound_text)
         read_ = v[~np.isnan(v)]
         if not len(read_):
             raise InputError(f"{path}: column {c}: no reading in any row (expected temperatures in degC; a blank "
@@ -193,8 +193,7 @@ def read(path) -> ThermalData:
     if positions:
         axis = positions[0]
         position = numbers(axis)
-    resolution = {c: _step(v) for c, v in {**sensors, **temps}.items()}
-    resolution[tcol] = _step(t_raw)
+    resolution = {c: _step(cols[c], keep, v) for c, v in {**sensors, **temps, tcol: t_raw}.items()}
     return ThermalData(str(path), t, keep + 1, sensors, temps, spindle, axis, position, tcol, resolution, warnings)
 
 

@@ -3,7 +3,7 @@ read over some hours, with a known truth (for the tests, and for users trying `f
 
 The machine (a vertical machining centre, spindle along Z), time t in s, temperatures in degC:
 - temp_spindle (housing): warm-up towards +RISE_SPINDLE K with TAU_WARM while the spindle runs, back with TAU_COOL
-  when it stands (exact first-order exponentials);
+  when it stands (exact first-order exponentials: `fiveaxis.measurement.temperatures`' spindle channel);
 - temp_air: a day's cycle (AIR_DAY K, 24 h) and the shop's air conditioning (AIR_HVAC K, period HVAC_PERIOD);
 - temp_column: the column, lagging a mix of the spindle's heat and the air (TAU_COLUMN);
 - temp_xscrew (moving-axis test): the X ball screw warming while X travels (RISE_SCREW K, TAU_SCREW).
@@ -14,7 +14,7 @@ The tool side relative to the table (the truth, um and urad):
 and, in the moving-axis test, the position error of X at a target P: ALPHA * (screw - start) * P (a scale
 growing from the axis' zero). The sensors read X, Y, Z at the mandrel's free end, X2 = X + B l and Y2 = Y - A l
 at the spacing l (mm) along +Z, each with its own noise (NOISE_UM) and rounded to RESOLUTION_UM; the temperatures
-with TEMP_NOISE and rounded to TEMP_RESOLUTION.
+with TEMP_NOISE and rounded to TEMP_RESOLUTION (as `fiveaxis.measurement.temperatures.readings`).
 """
 from __future__ import annotations
 
@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..exceptions import InputError
+from ..measurement import temperatures as heat
 
 RISE_SPINDLE, TAU_WARM, TAU_COOL = 12.0, 2400.0, 3000.0       # K, s, s
 TAU_NOSE = 900.0                                               # s: the spindle nose lags the housing sensor
@@ -61,17 +62,6 @@ def _lag(t, x, tau):
     return y
 
 
-def _warm(t, on, off, rise, tau_warm, tau_cool):
-    """The spindle housing's rise (K) above its start: running from on to off (s), cooling after."""
-    out = np.zeros(len(t))
-    run = (t >= on) & (t < off)
-    out[run] = rise * -np.expm1(-(t[run] - on) / tau_warm)
-    peak = rise * -math.expm1(-(off - on) / tau_warm) if math.isfinite(off) else 0.0
-    after = t >= off
-    out[after] = peak * np.exp(-(t[after] - off) / tau_cool)
-    return out
-
-
 def simulate(test: str = "spindle", hours: float = 6.0, interval_s: float = 60.0, run_hours: float = 4.0,
              speed_rpm: float = 8000.0, spacing_mm: float = 100.0, spindle_column: bool = True, seed: int = 0,
              air_shift_h: float = 9.0, targets_mm=(0.0, 400.0)) -> ThermalSimulation:
@@ -95,7 +85,11 @@ def simulate(test: str = "spindle", hours: float = 6.0, interval_s: float = 60.0
         raise InputError(f"test_hours: {hours:g} h of readings every {interval_s:g} s are {n} readings (expected at "
                          f"least 3)", key="test_hours")
     on, off = (0.0, run_hours * 3600.0) if test == "spindle" else (math.inf, math.inf)
-    spindle = START_DEGC["temp_spindle"] + _warm(t, on, off, RISE_SPINDLE, TAU_WARM, TAU_COOL)
+    sensor = {"noise": TEMP_NOISE, "resolution": TEMP_RESOLUTION}
+    housing = heat.Channel("temp_spindle", "spindle", {
+        "start": START_DEGC["temp_spindle"], "rise": RISE_SPINDLE, "tau": TAU_WARM, "cool": TAU_COOL, **sensor,
+        "on": [on] if test == "spindle" else [], "off": [off] if test == "spindle" else []})
+    spindle = heat.history([housing], t)["temp_spindle"]
     day = 2 * math.pi * (t / 3600.0 + air_shift_h - 9.0) / 24.0
     air = START_DEGC["temp_air"] + AIR_DAY * np.sin(day) + AIR_HVAC * np.sin(2 * math.pi * t / HVAC_PERIOD)
     column_drive = (START_DEGC["temp_column"] + COLUMN_SHARE * (spindle - spindle[0]) + (air - air[0]))
@@ -132,8 +126,9 @@ def simulate(test: str = "spindle", hours: float = 6.0, interval_s: float = 60.0
     cols["dz"] = read(truth["Z_um"])
     cols["dx2"] = read(truth["X_um"] + 1e-3 * truth["B_urad"] * spacing_mm)
     cols["dy2"] = read(truth["Y_um"] - 1e-3 * truth["A_urad"] * spacing_mm)
-    for name, T in temps.items():
-        cols[name] = np.round(np.round((T + rng.normal(0.0, TEMP_NOISE, n)) / TEMP_RESOLUTION) * TEMP_RESOLUTION, 4)
+    channels = [heat.Channel(name, "constant", {"start": float(T[0]), **sensor}) for name, T in temps.items()]
+    for name, T in heat.readings(channels, temps, rng).items():
+        cols[name] = np.round(T, 4)
     if test == "spindle" and spindle_column:
         cols["spindle_rpm"] = np.where((t >= on) & (t < off), speed_rpm, 0.0)
     truth.update({"test": test, "spacing_mm": spacing_mm, "spindle_on_min": on / 60.0 if test == "spindle" else None,

@@ -489,8 +489,12 @@ def ini_text(lc: LinuxCNCCompensation, source: str = "") -> str:
              + (f" ({comment_text(source)})" if source else ""),
              "# Joints in the order " + " ".join(lc.variables) + "; files in machine units (mm, degrees).",
              "# Where the files go: this folder's files next to the machine's INI (COMP_FILE and HALFILE paths are",
-             "# relative to the INI's folder). The pins, G54 and the comp files were fitted together: never use the",
-             "# comp files without the pins and G54 (alone they can leave more error than no compensation).",
+             "# relative to the INI's folder)."
+             + (" The pins, G54 and the comp files were fitted together: never use the" if lc.trt is not None
+                else ""),
+             "# comp files without the pins and G54 (alone they can leave more error than no compensation)."
+             if lc.trt is not None else
+             "# This machine has no trunnion kinematics: the comp files alone are what LinuxCNC takes.",
              "# For the whole model use volumetric/ (the kinematics module) instead of these files, not with them."]
     if lc.trt is not None:
         lines += ["", "[KINS]", f"KINEMATICS = {lc.trt.component}",

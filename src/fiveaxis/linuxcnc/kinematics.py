@@ -7,7 +7,12 @@ the error values and the position-dependent effects are HAL pins (`<component>.`
 - `error.<name>`: base error values (mm, rad);
 - `effect.<k>.*` (SLOTS slots): param (error index, n_errors for the tool length L), kind (KINDS),
   joint (the effect's variable, a joint index), degree, period (mm or rad), centre and half-range (mm or rad: the
-  polynomial's u = (q - centre) / half-range), coef-0, coef-1 (mm or rad; a periodic effect: sine, cosine);
+  polynomial's u = (q - centre) / half-range), coef-0, coef-1 (mm or rad; a periodic effect: sine, cosine); a
+  temperature slot: channel (the sensor), reference (degC), lag (s), coef-0 (mm or rad per degC), joint -1 or the
+  axis of a scale effect (u as a polynomial's); OUT temperature (degC: the lagged reading it uses);
+- `temp.<c>` (TEMPS sensors, degC): the sensors' readings; unconnected, the HAL file sets each to its reference,
+  so that nothing thermal is applied; a reading outside the plausible range is taken as the reference
+  (OUT `temp-fault`);
 - `tool-length` (mm), `tool-offset` (mm, from motion.tooloffset.z), `damping`.
 So one compiled module serves every calibration of its machine (and convention): a recalibration writes a new
 HAL file. Effects of a rotary axis whose stroke is a full turn are evaluated at the angle wrapped into the stroke
@@ -39,6 +44,7 @@ import numpy as np
 from ..effects import families as fx
 from ..exceptions import InputError
 from ..model import provenance
+from ..model.columns import TEMPERATURE_RANGE_DEGC
 from ..model.inverse import iterate, linear_for_tip
 from ..model.machine import data_dir, kins_component, module_name
 from .configuration import _tip_jacobian
@@ -47,13 +53,15 @@ from ..outputs import comment_text, write_text
 
 #: Effect slots of the module (must equal fiveaxis_derive.kins.SLOTS: a test checks the generated files).
 SLOTS = 16
+#: Temperature sensors the module reads (`temp.<c>`, degC; must equal fiveaxis_derive.kins.TEMPS).
+TEMPS = 8
 #: Effect kinds of the slots (the `kind` pin): each family that the module carries gives its number
 #: (`MODULE_KIND`, the template's FA_KIND_* constants).
 KINDS = {"none": 0, **{name: f.MODULE_KIND for name, f in fx.FAMILIES.items() if f.MODULE_KIND}}
 #: HAL's longest name of a pin (LinuxCNC 2.9 hal.h: HAL_NAME_LEN); a longer one fails the module's setup.
 HAL_NAME_LEN = 47
 #: The longest pin name's part after the component and a dot (the error pins are checked by name).
-_LONGEST_PIN = f"effect.{SLOTS - 1}.half-range"
+_LONGEST_PIN = f"effect.{SLOTS - 1}.temperature"
 #: The reference inverse's limits (the module's: FA_MAX_ITER, FA_TOL_MM, FA_TOL_RAD).
 MAX_ITER = 12
 TOL_MM = 1e-9
@@ -140,6 +148,9 @@ class Slot:
     c0: float = 0.0
     c1: float = 0.0
     id: str = ""                       # the effect id it holds (for the HAL file's comments)
+    channel: int = -1                  # temperature: the sensor's index (temp.<channel>), -1 for other kinds
+    reference: float = 0.0             # temperature: degC
+    lag: float = 0.0                   # temperature: s (0: none)
 
 
 @dataclass
@@ -154,6 +165,8 @@ class ModuleValues:
     damping: float = 0.2
     left_out: tuple = field(default_factory=tuple)   # one line per effect the module does not hold, and why
     convention: str = "equations"
+    channels: tuple = ()               # temperature sensors in pin order (temp.<c>): their column names
+    references: tuple = ()             # their reference temperatures (degC): the pins' values when unconnected
 
     @property
     def component(self) -> str:
@@ -171,7 +184,28 @@ class ModuleValues:
                     (f"{base}.joint", s.joint, ""), (f"{base}.degree", s.degree, ""),
                     (f"{base}.period", s.period, ""), (f"{base}.centre", s.centre, ""),
                     (f"{base}.half-range", s.half, ""), (f"{base}.coef-0", s.c0, ""), (f"{base}.coef-1", s.c1, "")]
+            if s.channel >= 0:
+                out += [(f"{base}.channel", s.channel, self.channels[s.channel]),
+                        (f"{base}.reference", s.reference, "degC"), (f"{base}.lag", s.lag, "s")]
+        for c, (channel, ref) in enumerate(zip(self.channels, self.references)):
+            out.append((f"{name}.temp.{c}", ref, f"{channel} degC: its reference"))
         return out
+
+
+def sensor_lines(values: ModuleValues) -> list[str]:
+    """Comment lines of a HAL file saying how to connect the temperature sensors (channel names are checked
+    identifiers: temp_<name>), or none without temperature effects."""
+    if not values.channels:
+        return []
+    name = values.component
+    lo, hi = TEMPERATURE_RANGE_DEGC
+    return ["# temperature sensors (degC): connect each sensor's HAL pin to the module's input below; until it is",
+            "# connected (a net line after the setp lines below) an input holds its reference and the module applies",
+            "# no thermal correction;",
+            f"# a reading outside {lo:g} to {hi:g} degC (or not a number) is taken as the reference and sets "
+            f"{name}.temp-fault.",
+            *[f"#   net {c} <the sensor's pin> => {name}.temp.{k}" for k, c in enumerate(values.channels)],
+            f"# what each temperature effect uses (lagged where it has a lag): {name}.effect.K.temperature (degC)"]
 
 
 def setp_lines(values: ModuleValues) -> list[str]:

@@ -27,7 +27,7 @@ import numpy as np
 
 from ..exceptions import one_line
 from ..outputs import comment_text
-from .kinematics import ModuleValues, setp_lines
+from .kinematics import ModuleValues, sensor_lines, setp_lines
 
 WORLD_MARGIN_MM = 50.0
 JOINT_MARGIN_DEG = 1.0
@@ -147,6 +147,7 @@ def hal_text(model, values: ModuleValues, source: str = "") -> str:
               f"# the identified machine: error values (mm, rad) and effects; a recalibration replaces these lines",
               f"# only (the same module serves every calibration of machine {model.machine.name}). Nothing after this",
               f"# file (HALCMD lines, POSTGUI_HALFILE) may set {name}.* pins again."]
+    lines += sensor_lines(values)
     lines += setp_lines(values)
     return "\n".join(lines) + "\n"
 

@@ -22,6 +22,7 @@ import csv
 import math
 import re
 from dataclasses import dataclass, field, replace
+from decimal import Decimal
 from pathlib import Path
 
 import numpy as np
@@ -134,35 +135,61 @@ def _concat_quantum(a: Measurements, b: Measurements) -> dict | None:
 MAX_DIGITS = 17
 
 
-def quantum(values: np.ndarray) -> np.ndarray:
-    """The resolution of a column of numbers as a file gives them: half a unit of the last digit of each (0.0005
-    for 12.345 in a column written to 0.001; 5e-5 for 214.2245 in a column of 7 significant digits). From the
-    column's decimals (the most any value needs: a fixed-point column) and significant digits (the most any value
-    needs: a column of significant digits), each value's resolution is the coarser of the two at its magnitude;
-    full double precision comes out near 1e-16 of the value. A column of one value (A = 0 in every row, a beam
-    along x: 1, 0, 0) is exact: its rounding, if any, is one offset shared by every row (a constant error the model
-    holds), not a perturbation from row to row. NaN where the value is NaN."""
+def written_digits(cells) -> tuple[int, int] | None:
+    """What the text of a column's cells says of its resolution: (decimals, significant digits), the most any
+    cell writes ('200.000': 3 decimals and 6 digits; '0.00123': 5 and 3; '1.5e-05': 6 and 2), trailing zeros
+    counted as written. None when no cell is text (numbers of a binary file say nothing of their resolution)."""
+    import pandas as pd   # heavy (about 0.5 s): loaded where a file is read
+    if isinstance(cells, np.ndarray):
+        return None
+    s = pd.Series([str(c) for c in cells if isinstance(c, (str, Decimal)) and str(c).strip()], dtype=object)
+    if not len(s):
+        return None
+    s = s.str.strip().str.lstrip("+-")
+    sci = s.str.contains("[eE]", regex=True)
+    decimals, digits = [], []
+    plain = s[~sci]
+    if len(plain):
+        dot = plain.str.find(".").to_numpy()
+        size = plain.str.len().to_numpy()
+        decimals.append(int(np.max(np.where(dot >= 0, size - dot - 1, 0))))
+        digits.append(int(plain.str.replace(".", "", regex=False).str.lstrip("0").str.len().max()))
+    if sci.any():
+        parts = s[sci].str.extract(r"^(\d*)\.?(\d*)[eE]([+-]?\d+)$")
+        ok = parts.notna().all(axis=1)
+        if ok.any():
+            parts = parts[ok]
+            frac = parts[1].str.len().to_numpy()
+            exp = parts[2].astype(int).to_numpy()
+            decimals.append(int(np.max(frac - exp)))
+            digits.append(int((parts[0] + parts[1]).str.lstrip("0").str.len().max()))
+    return (max(decimals), min(max(digits), MAX_DIGITS)) if decimals else None
+
+
+def quantum(values: np.ndarray, written: tuple[int, int] | None = None, step: float | None = None) -> np.ndarray:
+    """The resolution of a column of numbers (n,): half a unit of the last digit its text writes (0.0005 for
+    200.000 in a column written to 0.001; 5e-5 for 214.2245 in a column of 7 significant digits), from the most
+    decimals any cell writes (a fixed-point column) and the most significant digits (a column of significant
+    digits: the decimals of a value are those its magnitude leaves), each value's resolution the coarser of the
+    two; `written` is `written_digits` of its cells; or half of a stated step (the file's units); neither: full
+    precision, the resolution is 0. A column of one value (A = 0 in every row, a beam along x: 1, 0, 0) is exact:
+    its rounding, if any, is one offset shared by every row (a constant error the model holds), not a perturbation
+    from row to row. NaN where the value is NaN."""
     v = np.asarray(values, dtype=float)
     out = np.full(v.shape, np.nan)
     ok = np.isfinite(v)
     if not ok.any():
         return out
-    if np.all(v[ok] == v[ok][0]):
+    if (written is None and not step) or np.all(v[ok] == v[ok][0]):
         out[ok] = 0.0
         return out
+    if step:
+        out[ok] = 0.5 * float(step)
+        return out
+    decimals, digits = written
     x = np.abs(v[ok])
     e = np.floor(np.log10(np.where(x > 0, x, 1.0)))
-    k = np.full(x.shape, MAX_DIGITS)
-    for digits in range(MAX_DIGITS - 1, 0, -1):       # fewest significant digits that read back as the value
-        scale = 10.0 ** (digits - 1 - e)
-        y = x * scale
-        exact = np.abs(np.round(y) - y) <= 4 * np.finfo(float).eps * np.maximum(y, 1.0)
-        k = np.where(exact, digits, k)
-    k = np.where(x > 0, k, 1)
-    decimals = np.where(x > 0, k - 1 - e, -np.inf)
-    K = int(k.max())
-    d_max = float(decimals.max()) if np.isfinite(decimals).any() else 0.0
-    out[ok] = 0.5 * np.maximum(10.0 ** (-d_max), np.where(x > 0, 10.0 ** (e - K + 1), 0.0))
+    out[ok] = 0.5 * np.maximum(10.0 ** (-decimals), np.where(x > 0, 10.0 ** (e - max(digits, 1) + 1), 0.0))
     return out
 
 
@@ -363,13 +390,17 @@ def _range_check(path, name, values, keep, lines, lo, hi, what):
 
 
 def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind: str | None = None,
-         setup_frame: str | None = None, readings_required: bool = True) -> Measurements:
+         setup_frame: str | None = None, readings_required: bool = True,
+         resolution: dict | None = None) -> Measurements:
     """Read and check a measurement file for a machine.
 
     min_rows: the least number of measured values (readings) accepted; frame: "workpiece" (default) or "machine",
     the frame of dx, dy, dz, di, dj, dk and ux, uy, uz; setup_kind / setup_frame: defaults for setups whose rows
     do not say (columns setup_kind, setup_frame win); readings_required=False reads a file of poses only (a plan
-    to simulate or to measure). The columns are checked against their table (`fiveaxis.model.columns`) in one
+    to simulate or to measure); resolution: {column: step} in the file's units (mm, deg), the resolution of
+    numbers the file does not write as text (Parquet) or states otherwise (a controller's 0.001 mm); else a
+    CSV column's resolution is read from the digits its cells write (`written_digits`) and binary numbers count as
+    full precision (never a guess from the values). The columns are checked against their table (`fiveaxis.model.columns`) in one
     loop; then the rules that join columns and rows (RULES)."""
     path = Path(path)
     if frame is not None and frame not in FRAMES:
@@ -398,7 +429,8 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
         for n, value in zip(LINE_DIRECTION, u):
             cols[n] = np.where(filled, value, np.nan)
         warnings.append(note)
-    f = _File(path, cols, lines, types, keep, machine, variables, readings_required, warnings, {})
+    f = _File(path, cols, lines, types, keep, machine, variables, readings_required, warnings, {},
+              resolution=_check_resolution(path, resolution, names))
     for column in COLUMNS:                               # the table's columns, one loop
         if column.name in cols:
             f.data[column.name] = f.cells(column)
@@ -430,6 +462,20 @@ def _one_axis_line(path, machine, cols, frame):
     u = tuple(sign * float(c) for c in ax.direction)
     return u, (f"{path}: no ux,uy,uz columns: du read along the machine's one axis {ax.name}, ux,uy,uz = "
                f"{', '.join(f'{c:g}' for c in u)} ({frame or 'workpiece'} frame)")
+
+
+def _check_resolution(path, resolution, names) -> dict:
+    """A stated resolution {column: step (mm, deg)} checked against the file's columns."""
+    out = {}
+    for name, step in (resolution or {}).items():
+        if name not in names:
+            raise InputError(f"{path}: resolution of column {name}: no such column in the file (columns: "
+                             f"{', '.join(names)})")
+        if isinstance(step, bool) or not isinstance(step, (int, float)) or not (0 < step < math.inf):
+            raise InputError(f"{path}: resolution of column {name}: expected a positive step (mm or deg), got "
+                             f"{step!r}")
+        out[name] = float(step)
+    return out
 
 
 def _check_header(path, cols, variables, readings_required):
@@ -475,10 +521,20 @@ class _File:
     setup_kind: dict = field(default_factory=dict)
     setup_frame: dict = field(default_factory=dict)
     has_line: np.ndarray | None = None
+    resolution: dict = field(default_factory=dict)      # column -> stated step (mm, deg)
 
     @property
     def n(self) -> int:
         return len(self.keep)
+
+    def quantum(self, name: str, values: np.ndarray) -> np.ndarray:
+        """The resolution of a column's kept values (file units): stated, or from the digits its text writes."""
+        if name in self.resolution:
+            return quantum(values, step=self.resolution[name])
+        cells = self.cols[name]
+        if not isinstance(cells, np.ndarray) and len(self.keep) != len(cells):
+            cells = [cells[i] for i in self.keep]
+        return quantum(values, written_digits(cells))
 
     def where(self, i: int) -> str:
         """'file: data row 3 (line 4)' of the i-th kept row."""
@@ -512,8 +568,8 @@ class _File:
         d = self.data
         n = self.n
         L = d["L"] if "L" in d else np.full(n, self.machine.tool_length)
-        resolution = {"poses": d["_pose_quantum"], "L": quantum(L) if "L" in d else np.zeros(n),
-                      "u": None if self.u is None else np.column_stack([quantum(d[c]) for c in DIRECTION])}
+        resolution = {"poses": d["_pose_quantum"], "L": self.quantum("L", L) if "L" in d else np.zeros(n),
+                      "u": None if self.u is None else np.column_stack([self.quantum(c, d[c]) for c in DIRECTION])}
 
         def cols3(names):
             return np.column_stack([d[c] if c in d else np.full(n, np.nan) for c in names])
@@ -630,7 +686,7 @@ def _rule_poses(f: _File, *_):
             f.warnings.append(f"{f.path}: column {v}: all {n} angles are within +-{RADIAN_MAX:.4g} while the stroke "
                               f"is [{lo:g}, {hi:g}] deg: are they radians? (angles are read as degrees)")
         poses[:, i] = vals * to
-        pq[:, i] = quantum(vals) * to
+        pq[:, i] = f.quantum(v, vals) * to
     if outside:
         detail = ", ".join(f"{v}: {k}" for v, k in outside.items())
         f.warnings.append(f"{f.path}: {int(np.sum(any_out))} of {n} poses outside the strokes of the machine file "

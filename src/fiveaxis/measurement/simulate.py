@@ -122,8 +122,8 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
     parsed = [parse_effect(e, model) if isinstance(e, str) else e for e in effects]
     if plan is None:
         opts = dict(options or {})
-        if instrument == "tip":
-            opts.update(with_axis=with_axis, tool_lengths=tool_lengths)
+        opts.update({k: v for k, v in (("with_axis", with_axis), ("tool_lengths", tool_lengths))
+                     if k in ins.get(instrument).plan_options})
         plan = ins.plan(instrument, model, n, rng, **opts)
     if setup_kind is not None:
         plan.setup_kind = {s: setup_kind for s in plan.setup_kind}

@@ -60,7 +60,7 @@ _WORKPIECE_KEYS = {"pige", "offset", "description"}
 _ERROR_KEYS = {"linear", "angular", "values"}
 _CONVENTION_KEYS = {"description", "move"}
 _MODEL_KEYS = {"effects"}
-_FIT_KEYS = {"fixed"}
+_FIT_KEYS = {"fixed", "prior"}
 _EFFECT_KEYS = {"error", "expr", "description"}
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9]*$")
 #: Machine and convention names become Python module names (`li2018`, `li2018__printed` in fiveaxis_generated):
@@ -140,6 +140,7 @@ class Machine:
     pige_order: tuple = ()                            # PIGE names as first declared: stable across conventions
     added_effects: tuple = ()                         # effects the model includes: ids (ex_x:x1) or custom names
     fixed: dict = field(default_factory=dict)         # [fit] fixed: parameters held at known values (mm, rad)
+    prior: dict = field(default_factory=dict)         # [fit] prior: class or name -> size or [value, size]
     tool_end: ChainEnd = ChainEnd("tool")             # the spindle after the last tool-chain joint
     workpiece_end: ChainEnd = ChainEnd("workpiece")   # the workpiece holder after the last workpiece-chain joint
     workspace: dict = field(default_factory=dict)     # [workspace]: axis -> (lo, hi, count), mm or degrees
@@ -656,6 +657,10 @@ def parse_machine(data: dict, path: Path) -> Machine:
         if k not in seen_errors:
             _fail(path, f"fit.fixed.{k}", "unknown error name")
         _number(path, f"fit.fixed.{k}", v)
+    prior = fitd.get("prior", {})
+    if not isinstance(prior, dict):
+        _fail(path, "fit.prior", "expected a table of error name or class = size or [value, size] (mm or rad), e.g. "
+                                 "{ rotary_location_rad = 2e-5, dXOC = [0.012, 0.002] } (docs/machine-files.md)")
     workspace = _parse_workspace(path, data.get("workspace", {}), {a.name: a for c in chains.values() for a in c})
     return Machine(name=name, path=Path(path), title=str(data.get("title", name)),
                    tool_chain=chains["tool_chain"], workpiece_chain=chains["workpiece_chain"],
@@ -666,7 +671,7 @@ def parse_machine(data: dict, path: Path) -> Machine:
                                + tuple(n for a in chains["workpiece_chain"] for n in a.pige)
                                + tuple(workpiece_end.pige)),
                    added_effects=tuple(added), tool_end=tool_end, workpiece_end=workpiece_end,
-                   fixed={k: float(v) for k, v in fixed.items()}, workspace=workspace)
+                   fixed={k: float(v) for k, v in fixed.items()}, workspace=workspace, prior=dict(prior))
 
 
 def _parse_workspace(path, table, axes: dict) -> dict:

@@ -7,7 +7,7 @@ import math
 from ..iso230 import thermal as T
 from ..plots.thermal import thermal_figure
 from .figures import png
-from .html import _e, _figure, _table
+from .html import _e, _figure, _get, _table, _v
 
 #: The rows of a direction's figures: key, label.
 ROWS = (("max_drift", "maximum drift"), ("max_drift_t_min", "  at (min)"), ("range", "range (max - min)"),
@@ -64,7 +64,8 @@ def text(rec: dict) -> str:
     lines = [f"{rec['standard']} {rec['test_name']}: {rec['file']}",
              f"  {rec['readings']} readings over {rec['duration_min']:.4g} min (every {rec['interval_s']:g} s)"]
     reads = ", ".join(f"{d['direction']} to {d['resolution_' + d['unit']]:.3g} {d['unit']}"
-                      for d in rec["directions_read"])
+                      if d["resolution_" + d["unit"]] is not None else f"{d['direction']} (binary numbers: "
+                      f"resolution not written)" for d in rec["directions_read"])
     lines.append(f"  directions read: {reads}" + (f"; tilts from sensor pairs {rec['spacing_mm']:g} mm apart"
                                                     if rec["spacing_mm"] else ""))
     sp = rec.get("spindle")
@@ -144,42 +145,54 @@ def section_html(rec: dict, figs: dict) -> str:
         return ""
     places = digits(th)
     out = [f'<section id="iso230-3"><h2>ISO 230-3: {_e(th["test_name"])}</h2>',
-           f"<p>From <span class=\"code\">{_e(th['file'])}</span>: {th['readings']} readings over "
-           f"{th['duration_min']:.4g} min. The drift of a direction is its reading minus the reference reading "
-           f"(the first of the test; for a phase, the last reading before it), \u00b5m; tilts in \u00b5rad "
+           f"<p>From <span class=\"code\">{_e(th['file'])}</span>: {_v(rec, 'iso230_3.readings', 'd')} readings "
+           f"over {_v(rec, 'iso230_3.duration_min')} min. The drift of a direction is its reading minus the reference "
+           f"reading (the first of the test; for a phase, the last reading before it), \u00b5m; tilts in \u00b5rad "
            f"(= \u00b5m/m).</p>"]
     keys = [k for k, _ in ROWS if k != "max_drift_t_min"]
     head = ["direction"] + [label for k, label in ROWS if k != "max_drift_t_min"]
     numeric = tuple(range(1, len(head)))
 
-    def rows_of(dirs):
-        return [[_e(d["direction"]) + f" ({_people(d['unit'])})"]
-                + [f"{_value(d, k):.{places[d['direction']]}f}" if _value(d, k) is not None else "\u2013"
-                   for k in keys] for d in dirs]
+    def rows_of(base):
+        """The rows of the directions at `base` (a key of the record); every number the record's (report.html._v)."""
+        rows = []
+        for n, d in enumerate(_get(rec, base)):
+            fmt = f".{places[d['direction']]}f"
+            rows.append([_e(d["direction"]) + f" ({_people(d['unit'])})"]
+                        + [_v(rec, f"{base}.{n}.{k if k.endswith('_min') else k + '_' + d['unit']}", fmt)
+                           if _value(d, k) is not None else "\u2013" for k in keys])
+        return rows
     if th["test"] == "axis":
-        for tg in th["targets"]:
-            out.append(f"<p>Target {_e(th['axis'])} = {tg['position_mm']:g} mm</p>"
-                       + _table(head, rows_of(tg["directions"]), "", numeric=numeric))
+        for i, tg in enumerate(th["targets"]):
+            out.append(f"<p>Target {_e(th['axis'])} = {_v(rec, f'iso230_3.targets.{i}.position_mm', 'g')} mm</p>"
+                       + _table(head, rows_of(f"iso230_3.targets.{i}.directions"), "", numeric=numeric))
         e = th.get("expansion")
         if e:
-            k = places.get(th["axis"], 2)
-            out.append(f"<p>Change of the distance between {e['from_mm']:g} and {e['to_mm']:g} mm: largest "
-                       f"{e['max_drift_um']:.{k}f} \u00b5m ({e['max_drift_um_per_m']:.{k}f} \u00b5m/m), range "
-                       f"{e['range_um']:.{k}f} \u00b5m.</p>")
+            f = f".{places.get(th['axis'], 2)}f"
+            out.append(f"<p>Change of the distance between {_v(rec, 'iso230_3.expansion.from_mm', 'g')} and "
+                       f"{_v(rec, 'iso230_3.expansion.to_mm', 'g')} mm: largest "
+                       f"{_v(rec, 'iso230_3.expansion.max_drift_um', f)} \u00b5m "
+                       f"({_v(rec, 'iso230_3.expansion.max_drift_um_per_m', f)} \u00b5m/m), range "
+                       f"{_v(rec, 'iso230_3.expansion.range_um', f)} \u00b5m.</p>")
     else:
-        out.append(_table(head, rows_of(th["directions"]), "iso230-3-figures", numeric=numeric))
+        out.append(_table(head, rows_of("iso230_3.directions"), "iso230-3-figures", numeric=numeric))
         if th["test"] == "etve":
-            out.append("<p>ETVE per direction (range over the test): " + ", ".join(
-                f"{_e(d['direction'])} {d['ETVE_' + d['unit']]:.{places[d['direction']]}f} {_people(d['unit'])}"
-                for d in th["directions"]) + ".</p>")
-        for p in th["phases"] if len(th["phases"]) > 1 else []:
-            out.append(f"<p>{_e(_phase_label(p))}</p>" + _table(head, rows_of(p["directions"]), "", numeric=numeric))
+            etve = []
+            for n, d in enumerate(th["directions"]):
+                key, fmt = f"iso230_3.directions.{n}.ETVE_{d['unit']}", f".{places[d['direction']]}f"
+                etve.append(f"{_e(d['direction'])} {_v(rec, key, fmt)} {_people(d['unit'])}")
+            out.append("<p>ETVE per direction (range over the test): " + ", ".join(etve) + ".</p>")
+        for j, p in enumerate(th["phases"] if len(th["phases"]) > 1 else []):
+            out.append(f"<p>{_e(_phase_label(p))}</p>" + _table(head, rows_of(f"iso230_3.phases.{j}.directions"), "",
+                                                                numeric=numeric))
     if th["temperatures"]:
         out.append(_table(["temperature", "first (\u00b0C)", "last (\u00b0C)", "min (\u00b0C)", "max (\u00b0C)",
                            "range (\u00b0C)", "change (\u00b0C)"],
-                          [[_e(c["channel"])] + [f"{c[k]:.{places[c['channel']]}f}" for k in ("first_degC", "last_degC", "min_degC",
-                                                                        "max_degC", "range_degC", "change_degC")]
-                           for c in th["temperatures"]], "iso230-3-temperatures", numeric=(1, 2, 3, 4, 5, 6)))
+                          [[_e(c["channel"])] + [_v(rec, f"iso230_3.temperatures.{i}.{k}", f".{places[c['channel']]}f")
+                                                 for k in ("first_degC", "last_degC", "min_degC", "max_degC",
+                                                           "range_degC", "change_degC")]
+                           for i, c in enumerate(th["temperatures"])], "iso230-3-temperatures",
+                          numeric=(1, 2, 3, 4, 5, 6)))
     out.append(_figure(figs, "iso230_3", f"ISO 230-3 {th['test']}", "Drift of each direction and the temperatures "
                                                                      "over the test."))
     out += [f'<p class="note">{_e(n)}</p>' for n in th["notes"]]
