@@ -19,11 +19,13 @@ from ..measurement import instruments as ins
 from ..model.columns import FRAMES, MAX_AXIS_DEVIATION, MAX_DEVIATION_MM, MAX_TOOL_LENGTH_MM, SETUP_KINDS
 
 
-def _common(p, file_arg=True):
+def _common(p, file_arg=True, several=False):
     if file_arg:
-        p.add_argument("file", type=Path, help="measurements: CSV or Parquet, one row per pose (the machine's axes, "
-                                               "mm and deg; dx,dy,dz mm and/or di,dj,dk, or du with ux,uy,uz; "
-                                               "optional L,t,sigma,sigma_axis,setup,dir_<AXIS>; docs/measurements.md)")
+        p.add_argument("file", type=Path, nargs="+" if several else None,
+                       help="measurements: CSV or Parquet, one row per pose (the machine's axes, mm and deg; dx,dy,dz "
+                            "mm and/or di,dj,dk, or du with ux,uy,uz; optional L,t,sigma,sigma_axis,setup,dir_<AXIS>; "
+                            "docs/measurements.md)" + ("; several files: one joint fit, each file with its own "
+                                                       "instrument, setups and noise" if several else ""))
     p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
     p.add_argument("--convention", default="equations", help="convention of the machine file (default: equations)")
     p.add_argument("--frame", default=None, choices=FRAMES,
@@ -63,7 +65,7 @@ def _fit_options(p):
 
 
 def register_fit(p):
-    _common(p)
+    _common(p, several=True)
     _fit_options(p)
     p.add_argument("--first-order", action="store_true", help="skip the refinement on the exact model")
     p.add_argument("--json", action="store_true", help="print JSON instead of the report")
@@ -74,7 +76,7 @@ def register_fit(p):
 
 
 def register_diagnose(p):
-    _common(p)
+    _common(p, several=True)
     _fit_options(p)
     p.add_argument("--top", type=int, default=10, help="candidates to list (default 10)")
     p.add_argument("--rounds", type=int, default=1, metavar="N",
@@ -155,7 +157,7 @@ def _load(args):
     from ..estimation.problem import machine_effects, resolve_effects
     from ..model.error_model import load
     from ..model.machine import load_machine
-    from ..measurement.files import read
+    from ..measurement.files import join, read
     if getattr(args, "scheduler", None) is not None:
         from ..parallel import scheduler_address
         try:
@@ -165,14 +167,33 @@ def _load(args):
     machine = load_machine(args.machine)
     model = load(machine, args.convention)
     prior = _prior(model, args.prior)                # before the data are read: a wrong model file fails at once
-    meas = read(args.file, model.machine, min_rows=2, frame=args.frame, setup_kind=args.setup_kind,
-                setup_frame=args.setup_frame, resolution=_resolution(args.resolution))
+    files = args.file if isinstance(args.file, list) else [args.file]
+    resolution = _resolution(args.resolution)
+    sets = [read(f, model.machine, min_rows=2 if len(files) == 1 else 1, frame=args.frame,
+                 setup_kind=args.setup_kind, setup_frame=args.setup_frame, resolution=resolution,
+                 resolution_strict=len(files) == 1) for f in files]
+    if len(files) > 1:
+        _check_joint(files, sets, resolution)
+    meas = join(sets, model.machine)
     for w in meas.warnings:
         print(f"fiveaxis: warning: {w}", file=sys.stderr)
     added = machine_effects(model) + list(args.add)
     effects = resolve_effects(model, added)
     design_size.check(model, meas, effects)          # before a design is built: memory of the setups' unknowns
     return model, meas, effects, _fixed(model, args.fix), prior
+
+
+def _check_joint(files, sets, resolution) -> None:
+    """Several files: each once, and each --resolution column in one of them at least."""
+    seen = set()
+    for f in files:
+        key = Path(f).resolve()
+        if key in seen:
+            raise InputError(f"{f}: given twice (a joint fit takes each file once)")
+        seen.add(key)
+    for name in resolution:
+        if not any(name in getattr(m, "columns", ()) for m in sets):
+            raise InputError(f"--resolution {name}=...: no such column in {', '.join(str(f) for f in files)}")
 
 
 def _prior(model, specs):
@@ -285,7 +306,7 @@ def run_fit(args) -> int:
         save(fm, args.output, force=args.force)
         print(f"fiveaxis: wrote {one_line(args.output)}", file=sys.stderr)
     j = to_json(res)
-    _implausible(fm, model, args.file, j)
+    _implausible(fm, model, meas.path, j)
     if args.json:
         _dump(j)
     else:
@@ -311,7 +332,7 @@ def run_diagnose(args) -> int:
         print(f"fiveaxis: wrote {path}", file=sys.stderr)
     js = [dg.to_json() for dg in dgs]
     from ..estimation.fitted_model import from_fit
-    _implausible(from_fit(dgs[0].fit), model, args.file, js[0])         # the data as given: a unit slip
+    _implausible(from_fit(dgs[0].fit), model, meas.path, js[0])         # the data as given: a unit slip
     if args.json:
         _dump(js[0] if args.rounds == 1 else {"rounds": js})
     else:
