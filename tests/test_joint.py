@@ -158,3 +158,28 @@ def test_joint_fit_and_diagnose_on_the_command_line(trunnion, tmp_path):
     r = subprocess.run(FIVEAXIS + ["fit", *files, "--machine", "ac_trunnion", "--resolution", "W=0.001"],
                        capture_output=True, text=True)
     assert r.returncode != 0 and "--resolution W" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.slow
+def test_joint_diagnosis_and_report(trunnion, tmp_path):
+    """diagnose on the joint set names the effect left out of the model (a bowed Z, which only the laser sees over
+    the stroke); the report of the two files (one joint fit) prints its numbers by the same rules."""
+    from fiveaxis.diagnosis import diagnose as D
+    from fiveaxis.report import html, record
+    from written import too_large
+    laser, rtest, ids = campaign(trunnion, 4, n_rtest=300)
+    meas = join([laser.meas, rtest.meas], trunnion.machine)
+    dg = D.diagnose(trunnion, meas, [i for i in ids if i != "dz_z:z2"]).to_json()
+    assert dg["verdict"] == "missing effect"
+    top = dg["candidates"][0]
+    assert "dz_z:z2" in [top["id"]] + top["aliases"], (top["id"], top["aliases"])
+    for s, name in ((laser, "laser.csv"), (rtest, "rtest.csv")):
+        write(to_frame(s, trunnion), tmp_path / name)
+    rep = record.build([tmp_path / "laser.csv", tmp_path / "rtest.csv"], "ac_trunnion", added=ids,
+                       sensitivity=False, max_rounds=1)
+    assert " + " in rep.record["data"]["file"]
+    page = html.render(rep)
+    assert "laser.csv" in page and "rtest.csv" in page
+    for p in rep.record["fit"]["parameters"]:
+        if p["determined"] and p["unit"] in ("um", "urad") and p["value"] is not None:
+            assert abs(p["value"]) <= (1000 if p["unit"] == "um" else 10000), p

@@ -12,7 +12,9 @@ from .iso230_3 import spindle, thermal_options
 
 
 def register_report(p):
-    p.add_argument("file", type=Path, help="measurements: CSV or Parquet, one row per pose (as for `fiveaxis fit`)")
+    p.add_argument("file", type=Path, nargs="+",
+                   help="measurements: CSV or Parquet, one row per pose (as for `fiveaxis fit`); several files: one "
+                        "joint fit, each file with its own instrument, setups and noise")
     p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
     p.add_argument("--convention", default="equations", help="convention of the machine file (default: equations)")
     p.add_argument("--frame", default=None, choices=("workpiece", "machine"),
