@@ -83,7 +83,7 @@ def no_outliers(readings: int) -> Outliers:
 class FitResult:
     """The fitted parameters with their identifiability, and the residual (readings: mm, rad)."""
     problem: Problem
-    theta: np.ndarray          # all parameter values (fixed ones included; minimum norm along undetermined ones)
+    theta: np.ndarray          # all parameter values (fixed ones included; the prior's along undetermined ones)
     cov: np.ndarray            # (p, p) covariance (zero rows and columns for fixed parameters)
     idf: Identifiability       # of the free parameters
     residual: np.ndarray       # (m,) of the model reported: exact, or first order (see `exact`)

@@ -265,6 +265,10 @@ def diagnosis(j: dict) -> str:
         coef = "" if c["coefficient"] is None or not fx.family(c["family"]).RATE_SHOWN \
             else f"coef {c['coefficient']:.3g} {c['unit']}: "
         shown = f"{c['id']} ({c['iso']})" if c.get("iso") else c["id"]
+        if c.get("plausible") is False:
+            lines.append(f"    {k:2d}. {shown:18s} -> {c['rms_mm'] * 1000:.4g} um ({c['explained']:.1%}) its size over "
+                         f"the data: {IMPLAUSIBLE}")
+            continue
         lines.append(f"    {k:2d}. {shown:18s} -> {c['rms_mm'] * 1000:.4g} um ({c['explained']:.1%}) "
                      f"{coef}{c['description']}")
         if c["aliases"]:
