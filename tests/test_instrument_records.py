@@ -110,17 +110,18 @@ class HeightGauge(Common):
 
     def standard_plan(self, model, n, rng) -> Plan:
         lin, _ = axes(model)
-        return self._lines(model, sample_poses(model, n, rng, False, lin), model.machine.tool_length, False)
+        strokes = ins.Strokes.of(model.machine, 0.0, 0.0)
+        return self._lines(model, sample_poses(model, n, rng, False, strokes, lin), model.machine.tool_length, False)
 
     def candidates(self, model, count, rng, extreme, L, fixtures):
         lin, _ = axes(model)
-        q = quantized(model, sample_poses(model, count, rng, extreme, lin), L, fixtures)
+        q = quantized(model, sample_poses(model, count, rng, extreme, fixtures["strokes"], lin), L, fixtures)
         plan = self._lines(model, q, L, True)
         return candidate_plan(self.name, plan.poses, plan.L, "line", u=plan.u), np.arange(count)
 
     def program(self, w, plan, notes, feed, dwell):
         for L, s, idx, q in paths.setups(w, plan, notes, self.mounts):
-            paths.transit(w, q[0])
+            paths.approach(w, q[0])
             w.event("mount")
             w.stop("set the dial gauge under the tool tip, zero it, then resume")
             for k, j in enumerate(idx):

@@ -15,8 +15,14 @@ from pathlib import Path
 from ..exceptions import InputError
 
 
+#: What to change when a plan's program cannot be made or is refused, and when too few candidates fit.
+CHANGE_PROGRAM = ("what to change: another seed (--seed), fewer poses (--n), a shorter tool (--tool-lengths) or "
+                  "smaller margins (--margin)")
+CHANGE_CANDIDATES = "what to change: a shorter tool (--tool-lengths) or smaller margins (--margin)"
+
+
 def register_plan(p):
-    from ..measurement.instruments import planners
+    from ..measurement.instruments import MARGIN_DEG, MARGIN_MM, planners
     from ..planning.plan import MAX_POSES
     from ..planning.pool import NOISE_MM
     from ..linuxcnc.program import DWELL_S, FEED_MM_MIN, KINEMATICS
@@ -44,6 +50,10 @@ def register_plan(p):
                    help=f"feed of the moves, mm/min (default {FEED_MM_MIN:g})")
     p.add_argument("--dwell", type=float, default=DWELL_S,
                    help=f"dwell at each pose while the instrument reads, s (default {DWELL_S:g})")
+    p.add_argument("--margin", default=None, metavar="MM[,DEG]",
+                   help=f"how far every pose and move keeps from the ends of the strokes: mm for linear axes, degrees "
+                        f"for rotary axes (default {MARGIN_MM:g},{MARGIN_DEG:g}); with --check: what the program "
+                        f"must keep")
     p.add_argument("--kinematics", default=None, choices=KINEMATICS,
                    help="the kinematics mode the program runs in: tcp (world X Y Z = tool tip in the workpiece frame, "
                         "as xyzac/xyzbc-trt-kins) or joint (identity kinematics); default: what `fiveaxis "
@@ -55,6 +65,11 @@ def register_plan(p):
                    help="with --check: the plan's poses, compared with the program's measuring poses")
     p.add_argument("--tool-length", type=float, default=None, metavar="L",
                    help="with --check: the tool length (mm) of a joint-mode program that does not state it")
+    p.add_argument("--recommend", action="store_true",
+                   help="instead of planning: which instrument to measure with next, by the tool-tip uncertainty a "
+                        "plan of each would leave over the workspace (from the machine alone, or --model)")
+    p.add_argument("--model", type=Path, default=None, metavar="MODEL.json",
+                   help="with --recommend: what a fit already determined (its covariance)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON instead of the report")
     p.add_argument("--force", action="store_true", help="replace the output files if they exist")
     p.set_defaults(func=run_plan)
@@ -70,11 +85,27 @@ def _lengths(text):
     return vals
 
 
+def _margins(text) -> tuple:
+    """--margin MM[,DEG]: (mm, degrees), the defaults where not given."""
+    from ..measurement.instruments import MARGIN_DEG, MARGIN_MM
+    if text is None:
+        return MARGIN_MM, MARGIN_DEG
+    parts = text.split(",")
+    try:
+        vals = [float(x) for x in parts]
+    except ValueError:
+        vals = []
+    if not 1 <= len(vals) <= 2 or not all(0 <= v < float("inf") for v in vals):
+        raise InputError(f"--margin: expected MM or MM,DEG (distances >= 0 from the stroke ends), got {text!r}")
+    return vals[0], (vals[1] if len(vals) == 2 else MARGIN_DEG)
+
+
 def run_check(args) -> int:
     """`fiveaxis plan --check FILE.ngc`: the checker's report; a program it refuses is an error (exit 2)."""
     from ..model.error_model import load
     from ..model.machine import load_machine
     from ..measurement.files import read
+    from ..measurement.instruments import Strokes
     from ..planning import safety
     from ..report import plan_text
     for opt in ("output", "n", "gcode"):
@@ -93,10 +124,34 @@ def run_check(args) -> int:
     if args.poses is not None:
         meas = read(args.poses, model.machine, readings_required=False)
         poses, L = meas.poses, meas.L
-    res = safety.check(args.check, model, instrument, args.kinematics, args.tool_length, poses, L)
+    strokes = Strokes.of(model.machine, *_margins(args.margin))
+    res = safety.check(args.check, model, instrument, args.kinematics, args.tool_length, poses, L, strokes)
     print(json.dumps(safety.to_json(res), indent=1) if args.json else plan_text.check(res))
     if not res.ok:
         raise InputError(f"refused: {safety.first_problem(res)}")
+    return 0
+
+
+def run_recommend(args) -> int:
+    """`fiveaxis plan --recommend`: the instruments by what their typical plans would leave over the workspace."""
+    from ..estimation import fitted_model as MF
+    from ..model.error_model import load
+    from ..model.machine import load_machine
+    from ..planning import recommend as R
+    from ..report import plan_text
+    for opt in ("output", "n", "gcode", "poses", "tool_length"):
+        if getattr(args, opt) is not None:
+            raise InputError(f"--recommend: --{opt.replace('_', '-')} is for planning or checking, not for a "
+                             f"recommendation")
+    model = load(load_machine(args.machine), args.convention)
+    fm, source = None, "the machine alone"
+    if args.model is not None:
+        fm = MF.load(args.model)
+        MF.check_model(fm, model, str(args.model))
+        source = str(args.model)
+    res = R.recommend(model, fm, source, seed=args.seed, noise_mm=args.noise)
+    print(json.dumps(R.to_json(res), indent=1) if args.json else
+          plan_text.recommendation(res, model.machine.tool_length))
     return 0
 
 
@@ -104,6 +159,7 @@ def run_plan(args) -> int:
     from ..planning import plan as P
     from ..planning import files, motion, safety
     from ..planning.pool import check_host
+    from ..measurement.instruments.base import NoCandidates, NoPath
     from ..report import plan_text
     from ..model.error_model import load
     from ..model.machine import load_machine
@@ -112,6 +168,10 @@ def run_plan(args) -> int:
     from ..outputs import target, write_text
     if args.check is not None:
         return run_check(args)
+    if args.recommend:
+        return run_recommend(args)
+    if args.model is not None:
+        raise InputError("--model: only with --recommend")
     for opt, given in (("--poses", args.poses), ("--tool-length", args.tool_length)):
         if given is not None:
             raise InputError(f"{opt}: only with --check FILE.ngc")
@@ -139,19 +199,28 @@ def run_plan(args) -> int:
     check_host(machine, instrument)                # before any derivation of a machine that cannot host it
     mode = args.kinematics or default_mode(machine)
     check_mode(machine, mode)
+    margins = _margins(args.margin)
     model = load(machine, args.convention)
     effects = [e.strip() for spec in args.effects for e in spec.split(",") if e.strip()]
     try:
         res = P.make(model, instrument, args.n, effects=effects, lengths=_lengths(args.tool_lengths),
-                     seed=args.seed, noise_mm=args.noise, where="--effects", kinematics=mode)
+                     seed=args.seed, noise_mm=args.noise, where="--effects", kinematics=mode, margins=margins)
     except P.TooFewPoses as exc:
         raise InputError(f"--n {args.n}: {exc}") from None
     except P.BadLengths as exc:
         raise InputError(f"--tool-lengths: {exc}") from None
+    except NoCandidates as exc:
+        raise InputError(f"{exc}; {CHANGE_CANDIDATES}") from None
     title = (f"fiveaxis plan: {instrument} on {model.machine.name}, {res.n} poses, seed {args.seed}"
              + (f", effects {','.join(effects)}" if effects else ""))
-    text = motion.program(model, res.plan, res.setup_notes, title, mode=mode, feed=args.feed, dwell=args.dwell)
-    chk = safety.check_text(text, model, instrument, res.plan.poses, res.plan.L, name=str(gcode))
+    try:
+        text = motion.program(model, res.plan, res.setup_notes, title, mode=mode, feed=args.feed, dwell=args.dwell,
+                              strokes=res.strokes)
+    except NoPath as exc:
+        raise InputError(f"the program for this plan cannot be written, nothing written: {exc}; "
+                         f"{CHANGE_PROGRAM}") from None
+    chk = safety.check_text(text, model, instrument, res.plan.poses, res.plan.L, name=str(gcode),
+                            strokes=res.strokes)
     if args.json:
         out = P.to_json(res)
         out["program_check"] = safety.to_json(chk)
@@ -161,7 +230,7 @@ def run_plan(args) -> int:
         print(plan_text.check(chk))
     if not chk.ok:                                 # never happens on a shipped machine (tests); refuse to write it
         raise InputError(f"the program for this plan would not keep the instrument safe; nothing written: "
-                         f"{safety.first_problem(chk)}")
+                         f"{safety.first_problem(chk)}; {CHANGE_PROGRAM}")
     path = write(files.to_frame(res), args.output, force=args.force)
     write_text(gcode, text, force=args.force)
     print(f"fiveaxis: wrote {path}: {res.n} poses ({instrument}, {res.plan.frame} frame); "

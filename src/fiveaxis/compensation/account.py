@@ -8,6 +8,7 @@ import numpy as np
 
 from .chain import DAMPING, actual_tool
 from .correction import solve
+from .part_setup import SetupRemoval
 from .table import Table, compensated_commands, length_warning
 from ..linuxcnc.configuration import linuxcnc_commands
 
@@ -26,7 +27,8 @@ def account(model, errors_fn, table: Table | None, lc=None, n: int = ACCOUNT_POS
     """Predicted tool-tip error (mm) over n random poses within the strokes: before, after LinuxCNC (lc: a
     linuxcnc.LinuxCNCCompensation), after the volumetric table, and after the exact correction. Approach
     directions are random (+1/-1 per joint and pose) for the errors that depend on them. Also the tool-axis
-    error (rad) before and after the table. L: the tool length (mm; None: the machine's L0).
+    error (rad) before and after the table. L: the tool length (mm; None: the machine's L0). The tool-tip figures
+    also with the part's set-up taken out (`tip_error_setup_removed_mm`; compensation.part_setup).
 
     With a table that has a tool-length dimension, also `by_tool_length`: the same figures (before, after the
     table, after the exact correction; mm and rad) at each of the table's lengths and at the midpoints between
@@ -39,6 +41,9 @@ def account(model, errors_fn, table: Table | None, lc=None, n: int = ACCOUNT_POS
     out = {"poses": int(n), "seed": int(seed)}
     tips, axes = stages(model, errors_fn, q, dirs, L, P0, V0, at, table, lc, module, damping, out)
     out["tip_error_mm"] = {k: stats(v) for k, v in tips.items()}
+    setup = SetupRemoval.at(model.machine, P0)
+    out["part_setup"] = setup.describe()
+    out["tip_error_setup_removed_mm"] = {k: stats(setup.remove(v)) for k, v in tips.items()}
     out["axis_error_rad"] = {k: stats(v) for k, v in axes.items() if k != "after_linuxcnc"}
     if band is not None:
         out["uncertainty"] = band(q, dirs, Ls, tips, axes)

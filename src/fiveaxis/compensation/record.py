@@ -48,6 +48,8 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
         "workspace": {"poses": comp.account["poses"], "seed": comp.account["seed"],
                       "sampling": "uniform within the strokes; approach directions random per joint"},
         "predicted_tip_error_mm": tip,
+        "predicted_tip_error_setup_removed_mm": comp.account["tip_error_setup_removed_mm"],
+        "part_setup": comp.account["part_setup"],
         "predicted_axis_error_rad": axis,
         "predicted_axis_error_note": "model estimates: the tool axis is known only as far as the data had tool-axis "
                                      "readings or several tool lengths (prediction_uncertainty.axis_error_rad)",

@@ -131,6 +131,16 @@ def criterion(ref: Reference, prob: Problem) -> tuple[float, int]:
     return logdet(_profiled(Z, A * prob.w[:, None], _setup_blocks(prob)), prob.meas.n)
 
 
+def information(prob: Problem) -> tuple[list, np.ndarray]:
+    """(names, I): the free errors' and effect coefficients' names and the information (p, p; per mm^2, rad^2) a
+    problem's weighted readings give about them once every setup's unknowns are estimated alongside."""
+    A = design_block(prob).A
+    cols = theta_columns(prob)
+    W = A * prob.w[:, None]
+    Z = _profiled(W[:, cols], W, _setup_blocks(prob))
+    return [prob.names[i] for i in cols], Z.T @ Z
+
+
 @dataclass
 class Design:
     """A pool's design in the criterion's coordinates, per candidate unit: columns in groups `setup` (unknowns of

@@ -47,7 +47,11 @@ UNIT_RANK_SAMPLE = 500
 
 
 class TooFewPoses(InputError):
-    """A plan of fewer poses than the identifiable directions (and setup unknowns) need."""
+    """A plan of fewer poses than the identifiable directions (and setup unknowns) need (`need` of them)."""
+
+    def __init__(self, message: str, need: int = 0):
+        super().__init__(message)
+        self.need = need
 
 
 class BadLengths(InputError):
@@ -75,6 +79,7 @@ class PlanResult:
     seed: int
     notes: list = field(default_factory=list)
     kinematics: str = "joint"      # the kinematics mode of the program the poses are made for (linuxcnc.program)
+    strokes: object = None         # where its poses and program keep to: the strokes less the margins
 
     @property
     def n(self) -> int:
@@ -127,10 +132,12 @@ def min_poses(dsg: Design) -> int:
 
 def make(model, instrument: str, n: int, effects=(), lengths=None, seed: int = 0, noise_mm: float = NOISE_MM,
          noise_rad: float = NOISE_RAD, random_plans: int = RANDOM_PLANS, pool_units: int | None = None,
-         where: str = "effects", kinematics: str | None = None) -> PlanResult:
+         where: str = "effects", kinematics: str | None = None, margins=(ins.MARGIN_MM, ins.MARGIN_DEG)
+         ) -> PlanResult:
     """Plan n poses of an instrument on a model (see the module docstring); effects: ids or records to be detected
     (`where` names them in errors); kinematics: the mode of the program the plan is for ("joint" or "tcp"; default
-    what `fiveaxis compensate` sets up for the machine, `linuxcnc.program.default_mode`)."""
+    what `fiveaxis compensate` sets up for the machine, `linuxcnc.program.default_mode`); margins: (mm, degrees)
+    every pose and move keeps from the ends of the strokes."""
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise InputError(f"number of poses: expected a positive whole number, got {n!r}")
     if n > MAX_POSES:
@@ -149,7 +156,8 @@ def make(model, instrument: str, n: int, effects=(), lengths=None, seed: int = 0
     per = rec.unit_poses
     n_units = max(1, n // per)
     size = pool_units or min(max(POOL_PER_UNIT * n_units, POOL_MIN // per, POOL_MIN_UNITS), POOL_MAX // per)
-    pl = pool(model, instrument, size, size, rng, lengths, kinematics)
+    strokes = ins.Strokes.of(model.machine, *margins)
+    pl = pool(model, instrument, size, size, rng, lengths, kinematics, strokes)
     dsg = design(model, pl, effs, model.machine.fixed, noise_mm, noise_rad)
     if dsg.ref.r == 0:
         raise InputError(f"instrument {instrument}: its data on {model.machine.name} determine none of the model's "
@@ -160,7 +168,7 @@ def make(model, instrument: str, n: int, effects=(), lengths=None, seed: int = 0
         raise TooFewPoses(f"a plan of {n} poses cannot determine the {dsg.ref.r} parameter directions {instrument} "
                          f"data can identify on {model.machine.name}"
                          + (" with its setups' unknowns" if dsg.shared or rec.unit_setup else "")
-                         + f" ({dsg.k} readings per {rec.unit_word}); expected at least {need} poses")
+                         + f" ({dsg.k} readings per {rec.unit_word}); expected at least {need} poses", need)
     units, passes = _choose(dsg, n_units, rng)
     for _ in range(RIVAL_ROUNDS if effs else 0):
         again = design(model, pl, effs, model.machine.fixed, noise_mm, noise_rad, rivals_of=units, before=dsg)
@@ -168,7 +176,7 @@ def make(model, instrument: str, n: int, effects=(), lengths=None, seed: int = 0
             break
         dsg = again
         units, passes = _choose(dsg, n_units, rng)
-    units = _measuring_order(dsg, units)
+    units = _measuring_order(model, dsg, units)
     D, rank = dsg.criterion(units)
     rand_D, rand_rank = [], []
     rr = np.random.default_rng([seed, 1])
@@ -200,7 +208,7 @@ def make(model, instrument: str, n: int, effects=(), lengths=None, seed: int = 0
                      f"{', '.join(r.id for r in dsg.rivals)}")
     return PlanResult(model, instrument, plan, units, dsg, D, rank, rand_D, rand_rank, pred, effs, effect_std,
                       {s: t for s, t in pl.setup_notes.items() if plan.setup is not None and s in set(plan.setup)},
-                      lengths or [model.machine.tool_length], passes, seed, notes, kinematics)
+                      lengths or [model.machine.tool_length], passes, seed, notes, kinematics, strokes)
 
 
 def _effect_hint(model) -> str:
@@ -221,8 +229,9 @@ def _choose(dsg: Design, n_units: int, rng):
         allowed &= ~np.isin(dsg.sid, short)
 
 
-def _measuring_order(dsg: Design, units) -> np.ndarray:
-    """Units grouped by tool length and setup (one placement at a time), then along a nearest-neighbour path."""
+def _measuring_order(model, dsg: Design, units) -> np.ndarray:
+    """Units grouped by tool length and setup (one placement at a time), then in the instrument's order (a
+    nearest-neighbour path; R-test: ending where the exit retract fits)."""
     pl = dsg.pool
     first = pl.poses_of(units)[::max(1, int(np.sum(pl.unit == 0)))]
     L = pl.plan.L[first]
@@ -232,7 +241,7 @@ def _measuring_order(dsg: Design, units) -> np.ndarray:
         for s in dict.fromkeys(setup[L == Lv]):
             idx = np.flatnonzero((L == Lv) & (setup == s))
             q = pl.plan.poses[first[idx]]
-            order = planner(pl.instrument).order(q)
+            order = planner(pl.instrument).order(model, q, Lv, pl.strokes)
             out += [int(units[idx[i]]) for i in order] if len(idx) else []
     return np.array(out, dtype=int)
 
@@ -283,6 +292,8 @@ def to_json(res: PlanResult) -> dict:
     return {"machine": res.model.machine.name, "instrument": res.instrument, "n": res.n,
             "readings": int(res.design.k * len(res.units)), "seed": res.seed, "tool_lengths_mm": res.lengths,
             "kinematics": res.kinematics,
+            "margins": {"mm": res.strokes.margin_mm, "deg": res.strokes.margin_deg,
+                        "note": "every pose and move keeps this far from the ends of the strokes"},
             "noise_mm": res.design.ref.noise_mm, "noise_rad": res.design.ref.noise_rad,
             "effects": [e.id for e in res.effects],
             "criterion": {"D": fin(res.D), "rank": res.rank, "identifiable_directions": res.r,

@@ -37,6 +37,7 @@ class Pool:
     unit: np.ndarray               # (n_poses,) unit of each pose
     uniform: np.ndarray            # (n_units,) bool: drawn uniformly within the constraints (random plans' population)
     setup_notes: dict = field(default_factory=dict)   # setup id -> where it is (text for people and G-code)
+    strokes: object = None         # where the candidates' poses and motion keep to (instruments.base.Strokes)
 
     @property
     def n_units(self) -> int:
@@ -67,15 +68,17 @@ def _concat_plans(parts) -> ins.Plan:
                     points=points)
 
 
-def pool(model, instrument: str, n_uniform: int, n_extreme: int, rng, lengths=None, kinematics: str | None = None
-         ) -> Pool:
+def pool(model, instrument: str, n_uniform: int, n_extreme: int, rng, lengths=None, kinematics: str | None = None,
+         strokes=None) -> Pool:
     """A candidate pool: n_uniform units drawn uniformly within the instrument's constraints and n_extreme that
     favour the ends of the strokes, split over the tool lengths (mm; default the machine's L0), for a program in
-    kinematics mode `kinematics` (default: `program.default_mode`)."""
+    kinematics mode `kinematics` (default: `program.default_mode`), within `strokes` (an `instruments.Strokes`:
+    the strokes less the margins; default the default margins)."""
     rec = planner(instrument)
     rec.check_host(model.machine)
     lengths = [model.machine.tool_length] if not lengths else list(lengths)
-    fixtures = rec.fixtures(model, rng, kinematics or default_mode(model.machine))
+    strokes = ins.Strokes.of(model.machine) if strokes is None else strokes
+    fixtures = rec.fixtures(model, rng, kinematics or default_mode(model.machine), strokes)
     parts, units, uniform, offset = [], [], [], 0
     for extreme, total in ((False, n_uniform), (True, n_extreme)):
         for i, L in enumerate(lengths):
@@ -87,7 +90,7 @@ def pool(model, instrument: str, n_uniform: int, n_extreme: int, rng, lengths=No
             units.append(unit + offset)
             uniform += [not extreme] * count
             offset += count
-    full = Pool(instrument, _concat_plans(parts), np.concatenate(units), np.array(uniform), fixtures["notes"])
+    full = Pool(instrument, _concat_plans(parts), np.concatenate(units), np.array(uniform), fixtures["notes"], strokes)
     return _distinct(full)
 
 
@@ -103,7 +106,8 @@ def _distinct(pl: Pool) -> Pool:
     if len(keep) == pl.n_units:
         return pl
     plan = subplan(pl, keep)
-    return Pool(pl.instrument, plan, np.repeat(np.arange(len(keep)), per), pl.uniform[keep], pl.setup_notes)
+    return Pool(pl.instrument, plan, np.repeat(np.arange(len(keep)), per), pl.uniform[keep], pl.setup_notes,
+                pl.strokes)
 
 
 def subplan(pool_: Pool, units) -> ins.Plan:

@@ -63,6 +63,12 @@ POSE_TOL_DEG = 1e-6
 PROBE_LINE_TOL_MM = 5e-4
 #: Violations listed in the report, at most.
 MAX_LISTED = 20
+#: A sample keeps the margin from a stroke end to this (mm or deg: the words' rounding through the inverse
+#: kinematics); an exit retract is the length its comment states to this (mm).
+MARGIN_TOL = 1e-3
+RETRACT_LENGTH_TOL_MM = 1e-3
+#: Axis words of a line (after its comments are dropped).
+_WORD = re.compile(r"([XYZABCUVW])\s*[-+]?[.\d]")
 
 
 # -- what the program says ----------------------------------------------------------------------------------------
@@ -124,6 +130,12 @@ class CheckResult:
     stroke_unit: str = "mm"
     stroke_line: int = 0
     stroke_violations: int = 0
+    margin_mm: float = ins.MARGIN_MM                     # every sample must keep this from the stroke ends (mm, deg)
+    margin_deg: float = ins.MARGIN_DEG
+    margin_violations: int = 0                           # moves with a sample within the margin (inside the stroke)
+    start_lines: list = field(default_factory=list)      # moves from wherever the machine is: not every word known
+    start_first: str = ""                                # the text of the first of them
+    retracts: list = field(default_factory=list)         # exit retracts: {line, stated, measured} (mm)
     setup_changes: int = 0
     problems: list = field(default_factory=list)         # (line, text): rules broken and limits exceeded
     poses: dict = field(default_factory=dict)            # pose number -> (line, pose (nvar,), extra)
@@ -133,16 +145,17 @@ class CheckResult:
 
     @property
     def ok(self) -> bool:
-        return not self.problems and self.stroke_violations == 0 and all(w.ok for w in self.worst) and \
-            (self.pose_check is None or self.pose_check["ok"])
+        return not self.problems and self.stroke_violations == 0 and self.margin_violations == 0 and \
+            all(w.ok for w in self.worst) and (self.pose_check is None or self.pose_check["ok"])
 
 
 def check(path, model, instrument: str, kinematics: str | None = None, tool_length: float | None = None,
-          plan_poses=None, plan_L=None) -> CheckResult:
+          plan_poses=None, plan_L=None, strokes=None) -> CheckResult:
     """Check a program (see the module docstring) for an instrument on a model's nominal machine. kinematics: the
     mode the program runs in (default: its header's); tool_length (mm): the tool length of a joint-mode program
     that does not state it (default: its `tool` comments, else the machine's L0); plan_poses (n, nvar; mm, rad)
-    and plan_L (n,): a plan's poses, compared with the program's measuring poses."""
+    and plan_L (n,): a plan's poses, compared with the program's measuring poses; strokes: the strokes less the
+    margins every sample keeps (`instruments.Strokes`; default the default margins)."""
     path = Path(path)
     if instrument not in ins.planners():
         raise InputError(f"instrument '{instrument}': expected one of {', '.join(ins.planners())}")
@@ -162,22 +175,27 @@ def check(path, model, instrument: str, kinematics: str | None = None, tool_leng
     if kinematics not in KINEMATICS:
         raise InputError(f"{path}: kinematics mode '{kinematics}': expected one of {', '.join(KINEMATICS)}")
     check_mode(model.machine, kinematics)
+    strokes = ins.Strokes.of(model.machine) if strokes is None else strokes
     prog = rs274.interpret(path, probes=True)
     res = CheckResult(path, model.machine.name, instrument, kinematics, source,
-                      worst=[Worst(lim) for lim in rec.limits], program=prog)
-    _run(prog, model, rec, kinematics, tool_length, res)
+                      worst=[Worst(lim) for lim in rec.limits], program=prog, margin_mm=strokes.margin_mm,
+                      margin_deg=strokes.margin_deg)
+    text = read_text(path, "a G-code program", MAX_PROGRAM_BYTES, errors="replace")
+    _run(prog, model, rec, kinematics, tool_length, res, _words(text))
+    if res.start_lines:
+        res.start_first = text.splitlines()[res.start_lines[0] - 1].strip()
     if plan_poses is not None:
         res.pose_check = compare_poses(res, model, rec, np.asarray(plan_poses, float), plan_L)
     return res
 
 
 def check_text(text: str, model, instrument: str, plan_poses=None, plan_L=None, name: str = "program.ngc",
-               kinematics: str | None = None) -> CheckResult:
+               kinematics: str | None = None, strokes=None) -> CheckResult:
     """Check a program given as text (before it is written; `check` on a temporary copy), reported as `name`."""
     with tempfile.TemporaryDirectory(prefix="fiveaxis-check-") as tmp:
         path = Path(tmp) / "program.ngc"
         path.write_text(text, encoding="utf-8")
-        res = check(path, model, instrument, kinematics, None, plan_poses, plan_L)
+        res = check(path, model, instrument, kinematics, None, plan_poses, plan_L, strokes)
     res.path = Path(name)
     return res
 
@@ -193,9 +211,20 @@ class _Segment:
     moving: bool               # a rotary axis turns
 
 
-def _run(prog, model, rec, mode, tool_length, res):
+def _words(text: str) -> dict:
+    """line number -> the axis letters its words give (comments dropped)."""
+    out = {}
+    for k, line in enumerate(text.splitlines(), 1):
+        code = re.sub(r"\([^)]*\)", " ", line).split(";")[0].upper()
+        out[k] = set(_WORD.findall(code))
+    return out
+
+
+def _run(prog, model, rec, mode, tool_length, res, words):
     """Walk the program (events, moves) into segments of samples, then evaluate every sample on the nominal chain at
-    once and account the strokes and the limits per move."""
+    once and account the strokes and the limits per move. Moves before every axis word has been given start from
+    wherever the machine is: they are not sampled (`res.start_lines`); in joint mode the words they give are
+    checked against the strokes less the margins."""
     machine = model.machine
     letters = program_letters(model, mode)
     rot_letters = [a for a in letters if machine.axis(a).type == "rotary"] if mode == "joint" else letters[3:]
@@ -204,7 +233,8 @@ def _run(prog, model, rec, mode, tool_length, res):
     segs: list[_Segment] = []
     refs: list[dict] = []
     marks = []                             # (pose number, line, segment index)
-    state = {"mounted": None, "pending": None, "message": False, "L": tool_length}
+    state = {"mounted": None, "pending": None, "message": False, "L": tool_length, "retract": None}
+    known = set()
     events = {}
     for ev in prog.events:
         events.setdefault(ev.at, []).append(ev)
@@ -229,6 +259,8 @@ def _run(prog, model, rec, mode, tool_length, res):
         if ev.kind == "message":
             state["message"] = True
             return
+        if ev.kind in ("comment", "dwell"):
+            _close_retract(state, segs, res)
         tag = parse_tag(ev.text) if ev.kind == "comment" else None
         if tag is None:
             return
@@ -264,6 +296,14 @@ def _run(prog, model, rec, mode, tool_length, res):
             if state["mounted"] is None:
                 res.problems.append((ev.line, "removed without being mounted"))
             state["mounted"] = None
+        elif name == "retract":
+            if "length" not in vals:
+                raise InputError(f"{where}: a retract comment without length=")
+            stated = float(numbers(vals["length"], 1, where, "length")[0])
+            if state["mounted"] is not None:
+                res.problems.append((ev.line, "an exit retract with the instrument mounted"))
+            state["retract"] = {"line": ev.line, "stated": stated, "first": len(segs), "last": None}
+            res.retracts.append(state["retract"])
         elif name == "pose" and "n" in vals and segs:
             try:
                 marks.append((int(vals["n"]), ev.line, len(segs) - 1))
@@ -284,6 +324,16 @@ def _run(prog, model, rec, mode, tool_length, res):
         L_last = L = length(mv)
         end_c = coords(mv.end, mv)
         kind = mv.kind
+        if kind != "feed":
+            _close_retract(state, segs, res)
+        if len(known) < len(letters):                     # wherever the machine is: only the given words known
+            given = words.get(mv.line, set()) & set(letters)
+            known |= given
+            if len(known) < len(letters):
+                res.start_lines.append(mv.line)
+                if mode == "joint":
+                    _check_words(res, model, mv.line, {a: end_c[letters.index(a)] for a in given})
+                continue
         if prev is None:                                  # the first move: from wherever the machine is
             pts = end_c[None, :]
         else:
@@ -319,12 +369,39 @@ def _run(prog, model, rec, mode, tool_length, res):
         if mv.kind == "probe":
             probe = (coords(prev, mv) if prev is not None else end_c, end_c, mv.line)
         prev = mv.end
+    _close_retract(state, segs, res)
     if state["pending"] is not None:
         res.problems.append((state["pending"][0], f"{state['pending'][1]} without an operator message and M0"))
     if state["mounted"] is not None:
         res.problems.append((state["mounted"]["line"], "mounted and never removed"))
     if segs:
         _evaluate(res, model, mode, segs, refs, marks)
+
+
+def _close_retract(state, segs, res) -> None:
+    """An exit retract's moves end (the feed moves after its comment): the last of them."""
+    r = state["retract"]
+    if r is not None:
+        r["last"] = len(segs) - 1
+        state["retract"] = None
+
+
+def _check_words(res, model, line: int, given: dict) -> None:
+    """Joint mode, a move from wherever the machine is: the axis positions its words give (mm, deg) within the
+    strokes less the margins."""
+    machine = model.machine
+    for a, x in given.items():
+        ax = machine.axis(a)
+        lo, hi = ax.model_stroke
+        rotary = ax.type == "rotary"
+        left = min(x - (math.degrees(lo) if rotary else lo), (math.degrees(hi) if rotary else hi) - x)
+        margin, unit = (res.margin_deg, "deg") if rotary else (res.margin_mm, "mm")
+        if left < 0:
+            res.stroke_violations += 1
+            res.problems.append((line, f"{a} {-left:.4g} {unit} outside its stroke"))
+        elif left < margin - MARGIN_TOL:
+            res.margin_violations += 1
+            res.problems.append((line, f"{a} {left:.4g} {unit} from the end of its stroke (margin {margin:g} {unit})"))
 
 
 def _evaluate(res, model, mode, segs, refs, marks):
@@ -363,6 +440,34 @@ def _evaluate(res, model, mode, segs, refs, marks):
             j = starts[k] + int(np.argmax(worst[starts[k]:starts[k] + sizes[k]]))
             res.problems.append((int(lines[k]), f"{model.variables[worst_axis[j]]} {float(worst[j]):.4g} "
                                                 f"{'deg' if deg[worst_axis[j]] else 'mm'} outside its stroke"))
+    # the margins: every sample at least the margin from the ends (moves outside a stroke counted above)
+    need = np.where(deg, res.margin_deg, res.margin_mm)
+    inner = excess + need[None, :]
+    inner_axis = np.argmax(inner, axis=1)
+    inner_worst = inner[np.arange(len(q)), inner_axis]
+    for k in np.flatnonzero((np.maximum.reduceat(inner_worst, starts) > MARGIN_TOL) & (per_seg <= 1e-6)):
+        res.margin_violations += 1
+        if res.margin_violations <= MAX_LISTED:
+            j = starts[k] + int(np.argmax(inner_worst[starts[k]:starts[k] + sizes[k]]))
+            a = inner_axis[j]
+            unit = "deg" if deg[a] else "mm"
+            res.problems.append((int(lines[k]), f"{model.variables[a]} {float(-excess[j, a]):.4g} {unit} from the "
+                                                f"end of its stroke (margin {need[a]:g} {unit})"))
+    # the exit retracts: the tool tip along the tool axis by the stated length, the rotary axes still
+    rot = np.flatnonzero(deg)
+    for r in res.retracts:
+        if r["last"] is None or r["last"] < r["first"]:
+            r["measured"] = 0.0
+        else:
+            a, b = starts[r["first"]], starts[r["last"]] + sizes[r["last"]] - 1
+            d = tip[b] - tip[a]
+            r["measured"] = float(np.linalg.norm(d))
+            along = float(d @ -axis[a]) / max(r["measured"], 1e-300)
+            if len(rot) and np.max(np.abs(q[b, rot] - q[a, rot])) > 1e-9 or (r["measured"] > 0 and along < 1 - 1e-6):
+                res.problems.append((r["line"], "the exit retract does not move the tool tip along the tool axis"))
+        if abs(r["measured"] - r["stated"]) > RETRACT_LENGTH_TOL_MM:
+            res.problems.append((r["line"], f"the exit retract is {r['measured']:.4g} mm, not the {r['stated']:g} mm "
+                                            f"its comment states"))
     # the limits
     kinds = np.array([sg.kind for sg in segs])
     mounted = np.array([sg.ref is not None for sg in segs])
@@ -486,8 +591,12 @@ def to_json(res: CheckResult) -> dict:
                         "worst": fin(w.value), "line": w.line, "samples": w.samples, "violations": w.violations}
                        for w in res.worst],
             "strokes": {"largest_excess": fin(res.stroke_excess), "axis": res.stroke_axis, "line": res.stroke_line,
-                        "moves_outside": res.stroke_violations,
+                        "moves_outside": res.stroke_violations, "margin_mm": res.margin_mm,
+                        "margin_deg": res.margin_deg, "moves_within_margin": res.margin_violations,
                         "note": "excess beyond a stroke end, mm or deg; negative: the smallest margin"},
+            "start_lines": res.start_lines, "start_first": res.start_first,
+            "exit_retracts": [{"line": r["line"], "stated_mm": r["stated"], "measured_mm": r.get("measured", 0.0)}
+                              for r in res.retracts],
             "setup_changes": res.setup_changes, "tool_lengths_mm": res.tool_lengths,
             "problems": [{"line": ln, "what": t} for ln, t in res.problems[:MAX_LISTED]],
             "poses": res.pose_check, "ok": res.ok}

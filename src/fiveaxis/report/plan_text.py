@@ -9,6 +9,7 @@ import math
 import numpy as np
 
 from ..planning.plan import PlanResult, to_json, worth
+from ..planning.recommend import WORKSPACE_POSES, Recommendation
 from ..planning.safety import MAX_LISTED, MIN_SAMPLES, SPARSE, STEP_DEG, STEP_MM, CheckResult
 from ..units import human
 
@@ -36,7 +37,8 @@ def plan(res: PlanResult) -> str:
              + "; docs/plan.md)",
              f"    chosen from: {j['candidates']} candidates (greedy D-optimal selection, then "
              f"{res.passes} exchange pass(es))",
-             f"    program:     {res.kinematics} kinematics ({KINEMATICS_TEXT[res.kinematics]}; docs/plan.md)"]
+             f"    program:     {res.kinematics} kinematics ({KINEMATICS_TEXT[res.kinematics]}; docs/plan.md); "
+             f"every pose and move {res.strokes.text()} from the ends of the strokes"]
     if res.random_D:
         lines.insert(2, f"    random plan: D = {_fmt_D(res.random_median, min(res.random_rank), res.r)} for "
                         f"{res.n} random poses (median of {len(res.random_D)})"
@@ -94,12 +96,24 @@ def check(res: CheckResult) -> str:
         else:
             out.append(f"    {lim.name}: worst {w.value:.4g} {lim.unit} at line {w.line} (limit: {rel} "
                        f"{lim.limit:g} {lim.unit}){'' if w.ok else f'  EXCEEDED in {w.violations} move(s)'}")
-    if res.stroke_excess <= 1e-6:
-        out.append(f"    strokes: every sample within; smallest margin {max(0.0, -res.stroke_excess):.4g} "
-                   f"{res.stroke_unit} ({res.stroke_axis}, line {res.stroke_line})")
-    else:
+    margins = f"{res.margin_mm:g} mm, {res.margin_deg:g} deg"
+    if res.stroke_excess > 1e-6:
         out.append(f"    strokes: {res.stroke_violations} move(s) outside; worst {res.stroke_axis} "
                    f"{res.stroke_excess:.4g} {res.stroke_unit} beyond its stroke at line {res.stroke_line}")
+    elif res.margin_violations:
+        out.append(f"    strokes: {res.margin_violations} move(s) within the margins ({margins}) of a stroke end; "
+                   f"smallest margin {max(0.0, -res.stroke_excess):.4g} {res.stroke_unit} ({res.stroke_axis}, line "
+                   f"{res.stroke_line})")
+    else:
+        out.append(f"    strokes: every sample at least the margins ({margins}) from the ends; smallest margin "
+                   f"{max(0.0, -res.stroke_excess):.4g} {res.stroke_unit} ({res.stroke_axis}, line "
+                   f"{res.stroke_line})")
+    if res.start_lines:
+        out.append(f"    start: line(s) {', '.join(map(str, res.start_lines))} from wherever the machine is (not "
+                   f"sampled: not every axis word given yet), the first `{res.start_first}`")
+    for r in res.retracts:
+        out.append(f"    exit retract at line {r['line']}: {r.get('measured', 0.0):.4g} mm along the tool axis "
+                   f"(stated {r['stated']:g} mm)")
     out.append(f"    setup changes: {res.setup_changes} (tool, mount, unmount)")
     pc = res.pose_check
     if pc is not None:
@@ -117,3 +131,22 @@ def check(res: CheckResult) -> str:
     out.append("    verdict: " + ("every move keeps the instrument within its limits and the axes within their "
                                   "strokes" if res.ok else "REFUSED"))
     return "\n".join(out)
+
+
+def recommendation(r: Recommendation, tool_length: float) -> str:
+    """Which instrument next: what each one's typical plan would leave of the tool tip's uncertainty over the
+    workspace (um, k = 2)."""
+    out = [f"[[Next instrument]] on {r.machine}, from {r.source}: the tool tip's uncertainty over the workspace a plan "
+           f"of each instrument would leave (k = 2, RMS over {WORKSPACE_POSES} random poses at L = {tool_length:g} mm; "
+           f"the machine's constant errors, each with a prior of 0 +- {r.prior['mm'] * 1e3:g} um [linear] or "
+           f"{r.prior['rad'] * 1e6:g} urad [angular], the machine file's [errors])",
+           f"    before: {r.before_um:.4g} um"]
+    best = r.best
+    for o in r.options:
+        if not o.n:
+            out.append(f"    {o.instrument:15s} no plan: {o.note}")
+            continue
+        out.append(f"    {o.instrument:15s} {o.n} poses, determines {o.directions} direction(s): leaves "
+                   f"{o.after_um:.4g} um" + ("   <- recommended" if o is best else ""))
+    return "\n".join(out)
+

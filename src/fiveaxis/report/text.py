@@ -418,7 +418,9 @@ def compensation(rec: dict, folder: str = "") -> str:
              f"{rec['tool_length_mm']:g} mm",
              f"  table: {grid} = {tab['size']} nodes over the strokes ({', '.join(dims)}); exact-model residual at "
              f"the nodes <= {tab['nodes_max_tip_residual_mm']:.1e} mm",
-             f"  predicted tool-tip error over {rec['workspace']['poses']} random poses (um):   max      RMS      p95"]
+             f"  predicted tool-tip error over {rec['workspace']['poses']} random poses (um):   max      RMS      p95"
+             + ("   RMS after the part's set-up" if "predicted_tip_error_setup_removed_mm" in rec else "")]
+    setup = rec.get("predicted_tip_error_setup_removed_mm", {})
     what = lc["kinematics"] + " + " if lc.get("kinematics") else ""
     rows = [("before", "before"),
             (f"after LinuxCNC ({what}{len(lc['comp_files'])} comp files)", "after_linuxcnc"),
@@ -428,7 +430,8 @@ def compensation(rec: dict, folder: str = "") -> str:
     for label, key in rows:
         if key in tip:
             s = tip[key]
-            lines.append(f"    {label:56s} {1e3 * s['max']:8.3f} {1e3 * s['rms']:8.3f} {1e3 * s['p95']:8.3f}")
+            lines.append(f"    {label:56s} {1e3 * s['max']:8.3f} {1e3 * s['rms']:8.3f} {1e3 * s['p95']:8.3f}"
+                         + (f" {1e3 * setup[key]['rms']:28.3f}" if key in setup else ""))
     lines.append(f"  tool-axis error RMS (urad, model estimates): before {1e6 * ax['before']['rms']:.3g}, after the "
                  f"table {1e6 * ax['after_table']['rms']:.3g} (damping {tab['damping']:g} near singular poses)")
     warm = rec.get("predicted_at_temperatures")
@@ -473,17 +476,29 @@ def prediction_lines(unc: dict, warnings: list) -> list[str]:
         return ["  the prediction's uncertainty: unknown (the model file has no covariance: fit it again with this "
                 "version)"]
     p, parts = unc["prior"], unc["tip_parts_rms_mm"]
-    lines = [f"  what the prediction cannot know (true RMS tool-tip error, k = 2 range, um): the fit's uncertainty "
-             f"{1e3 * parts['fit']:.3g} um, the {unc['undetermined_directions']} undetermined directions "
-             f"{1e3 * math.hypot(parts['undetermined'], parts['undetermined_best_value']):.3g} um (their size taken "
-             f"as the determined ones': {1e3 * p['linear_mm']:.3g} um, {1e6 * p['angular_rad']:.3g} urad)"]
-    noise = unc.get("noise_mm")
+    setup = unc.get("part_setup") or {}
+    span = (lambda r: f"{1e3 * r[0]:.3f} to {1e3 * r[1]:.3f}")
+    lines = [f"  the true machine's RMS tool-tip error over the workspace, k = 2 range (um):  {'raw':22s} after the "
+             f"part's set-up"]
     for key, s in unc["tip_error_mm"].items():
-        lo, hi = s["range_k2"]
-        re = s.get("remeasured_range_k2")
-        more = (f"; a tip measurement with {1e3 * noise:.2g} um noise would read {1e3 * re[0]:.3g} to "
-                f"{1e3 * re[1]:.3g}") if re and noise else ""
-        lines.append(f"    {STAGE_LABELS.get(key, key):56s} {1e3 * lo:8.3f} to {1e3 * hi:.3f}{more}")
+        sr = s.get("setup_removed")
+        lines.append(f"    {STAGE_LABELS.get(key, key):72s} {span(s['range_k2']):22s} "
+                     f"{span(sr['range_k2']) if sr else ''}".rstrip())
+    if setup:
+        lines.append(f"    (the part's set-up: a work offset and the alignment about {setup['axis']}, fitted over the "
+                     f"workspace: what probing the part sets anyway)")
+    noise = unc.get("noise_mm")
+    reads = [f"{STAGE_LABELS.get(k, k)} {1e3 * s['remeasured_range_k2'][0]:.3g} to "
+             f"{1e3 * s['remeasured_range_k2'][1]:.3g}" for k, s in unc["tip_error_mm"].items()
+             if s.get("remeasured_range_k2")]
+    if noise and reads:
+        lines.append(f"  a tip measurement over the workspace with {1e3 * noise:.2g} um noise would read (raw, um): "
+                     + "; ".join(reads))
+    sr = parts.get("setup_removed", parts)
+    lines.append(f"  what the range holds (RMS at the tip after the part's set-up): the fit's uncertainty "
+                 f"{1e3 * sr['fit']:.3g} um, the {unc['undetermined_directions']} undetermined directions "
+                 f"{1e3 * math.hypot(sr['undetermined'], sr['undetermined_best_value']):.3g} um (their size taken "
+                 f"as the determined ones': {1e3 * p['linear_mm']:.3g} um, {1e6 * p['angular_rad']:.3g} urad)")
     ax = unc["axis_error_rad"]
     if "after_table" in ax:
         lo, hi = ax["after_table"]["range_k2"]

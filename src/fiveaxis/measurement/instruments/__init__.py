@@ -22,7 +22,8 @@ from __future__ import annotations
 
 from ...exceptions import InputError
 from .ballbar import Ballbar
-from .base import Instrument, Limit, Plan, approach_directions, centre_pose, linear_rotary  # noqa: F401
+from .base import (MARGIN_DEG, MARGIN_MM, Instrument, Limit, Plan, Strokes, approach_directions,  # noqa: F401
+                   centre_pose, linear_rotary)
 from .interferometer import Interferometer
 from .probe_sphere import ProbeSphere
 from .rtest import RTest

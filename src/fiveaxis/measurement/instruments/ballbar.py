@@ -21,14 +21,16 @@ from ...linuxcnc.program import quantize
 from ...model import frames
 from ...model.inverse import linear_for_tip, within_strokes
 from . import paths
-from .base import (Common, Limit, Plan, approach_directions, axes, candidate_plan, centre_pose, linear_rotary, quantized,
-                   sample_poses)
+from .base import (Common, Limit, NoCandidates, Plan, approach_directions, axes, candidate_plan, centre_pose,
+                   linear_rotary, quantized, sample_poses)
 
 #: Ballbar test: feed along the circle (mm/min) and the pause between runs (s).
 BALLBAR_FEED = 1000.0
 BALLBAR_PAUSE_S = 5.0
 #: A candidate circle's whole path is tested against the strokes at this many points (and its lead arcs with it).
 CIRCLE_SAMPLES = 720
+#: Where the exit retract does not fit at the lead-out's end, the tool goes on along the circle in these steps.
+EXIT_STEP_DEG = 15.0
 
 
 @dataclass(frozen=True)
@@ -94,6 +96,7 @@ class Ballbar(Common):
     reads = "line"
     plan_options = ("radius", "L", "feed")
     unit_poses = BALLBAR.points_per_circle
+    typical_poses = 5 * BALLBAR.points_per_circle
     unit_word = "circle"
     unit_setup = True
     mounts = "ballbar tool cup [tool ball centre]"
@@ -154,6 +157,7 @@ class Ballbar(Common):
         strokes. The circle lies in a coordinate plane of the program's coordinates: the workpiece frame's (tcp) or
         the machine frame's (joint: the bar directions u are then turned into the workpiece frame)."""
         lin, rot = axes(model)
+        strokes = fixtures["strokes"]
         geo = BALLBAR
         per = geo.points_per_circle
         theta = np.linspace(0.0, 2 * math.pi, per, endpoint=False)
@@ -163,7 +167,7 @@ class Ballbar(Common):
         found = []
         for _ in range(200):
             m = max(4 * count, 16)
-            q0 = sample_poses(model, m, rng, extreme)
+            q0 = sample_poses(model, m, rng, extreme, strokes)
             pivot, _ = model.ideal_tool(q0, L)
             plane = rng.integers(0, 3, m)
             radius = np.array(geo.radii_mm)[rng.integers(0, len(geo.radii_mm), m)]
@@ -179,19 +183,19 @@ class Ballbar(Common):
             q = quantized(model, linear_for_tip(model, np.repeat(q0, per, axis=0),
                                                 (pivot[:, None, :] + radius[:, None, None] * u).reshape(-1, 3), L),
                           L, fixtures)
-            ok = within_strokes(model.machine, q).reshape(m, per).all(axis=1)
+            ok = strokes.inside(q).reshape(m, per).all(axis=1)
             if ok.any():
                 qd = linear_for_tip(model, np.repeat(q0[ok], len(dense), axis=0),
                                     (pivot[ok][:, None, :] + radius[ok][:, None, None] * ud[ok]).reshape(-1, 3), L)
-                ok[ok] = within_strokes(model.machine, qd, margin=0.0).reshape(-1, len(dense)).all(axis=1)
+                ok[ok] = strokes.inside(qd).reshape(-1, len(dense)).all(axis=1)
             for j in np.flatnonzero(ok):
                 found.append((q[j * per:(j + 1) * per], u[j], names[plane[j]], radius[j], pivot[j], sense[j]))
             if len(found) >= count:
                 break
         if len(found) < count:
-            raise InputError(f"instrument ballbar: machine {model.machine.name}: too few circles of radius "
-                             f"{min(geo.radii_mm):g} to {max(geo.radii_mm):g} mm fit in the strokes ({len(found)} "
-                             f"of {count} candidates found)")
+            raise NoCandidates(f"instrument ballbar: machine {model.machine.name}: too few circles of radius "
+                               f"{min(geo.radii_mm):g} to {max(geo.radii_mm):g} mm fit in the strokes less the "
+                               f"margins ({len(found)} of {count} candidates found)")
         found = found[:count]
         start = fixtures.setdefault("next_circle", 1)
         fixtures["next_circle"] = start + count
@@ -230,7 +234,7 @@ class Ballbar(Common):
                 p = pivot + R * (math.cos(theta) * v0 + math.sin(theta) * v1)
                 return quantize(model, linear_for_tip(model, rot[None, :], p, L), L, w.mode)[0]
             centre = quantize(model, linear_for_tip(model, rot[None, :], pivot, L), L, w.mode)[0]
-            paths.transit(w, paths.retract(model, centre, L, g.retract_mm, w.mode))
+            paths.approach(w, paths.retract(model, w.strokes, centre, L, g.retract_mm, w.mode))
             paths.follow(w, paths.straight(model, w.q, centre, L), feed)
             w.stop(f"set the pivot of {s} at the tool cup [pivot ball centre {paths.vec(pivot)} mm, workpiece "
                    f"frame]: fix and lock the pivot with the setting tool, remove the setting tool, then resume")
@@ -248,5 +252,26 @@ class Ballbar(Common):
             w.arc(at(full + lead), centre, at(full + lead / 2), feed)      # lead-out
             w.event("unmount")
             w.stop("stop the data capture, remove the ballbar and its pivot, then resume")
-            paths.follow(w, paths.straight(model, w.q, paths.retract(model, w.q, L, g.retract_mm, w.mode), L),
-                         feed)
+            _on_to_exit(w, at, centre, full + lead, feed)
+            paths.exit_retract(w, g.retract_mm, feed)
+
+
+def _on_to_exit(w, at, centre, end: float, feed: float) -> None:
+    """Where the exit retract (retract_mm along the tool axis) does not fit at the lead-out's end (angle `end`,
+    rad), on along the circle with nothing mounted, in steps of EXIT_STEP_DEG, to the first point where it does
+    (G2/G3 arcs of at most 90 deg); where none does, nowhere (the exit retract then says where the tool stops)."""
+    model, d = w.model, BALLBAR.retract_mm + 0.05          # room for the rounding of the program's words
+    if paths.retract_length(model, w.strokes, w.q, w.L, d, w.mode) >= d:
+        return
+    for k in range(1, int(360 / EXIT_STEP_DEG)):
+        theta = end + math.radians(EXIT_STEP_DEG * k)
+        if paths.retract_length(model, w.strokes, at(theta), w.L, d, w.mode) >= d:
+            w.comment(f"on along the circle by {EXIT_STEP_DEG * k:g} deg with nothing mounted, to where the exit "
+                      f"retract fits")
+            t0 = end
+            while t0 < theta - 1e-9:
+                t1 = min(theta, t0 + math.pi / 2)
+                w.arc(at(t1), centre, at(0.5 * (t0 + t1)), feed)
+                t0 = t1
+            return
+

@@ -10,6 +10,7 @@ holds it to (`limits`, `read_mount`: `fiveaxis.planning.safety`). Units: mm, rad
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Callable, Protocol, runtime_checkable
 
@@ -18,8 +19,14 @@ import numpy as np
 from ...exceptions import InputError
 from ...linuxcnc.program import quantize
 
-#: Linear axes of sampled candidate poses stay this far inside their strokes (mm; see `sample_poses`).
+#: Every pose of a planned measurement and of its program keeps this far from the ends of the strokes (linear axes
+#: mm, rotary axes degrees; `fiveaxis plan --margin`).
+MARGIN_MM = 1.0
+MARGIN_DEG = 0.5
+#: Sampled candidate poses stay this much further inside (mm, degrees): rounded to the program's words through the
+#: inverse kinematics (tcp programs), a pose at the margin could land a fraction of a micrometre within it.
 EDGE_MM = 1e-3
+EDGE_DEG = 1e-3
 
 
 @dataclass
@@ -62,6 +69,45 @@ class Limit:
     measure: Callable | None = None
 
 
+@dataclass(frozen=True)
+class Strokes:
+    """Where a program's axes may go: the machine file's strokes with each end moved in by the margins (lo, hi:
+    (nvar,) mm and rad; margins in mm for linear axes and degrees for rotary axes)."""
+    lo: np.ndarray
+    hi: np.ndarray
+    rotary: np.ndarray                   # (nvar,) bool
+    margin_mm: float = MARGIN_MM
+    margin_deg: float = MARGIN_DEG
+
+    @classmethod
+    def of(cls, machine, margin_mm: float = MARGIN_MM, margin_deg: float = MARGIN_DEG) -> "Strokes":
+        """The strokes of a machine shrunk by the margins; an InputError if a margin leaves an axis no room."""
+        for what, v in (("margin", margin_mm), ("rotary margin", margin_deg)):
+            if not (math.isfinite(v) and v >= 0):
+                raise InputError(f"{what}: expected a finite distance >= 0, got {v}")
+        rotary = np.array([machine.axis(v).type == "rotary" for v in machine.variables])
+        pad = np.where(rotary, math.radians(margin_deg), margin_mm)
+        lo = np.array([machine.axis(v).model_stroke[0] for v in machine.variables]) + pad
+        hi = np.array([machine.axis(v).model_stroke[1] for v in machine.variables]) - pad
+        short = [v for v, a, b in zip(machine.variables, lo, hi) if a >= b]
+        if short:
+            raise InputError(f"margins {margin_mm:g} mm, {margin_deg:g} deg: they leave axis {', '.join(short)} of "
+                             f"{machine.name} no room within its stroke (expected margins below half the stroke)")
+        return cls(lo, hi, rotary, margin_mm, margin_deg)
+
+    def inside(self, q) -> np.ndarray:
+        """(n,) bool: poses q (n, nvar; mm, rad) within the strokes less the margins."""
+        q = np.atleast_2d(q)
+        return np.all((q >= self.lo - 1e-9) & (q <= self.hi + 1e-9), axis=1)
+
+    def pad(self, i: int) -> float:
+        """How far inside the margins candidate poses of axis i are sampled (mm or rad): EDGE_MM or EDGE_DEG."""
+        return math.radians(EDGE_DEG) if self.rotary[i] else EDGE_MM
+
+    def text(self) -> str:
+        return f"{self.margin_mm:g} mm, {self.margin_deg:g} deg"
+
+
 @runtime_checkable
 class Instrument(Protocol):
     """What every instrument's record gives (one class per instrument, one instance registered)."""
@@ -73,6 +119,7 @@ class Instrument(Protocol):
     plan_options: tuple    # the keyword options of its standard plan
     plannable: bool        # `fiveaxis plan` can choose its poses and write its program
     unit_poses: int        # poses of one candidate of a plan (a ballbar circle: 24)
+    typical_poses: int     # the poses of a typical plan (`fiveaxis plan --recommend` compares plans of this size)
     unit_word: str         # what one candidate is, in words: "pose", "circle"
     unit_setup: bool       # each candidate is its own setup (a ballbar circle: its pivot and bar length)
     mounts: str            # what the operator mounts in the spindle at a tool change, for the program's messages
@@ -83,16 +130,19 @@ class Instrument(Protocol):
 
     def check_host(self, machine) -> None: ...                     # InputError if the machine cannot host it
     def standard_plan(self, model, n: int, rng, **options) -> Plan: ...
-    def fixtures(self, model, rng, mode: str) -> dict: ...         # what a plan's candidates share, with "notes"
+    def fixtures(self, model, rng, mode: str, strokes) -> dict: ...   # what a plan's candidates share, with "notes"
     def candidates(self, model, count: int, rng, extreme: bool, L: float, fixtures: dict): ...  # (Plan, unit)
-    def order(self, q: np.ndarray) -> list: ...                    # measuring order of one setup's poses (k, nvar)
+    def order(self, model, q: np.ndarray, L: float, strokes) -> list: ...   # measuring order of a setup's poses
     def program(self, w, plan: Plan, notes: dict, feed: float, dwell: float) -> None: ...   # its motion rule
     def read_mount(self, values: dict, machine, where: str) -> dict: ...   # the mount comment's reference
 
 
-def refuse(what: str) -> None:
-    """InputError for an instrument that does not do `what`."""
-    raise InputError(what)
+class NoCandidates(InputError):
+    """Too few poses of an instrument's kind fit within the strokes less the margins for a plan's candidates."""
+
+
+class NoPath(InputError):
+    """No motion that keeps the instrument within its limits and the axes within the strokes less the margins."""
 
 
 def numbers(text: str, count: int, where: str, key: str) -> np.ndarray:
@@ -159,16 +209,13 @@ def sample(lo, hi, n, rng, extreme: bool, zero: bool = False) -> np.ndarray:
     return x
 
 
-def sample_poses(model, n, rng, extreme, which=None) -> np.ndarray:
-    """Poses (n, nvar) with the axes `which` (indices; default all) sampled, the others at the centre pose. Linear
-    axes stay EDGE_MM inside their strokes: rounded to the program's words through the inverse kinematics (tcp
-    programs), a pose at a stroke's end could land a fraction of a micrometre outside."""
+def sample_poses(model, n, rng, extreme, strokes, which=None) -> np.ndarray:
+    """Poses (n, nvar) with the axes `which` (indices; default all) sampled within the strokes less the margins
+    (`Strokes`; EDGE_MM or EDGE_DEG further in), the others at the centre pose."""
     q = np.tile(centre_pose(model), (n, 1))
     for i in (range(len(model.variables)) if which is None else which):
-        ax = model.machine.axis(model.variables[i])
-        lo, hi = ax.model_stroke
-        pad = 0.0 if ax.type == "rotary" else EDGE_MM
-        q[:, i] = sample(lo + pad, hi - pad, n, rng, extreme, zero=ax.type == "rotary")
+        pad = strokes.pad(i)
+        q[:, i] = sample(strokes.lo[i] + pad, strokes.hi[i] - pad, n, rng, extreme, zero=bool(strokes.rotary[i]))
     return q
 
 
@@ -182,12 +229,13 @@ def candidate_plan(instrument, poses, L, reads, **kw) -> Plan:
     return Plan(instrument, poses, np.asarray(L, float), True, reads, **kw)
 
 
-def nearest_path(q: np.ndarray) -> list[int]:
-    """Greedy nearest-neighbour order of poses (mm, rad; axes scaled to unit range) from the first."""
+def nearest_path(q: np.ndarray, scaled: bool = True) -> list[int]:
+    """Greedy nearest-neighbour order of poses (mm, rad; axes scaled to unit range, or as they are) from the
+    first."""
     if len(q) <= 2:
         return list(range(len(q)))
     span = np.ptp(q, axis=0)
-    x = q / np.where(span > 0, span, 1.0)
+    x = q / np.where(span > 0, span, 1.0) if scaled else q
     left = set(range(1, len(q)))
     path = [0]
     while left:
@@ -207,6 +255,7 @@ class Common:
     plan_options: tuple = ()
     plannable = True
     unit_poses = 1
+    typical_poses = 20
     unit_word = "pose"
     unit_setup = False
     limits: tuple = ()
@@ -216,10 +265,10 @@ class Common:
     def check_host(self, machine) -> None:
         return None
 
-    def fixtures(self, model, rng, mode: str) -> dict:
-        return {"notes": {}, "kinematics": mode}
+    def fixtures(self, model, rng, mode: str, strokes) -> dict:
+        return {"notes": {}, "kinematics": mode, "strokes": strokes}
 
-    def order(self, q: np.ndarray) -> list:
+    def order(self, model, q: np.ndarray, L: float, strokes) -> list:
         return nearest_path(q)
 
     def read_mount(self, values: dict, machine, where: str) -> dict:

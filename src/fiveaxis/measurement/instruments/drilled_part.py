@@ -20,6 +20,7 @@ class DrilledPart(Common):
     reads = "tip-plane"
     plan_options = ("size", "kind")
     plannable = False
+    typical_poses = 0
     mounts = "drill"
     rule_text = "no measuring program: the holes are drilled by a part program and measured on a CMM"
 

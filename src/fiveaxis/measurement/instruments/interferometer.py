@@ -62,6 +62,7 @@ class Interferometer(Common):
     geometry = INTERFEROMETER
     reads = "line"
     plan_options = ("cycles", "targets", "axes")
+    typical_poses = 30
     mounts = "reflector"
     rule_text = ("moves along the beam only; every target approached in the positive direction, with an overrun "
                  "where the run reverses")
@@ -81,10 +82,10 @@ class Interferometer(Common):
             raise InputError(f"{where}: axis={ref['axis']}: expected a linear axis of {machine.name}")
         return ref
 
-    def fixtures(self, model, rng, mode: str) -> dict:
+    def fixtures(self, model, rng, mode: str, strokes) -> dict:
         """LINES_PER_AXIS beam lines per linear axis (the first through the centre pose, the others at random
         positions of the other linear axes), with their notes."""
-        out = super().fixtures(model, rng, mode)
+        out = super().fixtures(model, rng, mode, strokes)
         lin, _ = axes(model)
         lines = []
         for i in lin:
@@ -171,7 +172,7 @@ class Interferometer(Common):
         for j, k in enumerate(pick):
             i = lines[k][0]
             ax = model.machine.axis(model.variables[i])
-            lo, hi = ax.model_stroke
+            lo, hi = fixtures["strokes"].lo[i], fixtures["strokes"].hi[i]
             q[j, i] = sample(lo + over, hi - over, 1, rng, extreme)[0]
             d = np.asarray(ax.direction, float)
             u[j] = d / np.linalg.norm(d)
@@ -185,7 +186,7 @@ class Interferometer(Common):
                               setup_kind={s: "point" for s in ids}, setup_frame={s: "workpiece" for s in ids}), \
             np.arange(count)
 
-    def order(self, q: np.ndarray) -> list:
+    def order(self, model, q: np.ndarray, L: float, strokes) -> list:
         """A beam line: one run upwards."""
         return list(np.lexsort(q.T[::-1]))
 
@@ -201,7 +202,7 @@ class Interferometer(Common):
                                  f"runs along one axis)")
             start = q[0].copy()
             start[i] -= g.overrun_mm
-            paths.transit(w, start)
+            paths.approach(w, start)
             w.event("mount", axis=v.upper())
             w.stop(f"set up the laser interferometer along {v} [{s}], the reflector on the spindle; align the "
                    f"beam, zero the reading, then resume")

@@ -17,9 +17,9 @@ import numpy as np
 
 from ...exceptions import InputError
 from ...linuxcnc.program import quantize
-from ...model.inverse import linear_for_tip, within_strokes
+from ...model.inverse import linear_for_tip
 from . import paths
-from .base import Limit, Plan, centre_pose, linear_rotary
+from .base import Limit, NoPath, Plan, centre_pose, linear_rotary
 from .spheres import OnSphere, on_spheres, sphere_positions
 
 
@@ -138,13 +138,13 @@ def probe_cycles(model, poses, L) -> dict:
     return {"far": q[:, 0], "up": q[:, 1], "clear": q[:, 2:7], "target": q[:, 7:12], "axis": dirs[:, 0],
             "centre": centre}
 
-def within_cycles(model, q, L) -> np.ndarray:
-    """(n,) bool: every pose of the probing cycle of each pose within the strokes."""
+def within_cycles(model, q, L, strokes) -> np.ndarray:
+    """(n,) bool: every pose of the probing cycle of each pose within the strokes less the margins."""
     if not len(q):
         return np.zeros(0, bool)
     cyc = probe_cycles(model, q, L)
     allq = np.concatenate([cyc["far"][:, None], cyc["up"][:, None], cyc["clear"], cyc["target"]], axis=1)
-    return within_strokes(model.machine, allq.reshape(-1, allq.shape[2])).reshape(len(q), -1).all(axis=1)
+    return strokes.inside(allq.reshape(-1, allq.shape[2])).reshape(len(q), -1).all(axis=1)
 
 
 def clearance(model, q, tip, axis, ref) -> np.ndarray:
@@ -159,6 +159,7 @@ class ProbeSphere(OnSphere):
     geometry = PROBE
     frame = "machine"
     spheres = 2
+    typical_poses = 12
     probes = True
     mounts = "probe [stylus ball centre]"
     rule_text = ("G38.2 probes from clearance points, retracted along the approach before any rotary move; rotary "
@@ -184,8 +185,8 @@ class ProbeSphere(OnSphere):
                              f"strokes for most sphere placements ({len(poses)} of {len(grid) * spheres} poses fit)")
         return self.sphere_plan(poses, setup, L)
 
-    def reachable(self, model, q, L) -> np.ndarray:
-        return within_cycles(model, q, L)
+    def reachable(self, model, q, L, strokes) -> np.ndarray:
+        return within_cycles(model, q, L, strokes)
 
     def program(self, w, plan, notes, feed, dwell):
         model = w.model
@@ -194,7 +195,7 @@ class ProbeSphere(OnSphere):
             every = probe_cycles(model, poses, L)
             cycles = [{k: v[j] for k, v in every.items()} for j in range(len(poses))]
             centre = cycles[0]["centre"]
-            paths.transit(w, quantize(model, cycles[0]["far"][None, :], L, w.mode)[0])
+            paths.approach(w, quantize(model, cycles[0]["far"][None, :], L, w.mode)[0])
             w.event("mount", centre=centre)
             w.stop(f"place the sphere {s} with its centre at {paths.vec(centre)} mm [workpiece frame, within 1 mm], "
                    f"then resume")
@@ -247,12 +248,13 @@ def _transit(w, prev, cyc, pose, feed, what):
         first = paths.great_circle(model, here, centre, r, prev["axis"], d, L)
         at = first(np.array([1.0]))[0]
         second = paths.great_circle(model, pose, centre, r, d, cyc["axis"], L)
-        if all(paths.path_inside(model, p) for p in (first, second)) and paths.rotation_legs(model, at, pose, L) is not None:
+        if all(paths.path_inside(w.strokes, p) for p in (first, second)) and \
+                paths.rotation_legs(model, w.strokes, at, pose, L) is not None:
             for p in (first, None, second):
                 if p is None:
                     paths.rotate_holding_tip(w, pose, feed, what)
                 elif w.words(quantize(model, p(np.array([1.0])), L, w.mode)[0]) != w.words(w.q):
                     paths.follow(w, p, feed)
             return
-    raise InputError(f"{what}: no path on the retract sphere within the strokes (turning the rotary axes at the "
+    raise NoPath(f"{what}: no path on the retract sphere within the strokes (turning the rotary axes at the "
                      f"approach axes, towards the rotary axes, at the top or around it at 45 deg)")

@@ -17,7 +17,7 @@ import numpy as np
 
 from ...exceptions import InputError
 from . import paths
-from .base import Limit, Plan, linear_rotary
+from .base import Limit, Plan, linear_rotary, nearest_path
 from .spheres import OnSphere, on_spheres, rotary_grid_sweeps, sphere_positions
 
 
@@ -42,6 +42,7 @@ class RTest(OnSphere):
              "tip's 3-D deviation while the rotary axes turn, workpiece frame")
     geometry = RTestGeometry()
     spheres = 3
+    typical_poses = 30
     mounts = "R-test sphere"
     rule_text = ("the tool tip stays at the sphere centre while the rotary axes move; the nest is mounted and "
                  "removed at M0 stops")
@@ -62,12 +63,28 @@ class RTest(OnSphere):
                              f"sphere placements ({len(poses)} of {len(grid) * spheres} poses fit)")
         return self.sphere_plan(poses, setup, L)
 
+    def order(self, model, q, L, strokes) -> list:
+        """Nearest-neighbour order from a pose the approach fits at to one the exit retract (retract_mm along the
+        tool axis) fits at, where there are such: the nest is removed at the last and the tool leaves along its
+        axis (the last: the one nearest the others' centre; the first: the farthest from it)."""
+        d = self.geometry.retract_mm + 0.05           # room for the rounding of the program's words
+        fits = [k for k in range(len(q)) if paths.retract_length(model, strokes, q[k], L, d, "joint") >= d]
+        if not fits or len(q) < 2:
+            return super().order(model, q, L, strokes)
+        span = np.ptp(q, axis=0)
+        x = q / np.where(span > 0, span, 1.0)
+        last = fits[int(np.argmin(np.sum((x[fits] - x.mean(axis=0)) ** 2, axis=1)))]
+        others = [k for k in fits if k != last]           # the first: where the approach fits too, far from the last
+        first = others[int(np.argmax(np.sum((x[others] - x[last]) ** 2, axis=1)))] if others else None
+        rest = ([first] if first is not None else []) + [k for k in range(len(q)) if k not in (first, last)]
+        return [rest[j] for j in nearest_path(q[rest])] + [last]
+
     def program(self, w, plan, notes, feed, dwell):
         model = w.model
         g = self.geometry
         for L, s, idx, q in paths.setups(w, plan, notes, self.mounts):
             centre, _ = paths.tips(model, q[0], L)
-            paths.transit(w, paths.retract(model, q[0], L, g.retract_mm, w.mode))
+            paths.approach(w, paths.retract(model, w.strokes, q[0], L, g.retract_mm, w.mode))
             paths.follow(w, paths.straight(model, w.q, q[0], L), feed)
             w.event("mount", centre=centre[0])
             w.stop(f"mount the R-test nest around the sphere {s} [centre {paths.vec(centre[0])} mm, workpiece "
@@ -80,4 +97,4 @@ class RTest(OnSphere):
                 paths.reading(w, idx[k], dwell)
             w.event("unmount")
             w.stop("remove the R-test nest, then resume")
-            paths.follow(w, paths.straight(model, w.q, paths.retract(model, w.q, L, g.retract_mm, w.mode), L), feed)
+            paths.exit_retract(w, g.retract_mm, feed)

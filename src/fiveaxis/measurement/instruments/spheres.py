@@ -7,7 +7,7 @@ import numpy as np
 
 from ...exceptions import InputError
 from ...model.inverse import linear_for_tip, within_strokes
-from .base import Common, Plan, axes, candidate_plan, centre_pose, linear_rotary, quantized, sample_poses
+from .base import Common, NoCandidates, Plan, axes, candidate_plan, centre_pose, linear_rotary, quantized, sample_poses
 
 
 def sphere_positions(model, L, count: int) -> list[np.ndarray]:
@@ -75,9 +75,9 @@ class OnSphere(Common):
             raise InputError(f"instrument {self.name}: machine {machine.name} has {len(lin)} linear axes; holding "
                              f"the tool tip on a sphere needs three")
 
-    def fixtures(self, model, rng, mode: str) -> dict:
+    def fixtures(self, model, rng, mode: str, strokes) -> dict:
         """The sphere placements (at the words' resolution) with their notes."""
-        out = super().fixtures(model, rng, mode)
+        out = super().fixtures(model, rng, mode, strokes)
         spheres = [np.round(p, 4) for p in sphere_positions(model, model.machine.tool_length, self.spheres)]
         out["spheres"] = spheres
         for i, p in enumerate(spheres):
@@ -85,21 +85,21 @@ class OnSphere(Common):
                                               f"(workpiece frame)")
         return out
 
-    def reachable(self, model, q, L) -> np.ndarray:
+    def reachable(self, model, q, L, strokes) -> np.ndarray:
         """(n,) bool: candidate poses q (the tip at a sphere centre, within the strokes) the instrument can use."""
         return np.ones(len(q), bool)
 
     def candidates(self, model, count, rng, extreme, L, fixtures):
         _, rot = axes(model)
-        spheres = fixtures["spheres"]
+        spheres, strokes = fixtures["spheres"], fixtures["strokes"]
         poses, setup = [], []
         for _ in range(50):
-            q = sample_poses(model, 2 * count, rng, extreme, rot)
+            q = sample_poses(model, 2 * count, rng, extreme, strokes, rot)
             s = rng.integers(0, len(spheres), len(q))
             target = np.array(spheres)[s]
             q = quantized(model, linear_for_tip(model, q, target, L), L, fixtures)
-            ok = within_strokes(model.machine, q)
-            ok[ok] = self.reachable(model, q[ok], L)
+            ok = strokes.inside(q)
+            ok[ok] = self.reachable(model, q[ok], L, strokes)
             poses.append(q[ok])
             setup += [f"sphere{i + 1}" for i in s[ok]]
             if len(setup) >= count:
@@ -107,9 +107,9 @@ class OnSphere(Common):
         poses = np.vstack(poses)[:count]
         setup = np.array(setup[:count], dtype=object)
         if len(poses) < count:
-            raise InputError(f"instrument {self.name}: machine {model.machine.name}: too few rotary positions keep "
-                             f"the tool tip on the sphere within the strokes ({len(poses)} of {count} candidates "
-                             f"found)")
+            raise NoCandidates(f"instrument {self.name}: machine {model.machine.name}: too few rotary positions keep "
+                               f"the tool tip on the sphere within the strokes less the margins ({len(poses)} of "
+                               f"{count} candidates found)")
         ids = dict.fromkeys(f"sphere{i + 1}" for i in range(len(spheres)))
         return candidate_plan(self.name, poses, np.full(len(poses), L), "tip", setup=setup,
                               setup_kind={s: "point" for s in ids}, setup_frame={s: "workpiece" for s in ids},

@@ -17,7 +17,7 @@ from ...model import frames
 from ...linuxcnc.program import Writer, quantize
 from ...model.inverse import linear_for_tip
 from . import paths
-from .base import Common, Limit, Plan, candidate_plan, quantized, sample_poses
+from .base import Common, Limit, NoCandidates, NoPath, Plan, nearest_path, candidate_plan, quantized, sample_poses
 
 #: Tracker stations of a plan's candidates.
 STATIONS = 4
@@ -59,6 +59,7 @@ class Tracker(Common):
     reads = "line"
     frame = "machine"
     plan_options = ("stations",)
+    typical_poses = 40
     mounts = "reflector [cat's eye centre]"
     rule_text = ("moves that keep the reflector facing the tracker's station; the tracker is set up at each station "
                  "at an M0 stop")
@@ -66,9 +67,9 @@ class Tracker(Common):
                     sight_angle),)
     mount_keys = {"station": 3}
 
-    def fixtures(self, model, rng, mode: str) -> dict:
+    def fixtures(self, model, rng, mode: str, strokes) -> dict:
         """STATIONS stations on the bed below the workspace (`bed_stations`), with their notes."""
-        out = super().fixtures(model, rng, mode)
+        out = super().fixtures(model, rng, mode, strokes)
         q = model.machine.random_poses(2000, rng)
         tip, _ = model.ideal_tool(q, model.machine.tool_length)
         tip_m = frames.to_machine(model.machine, q, tip) if frames.has_workpiece_rotation(model.machine) else tip
@@ -108,7 +109,7 @@ class Tracker(Common):
         st = fixtures["stations"]
         found_q, found_k = [], []
         for _ in range(50):
-            q = quantized(model, sample_poses(model, 2 * count, rng, extreme), L, fixtures)
+            q = quantized(model, sample_poses(model, 2 * count, rng, extreme, fixtures["strokes"]), L, fixtures)
             tip, axis = model.ideal_tool(q, L)
             if frames.has_workpiece_rotation(model.machine):
                 tip, axis = frames.to_machine(model.machine, q, tip), frames.to_machine(model.machine, q, axis)
@@ -121,8 +122,8 @@ class Tracker(Common):
                 break
         q, k = np.vstack(found_q)[:count], np.concatenate(found_k)[:count]
         if len(q) < count:
-            raise InputError(f"instrument tracker: machine {model.machine.name}: too few poses whose reflector sees a "
-                             f"station ({len(q)} of {count} candidates found)")
+            raise NoCandidates(f"instrument tracker: machine {model.machine.name}: too few poses whose reflector sees "
+                               f"a station ({len(q)} of {count} candidates found)")
         tip, _ = model.ideal_tool(q, L)
         tip_m = frames.to_machine(model.machine, q, tip) if frames.has_workpiece_rotation(model.machine) else tip
         vec = tip_m - st[k]
@@ -133,12 +134,21 @@ class Tracker(Common):
                               setup_kind={s: "point" for s in ids}, setup_frame={s: "machine" for s in ids},
                               points={s: st[i] for i, s in enumerate(ids)}), np.arange(count)
 
+    def order(self, model, q, L, strokes) -> list:
+        """Nearest-neighbour order of a station's poses by where the reflector is and where it looks (machine
+        frame; a turn of the tool axis by 0.1 rad counts as 100 mm): consecutive poses turn the reflector little,
+        so that the moves between them keep it facing the station."""
+        tip, axis = paths.tips(model, q, L)
+        if frames.has_workpiece_rotation(model.machine):
+            tip, axis = frames.to_machine(model.machine, q, tip), frames.to_machine(model.machine, q, axis)
+        return nearest_path(np.hstack([tip, 1000.0 * axis]), scaled=False)
+
     def program(self, w, plan, notes, feed, dwell):
         for L, s, idx, q in paths.setups(w, plan, notes, self.mounts):
             if s not in plan.points:
                 raise InputError(f"tracker setup {s}: the plan does not say where its station is")
             station = np.asarray(plan.points[s], float)
-            paths.transit(w, q[0])
+            paths.approach(w, q[0])
             w.event("mount", station=station)
             w.stop(f"set up the tracker at {s} [{paths.vec(station)} mm, machine frame] and lock it on the "
                    f"reflector, then resume")
@@ -187,14 +197,21 @@ def sight(model, q, L, station) -> np.ndarray:
     return sight_angles(tip, axis, np.asarray(station, float)[None, :])[:, 0]
 
 
-def _tracked_move(w: Writer, target, station, feed, what: str) -> None:
+#: Where no tracked move reaches the next pose, it is reached through the pose halfway (in the axes), at most this
+#: many halvings deep.
+HALVINGS = 6
+
+
+def _tracked_move(w: Writer, target, station, feed, what: str, depth: int = 0) -> None:
     """To the next pose with the tracker following: one move if its line of sight stays within TRACKER.limit_deg
     (and the strokes) all along, else through a hub that keeps it (straight to the hub, turn the rotary axes about
-    the tip, straight on): the point above the station at the start's height, or `paths.hubs`."""
+    the tip: together, one axis after the other, or through the centre pose's angles, `paths.rotation_legs`;
+    straight on): the point above the station at the start's height, or `paths.hubs`; where none does, through the
+    pose halfway in the axes (HALVINGS deep)."""
     model, L, mode = w.model, w.L, w.mode
     lim = TRACKER.limit_deg - 1.0
     direct = paths.controller_path(model, w.q, target, np.linspace(0, 1, paths.STROKE_SAMPLES), L, mode)
-    if paths.inside(model, direct) and np.max(sight(model, direct, L, station)) <= lim:
+    if paths.inside(w.strokes, direct) and np.max(sight(model, direct, L, station)) <= lim:
         w.move(target, feed)
         return
     here = w.q
@@ -205,16 +222,27 @@ def _tracked_move(w: Writer, target, station, feed, what: str) -> None:
     nadir = np.array([station[0], station[1], tip_m[0, 2]])     # above the station: it sees every tilt up to 55 deg
     if frames.has_workpiece_rotation(model.machine):
         nadir = frames.to_workpiece(model.machine, here[None, :], nadir[None, :])[0]
+    def seen(p) -> bool:
+        return paths.inside(w.strokes, p(s)) and np.max(sight(model, p(s), L, station)) <= lim
+
     for hub in [nadir] + paths.hubs(model, here, target, L):
         a = linear_for_tip(model, here[None, :], hub, L)[0]
-        b = linear_for_tip(model, target[None, :], hub, L)[0]
-        legs = [paths.straight(model, here, a, L), paths.hold_tip(model, a, target, L),
-                paths.straight(model, b, target, L)]
-        if all(paths.inside(model, p(s)) and np.max(sight(model, p(s), L, station)) <= lim for p in legs):
+        turns = paths.rotation_legs(model, w.strokes, a, target, L) or []    # together, one by one, or via
+        legs, q = [paths.straight(model, here, a, L)], a
+        for goal, axes in turns:
+            legs.append(paths.hold_tip(model, q, goal, L, axes))
+            q = legs[-1](np.array([1.0]))[0]
+        legs.append(paths.straight(model, q, target, L))
+        if turns and all(seen(p) for p in legs):
             for p in legs:
                 if w.words(quantize(model, p(np.array([1.0])), L, mode)[0]) != w.words(w.q):
                     end = p(np.array([1.0]))[0]
                     paths.follow(w, p, feed, pieces=paths.rotation_pieces(model, w.q, end, mode))
             return
-    raise InputError(f"{what}: no move from {w.words(here)} to {w.words(target)} keeps the reflector facing the "
+    mid = quantize(model, (0.5 * (here + target))[None, :], L, mode)[0]
+    if depth < HALVINGS and paths.inside(w.strokes, mid) and sight(model, mid, L, station)[0] <= lim:
+        _tracked_move(w, mid, station, feed, what, depth + 1)
+        _tracked_move(w, target, station, feed, what, depth + 1)
+        return
+    raise NoPath(f"{what}: no move from {w.words(here)} to {w.words(target)} keeps the reflector facing the "
                      f"tracker within {TRACKER.limit_deg:g} deg")
