@@ -65,6 +65,11 @@ def check_null_set(model, meas):
     assert not big, big
     dg = D.diagnose(model, meas)
     assert dg.verdict == "no missing effect", (dg.verdict, dg.decision.get("accepted"), dg.unexplained)
+    from fiveaxis.report import text
+    from written import too_large
+    listing = text.diagnosis(dg.to_json())
+    listing = listing[listing.index("[[Candidates]]"):]       # the candidates' sizes (issue 29: none of 1.8e4 um)
+    assert not too_large(listing), too_large(listing)[:3]
 
 
 @pytest.mark.parametrize("machine", MACHINES)

@@ -20,11 +20,13 @@ from ..measurement import instruments as ins
 from ..model.columns import FRAMES, MAX_AXIS_DEVIATION, MAX_DEVIATION_MM, SETUP_KINDS
 
 
-def _common(p, file_arg=True):
+def _common(p, file_arg=True, several=False):
     if file_arg:
-        p.add_argument("file", type=Path, help="measurements: CSV or Parquet, one row per pose (the machine's axes, "
-                                               "mm and deg; dx,dy,dz mm and/or di,dj,dk, or du with ux,uy,uz; "
-                                               "optional L,t,sigma,sigma_axis,setup,dir_<AXIS>; docs/measurements.md)")
+        p.add_argument("file", type=Path, nargs="+" if several else None,
+                       help="measurements: CSV or Parquet, one row per pose (the machine's axes, mm and deg; dx,dy,dz "
+                            "mm and/or di,dj,dk, or du with ux,uy,uz; optional L,t,sigma,sigma_axis,setup,dir_<AXIS>; "
+                            "docs/measurements.md)" + ("; several files: one joint fit, each file with its own "
+                                                       "instrument, setups and noise" if several else ""))
     options.machine(p)
     options.convention(p)
     p.add_argument("--frame", default=None, choices=FRAMES,
@@ -64,7 +66,7 @@ def _fit_options(p):
 
 
 def register_fit(p):
-    _common(p)
+    _common(p, several=True)
     _fit_options(p)
     p.add_argument("--first-order", action="store_true", help="skip the refinement on the exact model")
     options.json_output(p, "print JSON instead of the report")
@@ -75,7 +77,7 @@ def register_fit(p):
 
 
 def register_diagnose(p):
-    _common(p)
+    _common(p, several=True)
     _fit_options(p)
     p.add_argument("--top", type=int, default=10, help="candidates to list (default 10)")
     p.add_argument("--rounds", type=int, default=1, metavar="N",
@@ -283,7 +285,7 @@ def run_fit(args) -> int:
         save(fm, args.output, force=args.force)
         print(f"fiveaxis: wrote {one_line(args.output)}", file=sys.stderr)
     j = to_json(res)
-    _implausible(fm, model, args.file, j)
+    _implausible(fm, model, meas.path, j)
     if args.json:
         _dump(j)
     else:
@@ -309,7 +311,7 @@ def run_diagnose(args) -> int:
         print(f"fiveaxis: wrote {path}", file=sys.stderr)
     js = [dg.to_json() for dg in dgs]
     from ..estimation.fitted_model import from_fit
-    _implausible(from_fit(dgs[0].fit), model, args.file, js[0])         # the data as given: a unit slip
+    _implausible(from_fit(dgs[0].fit), model, meas.path, js[0])         # the data as given: a unit slip
     if args.json:
         _dump(js[0] if args.rounds == 1 else {"rounds": js})
     else:

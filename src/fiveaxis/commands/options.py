@@ -49,15 +49,32 @@ def machine_hint(args, exc: InputError) -> InputError:
                       key=exc.key)
 
 
-def measurements(args, machine, **options):
-    """The measurement file args.file read for a machine (fiveaxis.measurement.files.read with options), its
-    warnings printed; a file for another machine read without --machine gets the hint (machine_hint)."""
+def measurements(args, machine, min_rows: int = 1, resolution: dict | None = None, **options):
+    """The measurement file(s) args.file read for a machine (fiveaxis.measurement.files.read with options), their
+    warnings printed; a file for another machine read without --machine gets the hint (machine_hint). Several files
+    (a joint fit): each given once, each read with at least one row and a stated resolution only where it has the
+    column (each --resolution column in one file at least), then joined (fiveaxis.measurement.files.join: each file
+    with its own instrument, setups and noise)."""
     import sys
-    from ..measurement.files import read          # pandas: loaded where a file is read
+    from pathlib import Path
+    from ..measurement.files import join, read          # pandas: loaded where a file is read
+    files = args.file if isinstance(args.file, list) else [args.file]
+    several = len(files) > 1
+    seen = set()
+    for f in files:
+        key = Path(f).resolve()
+        if key in seen:
+            raise InputError(f"{f}: given twice (a joint fit takes each file once)")
+        seen.add(key)
     try:
-        meas = read(args.file, machine, **options)
+        sets = [read(f, machine, min_rows=1 if several else min_rows, resolution=resolution,
+                     resolution_strict=not several, **options) for f in files]
     except InputError as exc:
         raise machine_hint(args, exc) from None
+    for name in resolution or {}:
+        if several and not any(name in getattr(m, "columns", ()) for m in sets):
+            raise InputError(f"--resolution {name}=...: no such column in {', '.join(str(f) for f in files)}")
+    meas = join(sets, machine) if several else sets[0]
     for w in meas.warnings:
         print(f"fiveaxis: warning: {w}", file=sys.stderr)
     return meas

@@ -13,7 +13,9 @@ from .iso230_3 import spindle, thermal_options
 
 
 def register_report(p):
-    p.add_argument("file", type=Path, help="measurements: CSV or Parquet, one row per pose (as for `fiveaxis fit`)")
+    p.add_argument("file", type=Path, nargs="+",
+                   help="measurements: CSV or Parquet, one row per pose (as for `fiveaxis fit`); several files: one "
+                        "joint fit, each file with its own instrument, setups and noise")
     options.machine(p)
     options.convention(p)
     p.add_argument("--frame", default=None, choices=("workpiece", "machine"),
