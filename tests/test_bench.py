@@ -25,6 +25,7 @@ TINY = {
     "bench_plan": ["--tiny"],
     "bench_plan_programs": None,          # needs a folder and rs274: its own test below
     "bench_scale": None,                  # subprocesses and a folder: its own test below
+    "exam": ["--trials", "3", "--poses", "200"],
 }
 
 
@@ -116,3 +117,19 @@ def test_bench_scale_tiny(tmp_path):
     assert rows[1]["readings"] == 9000 and 0.9 * 9000 < rows[0]["readings"] <= 9000   # the fit's: outliers out
     assert all(r["peak_mb"] > 0 for r in rows)
     assert rows[1]["found"], rows[1]
+
+
+def test_exam_runs_and_measures():
+    """The Monte-Carlo exam (issue 29) on three trials (tip readings on the three machines): every trial measured,
+    the residual after the fit at the noise, the compensated workspace error below the uncompensated one, the
+    summary's rates between 0 and 1 and its table printed."""
+    out = bench_module("exam").main(TINY["exam"])
+    s = out["summary"]
+    assert s["trials"] == 3 and len(out["trials"]) == 3
+    for r in out["trials"]:
+        assert r["instrument"] == "tip" and 0.8 < r["rms_over_noise"] < 1.3
+        assert r["workspace_after_um"] < r["workspace_before_um"] and r["band_um"][0] <= r["band_um"][1]
+        assert 0 < r["quantities"] and 0 <= r["covered"] <= r["quantities"]
+    for key in ("false_alarm_rate", "coverage_k2", "band_coverage"):
+        assert s[key] is None or 0.0 <= s[key] <= 1.0
+    assert out["table"].startswith("| measured | value |")

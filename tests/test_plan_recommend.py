@@ -69,10 +69,10 @@ def test_a_fit_already_known_lowers_what_is_left(model, tmp_path, capsys):
     assert known.before_um < 0.5 * alone.before_um
     assert known.options[0].after_um <= alone.options[0].after_um + 1e-9
     path = MF.save(fm, tmp_path / "model.json")
-    rc, out, err = run_cli(capsys, "plan", "--recommend", "--machine", "li2018", "--model", path, "--json")
+    rc, out, err = run_cli("plan", "--recommend", "--machine", "li2018", "--model", path, "--json")
     assert rc == 0, err
     j = json.loads(out)
     assert j["from"] == str(path) and j["recommended"] in [o["instrument"] for o in j["instruments"]]
     assert all(o["leaves_um"] <= j["before_um"] + 1e-9 for o in j["instruments"])
-    rc, _, err = run_cli(capsys, "plan", "--recommend", "--machine", "li2018", "--n", "10")
+    rc, _, err = run_cli("plan", "--recommend", "--machine", "li2018", "--n", "10")
     assert rc == 2 and "--recommend: --n is for planning" in err

@@ -37,7 +37,8 @@ def test_digits_are_read_from_the_text():
     assert written_digits(np.array([200.0, 300.0])) is None        # binary numbers say nothing
     v = np.array([200.0, 300.0, 200.0])
     np.testing.assert_allclose(quantum(v, written_digits(["200.000", "300.000", "200.000"])), 0.0005)
-    np.testing.assert_allclose(quantum(v, written_digits(["200", "300", "200"])), 0.5)
+    assert written_digits(["200", "300", "200"]) is None and written_digits(["1", "0", "-1"]) is None   # nominal
+    np.testing.assert_allclose(quantum(np.array([200.0, 300.5]), written_digits(["200", "300.5"])), 0.05)
     np.testing.assert_allclose(quantum(v, step=0.001), 0.0005)
     assert np.all(quantum(v) == 0.0)
 

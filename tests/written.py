@@ -39,7 +39,9 @@ def printed_sizes(text: str):
     import re
     number = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
     skip = re.compile(r"measured range \([^)]*\)|knots every [^)]*\)|period of " + number + r" \w+|extent of "
-                      + number + r" mm|tool lengths? (?:\(mm\) )?[-\d., ]+(?:mm)?|L = " + number + " mm|"
+                      + number + r" mm|tool lengths? (?:\(mm\) )?[-\d., ]+(?:mm)?|L = " + number + " mm|besides "
+                      + number + " mm|covers " + number + " to " + number + " mm|stroke is " + number + " to "
+                      + number + " mm|"
                       r"\((?:" + number + r" to )?" + number + r" (?:mm|deg)\)|strokes? \[[^\]]*\]")
     for line in text.splitlines():
         for m in re.finditer(r"(" + number + r") ?(nm|um|mm|urad|mrad|rad)\b(?!/)", skip.sub("", line)):

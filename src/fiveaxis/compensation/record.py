@@ -68,8 +68,9 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
             "reversal_note": "the table is direction-independent (reversal effects at their mean); LinuxCNC's "
                              "forward and reverse trims carry them",
             "undetermined": list(fm.undetermined),
-            "undetermined_note": "their minimum-norm values are used; the tip error at the measured tool lengths "
-                                 "does not depend on them, the tool axis and other tool lengths may",
+            "undetermined_note": "their values are the fit's prior moved by what the data determine; the tip error "
+                                 "at the measured tool lengths does not depend on them, the tool axis and other tool "
+                                 "lengths may",
             "tool_axis_note": "where the rotary axes hardly turn the tool axis (a trunnion near A = 0) its error "
                               "is corrected only partly (damping); the tip is corrected everywhere",
             "kinematics_module": list(comp.module.left_out) if comp.module is not None else [comp.module_note]},

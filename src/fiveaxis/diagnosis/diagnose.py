@@ -38,7 +38,7 @@ from ..estimation import design as dsg
 from ..estimation import fit as F
 from ..estimation import solver as sv
 from ..estimation.problem import resolve_effects, with_effects
-from ..estimation.result import FitResult, no_outliers, to_json as fit_json
+from ..estimation.result import FitResult, no_outliers, plausible, to_json as fit_json
 from ..measurement import observations as ob
 from ..model import iso_names as iso
 from . import candidates as cd
@@ -347,6 +347,13 @@ def diagnose_fit(res: FitResult, top: int = 10) -> "Diagnosis":
         return (not fam.USER_WRITTEN, fam.SEARCHED, cd.plausibility(machine, lay.effects[k]))
 
     out = dc.decide(rows, lay, pool.prior, res.idf, known, top, describe, head_key)
+    # A candidate whose size over the data is beyond what a machine's error can be (`result.PLAUSIBLE`) is not
+    # listed as a physical candidate unless the decision accepted it (then the text says so).
+    accepted_ids = set(out.decision.get("accepted") or []) | {out.decision.get("best")}
+    dropped = [c["id"] for c in out.listed if c.get("plausible") is False and c["id"] not in accepted_ids]
+    if dropped:
+        out.listed = [c for c in out.listed if c["id"] not in dropped]
+        out.decision["not_listed_implausible"] = dropped
     if out.listed and out.listed[0]["aliases"] and len(lay.cols[_index(lay, out.listed[0]["id"])]) == 1:
         group = [lay.effects[_index(lay, out.listed[0]["id"])]] + [lay.effects[j]
                                                                     for j in out.listed[0]["alias_members"]]
@@ -451,6 +458,13 @@ def candidate_item(prob, eff, family, coefs, rms_after, gain, rss, delta) -> dic
     if len(phys) > 1:
         item["coefficients"] = [{"name": nm, "value": v, "unit": u} for nm, (v, u) in zip(eff.names, phys)]
     item.update(eff.listing(phys))
+    unit = "mm" if eff.param == fx.TOOL else ("rad" if machine.is_angular(eff.param) else "mm")
+    with np.errstate(invalid="ignore", over="ignore"):
+        change = np.asarray(eff.basis(prob.ctx), float) @ np.asarray(coefs, float) if prob.ctx.n else np.zeros(1)
+    size = float(np.nanmax(change) - np.nanmin(change)) if np.isfinite(change).any() else math.inf
+    item["size"], item["size_unit"] = size, unit
+    if not plausible(size, unit):
+        item["plausible"] = False            # issue 29: not a machine's error (a column the data see at rounding)
     return item
 
 

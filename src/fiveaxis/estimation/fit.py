@@ -91,8 +91,8 @@ def fit_problem(prob: Problem, design, refine: bool = True, max_iter: int = 6) -
     refinement, variance components, uncertainties, identifiability."""
     free = prob.free
     fixed_vals = prob.fixed_values
-    groups = prob.obs.group
-    present = [g for g in (ob.LENGTH, ob.ANGLE) if (groups == g).any()]
+    groups = noise_groups(prob)
+    present = [int(g) for g in np.unique(groups)]
     unknown = [g for g in present if not prob.known[groups == g].all()]
     w = prob.w.copy()
     known = not unknown
@@ -103,7 +103,8 @@ def fit_problem(prob: Problem, design, refine: bool = True, max_iter: int = 6) -
         raise InputError(f"{prob.meas.path}: {m} reading(s) for {idf.rank} determined parameter(s): the noise cannot "
                          f"be estimated (expected more readings than parameters, or a sigma column)")
     if unknown and len(present) > 1:
-        # Variance components: weight each kind of reading (mm, rad) by its own noise, estimated from the residual.
+        # Variance components: weight each kind of reading (mm, rad) of each file by its own noise, estimated from
+        # the residual.
         for _ in range(4):
             rw = ref.residual * w
             s2 = {}
@@ -160,6 +161,13 @@ def fit_problem(prob: Problem, design, refine: bool = True, max_iter: int = 6) -
                 if abs(r_ab) >= STRONG_CORRELATION:
                     res.correlations.append((fnames[a], fnames[b], float(r_ab)))
     return res
+
+
+def noise_groups(prob: Problem) -> np.ndarray:
+    """(m,) the noise group of each reading: its kind (`observations.LENGTH` mm, `ANGLE` rad) in its file (a joint
+    set of files, `measurement.files.join`: 2 * file + kind)."""
+    src = prob.meas.source
+    return prob.obs.group + (0 if src is None else 2 * np.asarray(src)[prob.obs.row])
 
 
 def _prior(prob: Problem):
@@ -269,8 +277,10 @@ def _refit_without(res: FitResult, flags, refine, max_iter, thr, known) -> FitRe
     s = _robust_scale(out.residual * out.problem.w, known) or 1.0
     idx = np.flatnonzero(flags)
     obs = prob.obs
-    out.outliers = Outliers(prob.meas.rows[obs.row[idx]], list(obs.labels()[idx]), obs.group[idx], r_all[idx],
-                            r_all[idx] * prob.w[idx] / s, thr, s, len(prob.d), idx)
+    meas = prob.meas
+    files = None if not meas.sources else [str(meas.sources[meas.source[obs.row[i]]]) for i in idx]
+    out.outliers = Outliers(meas.rows[obs.row[idx]], list(obs.labels()[idx]), obs.group[idx], r_all[idx],
+                            r_all[idx] * prob.w[idx] / s, thr, s, len(prob.d), idx, files)
     return out
 
 

@@ -53,6 +53,7 @@ class Outliers:
     scale: float               # robust scale of the weighted residual (1 = the sigma column)
     readings: int              # readings of the data set, outliers included
     index: np.ndarray = None   # (k,) their indices among the readings (observation rows) of the data set
+    files: list = None         # (k,) the file of each (a joint set of files), or None
 
     @property
     def count(self) -> int:
@@ -65,9 +66,11 @@ class Outliers:
 
     def to_json(self) -> list[dict]:
         out = []
-        for r, lab, g, res, z in zip(self.rows, self.labels, self.group, self.residual, self.z):
+        for i, (r, lab, g, res, z) in enumerate(zip(self.rows, self.labels, self.group, self.residual, self.z)):
             unit = "rad" if g == ob.ANGLE else "mm"
             out.append({"row": int(r), "reading": str(lab), "residual": float(res), "unit": unit, "z": float(z)})
+            if self.files is not None:
+                out[-1]["file"] = self.files[i]
         return out
 
 
@@ -80,7 +83,7 @@ def no_outliers(readings: int) -> Outliers:
 class FitResult:
     """The fitted parameters with their identifiability, and the residual (readings: mm, rad)."""
     problem: Problem
-    theta: np.ndarray          # all parameter values (fixed ones included; minimum norm along undetermined ones)
+    theta: np.ndarray          # all parameter values (fixed ones included; the prior's along undetermined ones)
     cov: np.ndarray            # (p, p) covariance (zero rows and columns for fixed parameters)
     idf: Identifiability       # of the free parameters
     residual: np.ndarray       # (m,) of the model reported: exact, or first order (see `exact`)
@@ -423,6 +426,8 @@ def to_json(res: FitResult) -> dict:
         "iterations": res.iterations,
         "residual_model": "exact" if res.exact else "first order",
     }
+    if prob.meas.sources:
+        out["files"] = files_json(res)
     if res.note:
         out["note"] = res.note
     if res.idf.resolution is not None:
@@ -476,6 +481,25 @@ def prior_summary(res: FitResult) -> dict:
     out = {"used": True, "sources": sources, "decided_by": counts, "variance_factor": res.posterior.sigma2}
     if conflicts:
         out["conflicts"] = sorted(conflicts, key=lambda c: -abs(c["z"]))
+    return out
+
+
+def files_json(res: FitResult) -> list[dict]:
+    """The files of a joint fit, each with its poses, readings, residual RMS and noise (its own variance
+    component): [{"file", "n", "readings", "rms_mm", "noise_mm", "rms_rad", "noise_rad", "sigma"}]."""
+    prob = res.problem
+    meas, obs = prob.meas, prob.obs
+    src = np.asarray(meas.source)[obs.row]
+    out = []
+    for k, path in enumerate(meas.sources):
+        item = {"file": str(path), "n": int(np.sum(meas.source == k)), "readings": int(np.sum(src == k))}
+        for g, unit in ((ob.LENGTH, "mm"), (ob.ANGLE, "rad")):
+            sel = (src == k) & (obs.group == g)
+            if sel.any():
+                item[f"rms_{unit}"] = float(np.sqrt(np.mean(res.residual[sel] ** 2)))
+                item[f"noise_{unit}"] = float(np.sqrt(res.sigma2 * np.mean(1.0 / prob.w[sel] ** 2)))
+        item["sigma"] = "sigma column" if prob.known[src == k].all() else "estimated from the residual"
+        out.append(item)
     return out
 
 

@@ -67,6 +67,9 @@ class Measurements:
     quantum: dict | None = None         # resolution of the file's numbers: "poses" (n, nvar), "L" (n,), "u" (n, 3)
     #                                     model units, half a unit of the last digit (None: full precision)
     temps: dict = field(default_factory=dict)         # temp_<name> -> (n,) degC, NaN where not read
+    source: np.ndarray | None = None    # (n,) index into `sources` of each row's file (None: one file)
+    sources: tuple = ()                 # the files of a joint set (`join`), in order
+    columns: tuple = ()                 # the file's column names (as read)
 
     def __post_init__(self):
         n = len(self.poses)
@@ -95,7 +98,7 @@ class Measurements:
                        sigma=pick(self.sigma), dv=pick(self.dv), du=pick(self.du), u=pick(self.u),
                        sigma_axis=pick(self.sigma_axis), setup=pick(self.setup),
                        dirs={k: v[rows] for k, v in self.dirs.items()}, rows=self.rows[rows], warnings=[],
-                       temps={k: v[rows] for k, v in self.temps.items()},
+                       temps={k: v[rows] for k, v in self.temps.items()}, source=pick(self.source),
                        quantum=None if self.quantum is None else {k: pick(v) for k, v in self.quantum.items()})
 
     def with_poses(self, poses, L=None) -> "Measurements":
@@ -122,6 +125,69 @@ def concat(a: Measurements, b: Measurements) -> Measurements:
                    temps={k: np.concatenate([a.temps[k], b.temps[k]]) for k in a.temps if k in b.temps})
 
 
+def join(sets: list, machine) -> Measurements:
+    """Measurement files of one machine as one set, each file with its own instrument, setups and noise (`fiveaxis
+    fit a.csv b.csv`): readings a file does not have are blank in its rows (NaN), sigma unknown where a file gives
+    none (its own variance component: `source` says which file each row is from), files in the machine frame
+    turned into the workpiece frame, a setup id two files share named after its file (`rt.csv:sphere1`), approach
+    directions 0 (unknown) in the rows of a file without them, times and temperature channels kept only when every
+    file has them (else a warning). Rows keep their file's numbering."""
+    sets = [in_frame(m, machine, "workpiece") if m.frame != "workpiece" else m for m in sets]
+    if len(sets) == 1:
+        return sets[0]
+    n = [m.n for m in sets]
+    warnings = [w for m in sets for w in m.warnings]
+    names = [Path(m.path).name for m in sets]
+
+    def stack(get, width=None):
+        parts = [get(m) for m in sets]
+        if all(p is None for p in parts):
+            return None
+        return np.concatenate([p if p is not None else np.full((k, width) if width else k, np.nan)
+                               for p, k in zip(parts, n)])
+    ids = [m.setups for m in sets]
+    shared = {s for i, a in enumerate(ids) for b in ids[i + 1:] for s in set(a) & set(b)}
+
+    def sid(m, name, x):
+        return None if x is None else (f"{name}:{x}" if x in shared else x)
+    setup = None
+    if any(m.setup is not None for m in sets):
+        setup = np.concatenate([np.array([sid(m, nm, x) for x in m.setup], dtype=object) if m.setup is not None
+                                else np.full(m.n, None, dtype=object) for m, nm in zip(sets, names)])
+    kinds, frames_ = {}, {}
+    for m, nm in zip(sets, names):
+        kinds.update({sid(m, nm, k): v for k, v in m.setup_kind.items()})
+        frames_.update({sid(m, nm, k): v for k, v in m.setup_frame.items()})
+    dirs = {}
+    for v in dict.fromkeys(k for m in sets for k in m.dirs):
+        dirs[v] = np.concatenate([m.dirs.get(v, np.zeros(m.n)) for m in sets])
+    t = None
+    if all(m.t is not None for m in sets):
+        t = np.concatenate([m.t for m in sets])
+    elif any(m.t is not None for m in sets):
+        warnings.append(f"{', '.join(names)}: times (t) are left out: not every file has them")
+    temps = {k: np.concatenate([m.temps[k] for m in sets]) for k in sets[0].temps if all(k in m.temps for m in sets)}
+    dropped = sorted({k for m in sets for k in m.temps} - set(temps))
+    if dropped:
+        warnings.append(f"{', '.join(names)}: temperature channel(s) {', '.join(dropped)} left out: not in every file")
+    quantum = None
+    if any(m.quantum is not None for m in sets):
+        qs = [m.quantum or {"poses": np.zeros_like(m.poses), "L": np.zeros(m.n), "u": None} for m in sets]
+        quantum = {"poses": np.vstack([q["poses"] for q in qs]), "L": np.concatenate([q["L"] for q in qs]),
+                   "u": None if all(q.get("u") is None for q in qs) else np.concatenate(
+                       [q["u"] if q.get("u") is not None else np.zeros((m.n, 3)) for q, m in zip(qs, sets)])}
+    return Measurements(path=Path(" + ".join(str(m.path) for m in sets)), variables=sets[0].variables,
+                        poses=np.vstack([m.poses for m in sets]), L=np.concatenate([m.L for m in sets]),
+                        d=stack(lambda m: m.d, 3), t=t, sigma=stack(lambda m: m.sigma),
+                        dv=stack(lambda m: m.dv, 3), has_L=any(m.has_L for m in sets), warnings=warnings,
+                        du=stack(lambda m: m.du), u=stack(lambda m: m.u, 3),
+                        sigma_axis=stack(lambda m: m.sigma_axis), setup=setup, setup_kind=kinds,
+                        setup_frame=frames_, dirs=dirs, rows=np.concatenate([m.rows for m in sets]),
+                        frame="workpiece", quantum=quantum, temps=temps,
+                        source=np.repeat(np.arange(len(sets)), n), sources=tuple(Path(m.path) for m in sets),
+                        columns=tuple(dict.fromkeys(c for m in sets for c in m.columns)))
+
+
 def _concat_quantum(a: Measurements, b: Measurements) -> dict | None:
     """The resolution of two sets as one: a set without one (simulated, full precision) counts as exact."""
     if a.quantum is None and b.quantum is None:
@@ -138,7 +204,10 @@ MAX_DIGITS = 17
 def written_digits(cells) -> tuple[int, int] | None:
     """What the text of a column's cells says of its resolution: (decimals, significant digits), the most any
     cell writes ('200.000': 3 decimals and 6 digits; '0.00123': 5 and 3; '1.5e-05': 6 and 2), trailing zeros
-    counted as written. None when no cell is text (numbers of a binary file say nothing of their resolution)."""
+    counted as written. None when no cell is text (numbers of a binary file say nothing of their resolution) or
+    when no cell writes a decimal point or an exponent: a column of whole numbers holds nominal values (commanded
+    angles 0, 30, 60; a beam along x: 1, 0, 0; tools of 200 and 300 mm), exact; a controller that rounds writes its
+    decimals (0.001 mm, 0.0001 deg)."""
     import pandas as pd   # heavy (about 0.5 s): loaded where a file is read
     if isinstance(cells, np.ndarray):
         return None
@@ -147,6 +216,8 @@ def written_digits(cells) -> tuple[int, int] | None:
         return None
     s = s.str.strip().str.lstrip("+-")
     sci = s.str.contains("[eE]", regex=True)
+    if not (sci.any() or s.str.contains(".", regex=False).any()):
+        return None
     decimals, digits = [], []
     plain = s[~sci]
     if len(plain):
@@ -246,6 +317,7 @@ def _read_table(path: Path):
             if not header or all(not h.strip() for h in header):
                 raise InputError(f"{path}: empty file (expected a header line such as X,Y,Z,A,B,dx,dy,dz)")
             names = [h.strip() for h in header]
+            _separated_otherwise(path, names, fh)
             _duplicates(path, names)
             while True:
                 try:
@@ -265,11 +337,21 @@ def _read_table(path: Path):
                 lines.append(reader.line_num)
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a UTF-8 text file") from None
-    if len(names) == 1 and any(sep in names[0] for sep in ";\t"):
-        raise InputError(f"{path}: header: one column '{names[0][:40]}' (expected comma-separated columns; "
-                         f"is the file separated by ';' or tabs?)")
     cols = {n: [r[i] for r in rows] for i, n in enumerate(names)}
     return names, cols, lines, None
+
+
+def _separated_otherwise(path, names, fh) -> None:
+    """A header of one column holding ';' or tabs: a file separated otherwise (a spreadsheet's export with decimal
+    commas, often); said before its rows are read (their comma count would make a vague message)."""
+    if len(names) != 1 or not any(sep in names[0] for sep in ";\t"):
+        return
+    sep = "';'" if ";" in names[0] else "tabs"
+    line = fh.readline()
+    commas = bool(re.search(r"\d,\d", line))
+    raise InputError(f"{path}: header: one column '{names[0][:40]}' (expected comma-separated columns): the file is "
+                     f"separated by {sep}" + (" and has decimal commas" if commas else "") + "; save it as CSV with "
+                     f"',' between columns and '.' in numbers")
 
 
 def _duplicates(path, names):
@@ -380,7 +462,7 @@ def _range_check(path, name, values, keep, lines, lo, hi, what):
 
 def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind: str | None = None,
          setup_frame: str | None = None, readings_required: bool = True,
-         resolution: dict | None = None) -> Measurements:
+         resolution: dict | None = None, resolution_strict: bool = True) -> Measurements:
     """Read and check a measurement file for a machine.
 
     min_rows: the least number of measured values (readings) accepted; frame: "workpiece" (default) or "machine",
@@ -389,8 +471,9 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     to simulate or to measure); resolution: {column: step} in the file's units (mm, deg), the resolution of
     numbers the file does not write as text (Parquet) or states otherwise (a controller's 0.001 mm); else a
     CSV column's resolution is read from the digits its cells write (`written_digits`) and binary numbers count as
-    full precision (never a guess from the values). The columns are checked against their table (`fiveaxis.model.columns`) in one
-    loop; then the rules that join columns and rows (RULES)."""
+    full precision (never a guess from the values); resolution_strict=False: columns of `resolution` the file does
+    not have are passed over (one of several files of a joint fit). The columns are checked against their table
+    (`fiveaxis.model.columns`) in one loop; then the rules that join columns and rows (RULES)."""
     path = Path(path)
     if frame is not None and frame not in FRAMES:
         raise InputError(f"unknown frame '{frame}' (expected one of: {', '.join(FRAMES)})")
@@ -400,8 +483,11 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     names, cols, lines, types = _read_table(path)
     variables = tuple(machine.variables)
     warnings = check_columns(path, names, variables, tuple(c.name for c in COLUMNS))     # misspelled columns
-    _check_header(path, cols, variables, readings_required)
     nrows = len(cols[names[0]]) if names else 0
+    along = _one_axis_line(path, machine, cols, frame)
+    if along is not None:                                 # blank until the rows are known (blank rows stay blank)
+        cols.update({n: np.full(nrows, np.nan) for n in LINE_DIRECTION})
+    _check_header(path, cols, variables, readings_required)
     # Rows that are entirely empty (blank lines) are skipped; row numbers stay those of the file.
     filled = np.zeros(nrows, bool)
     for c in cols.values():
@@ -410,8 +496,14 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     keep = np.flatnonzero(filled)
     if not len(keep):
         raise InputError(f"{path}: no data rows (expected one row per measured pose under the header)")
+    if along is not None:
+        u, note = along
+        for n, value in zip(LINE_DIRECTION, u):
+            cols[n] = np.where(filled, value, np.nan)
+        warnings.append(note)
     f = _File(path, cols, lines, types, keep, machine, variables, readings_required, warnings, {},
-              resolution=_check_resolution(path, resolution, names))
+              resolution=_check_resolution(path, resolution if resolution_strict else
+                                           {k: v for k, v in (resolution or {}).items() if k in names}, names))
     for column in COLUMNS:                               # the table's columns, one loop
         if column.name in cols:
             f.data[column.name] = f.cells(column)
@@ -424,6 +516,25 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     for rule in RULES:
         rule(f, frame, setup_kind, setup_frame, min_rows)
     return f.measurements()
+
+
+#: The columns of the direction of du.
+LINE_DIRECTION = ("ux", "uy", "uz")
+
+
+def _one_axis_line(path, machine, cols, frame):
+    """A laser file of a one-axis machine (`X,dir_X,du`) needs no ux,uy,uz: du is read along the axis. Returns
+    (the direction in the file's frame, a note) for such a file, else None. The direction is the axis' own in the
+    machine frame; in the workpiece frame the tip moves against a workpiece-chain axis' direction."""
+    if "du" not in cols or any(n in cols for n in LINE_DIRECTION) or len(machine.axes) != 1:
+        return None
+    ax = machine.axes[0]
+    if ax.type != "linear":
+        return None
+    sign = -1.0 if ax in machine.workpiece_chain and (frame or "workpiece") == "workpiece" else 1.0
+    u = tuple(sign * float(c) for c in ax.direction)
+    return u, (f"{path}: no ux,uy,uz columns: du read along the machine's one axis {ax.name}, ux,uy,uz = "
+               f"{', '.join(f'{c:g}' for c in u)} ({frame or 'workpiece'} frame)")
 
 
 def _check_resolution(path, resolution, names) -> dict:
@@ -541,7 +652,8 @@ class _File:
                             has_L="L" in d, warnings=self.warnings, du=d.get(LINE), u=self.u,
                             sigma_axis=d.get("sigma_axis"), setup=self.setup, setup_kind=self.setup_kind,
                             setup_frame=self.setup_frame, dirs=d["_dirs"], rows=np.asarray(self.keep) + 1,
-                            frame=self.frame, quantum=resolution, temps=d.get("_temps", {}))
+                            frame=self.frame, quantum=resolution, temps=d.get("_temps", {}),
+                            columns=tuple(self.cols))
 
 
 # -- the rules that join columns and rows -----------------------------------------------------------------------

@@ -73,9 +73,9 @@ def _floats(spec, text):
     try:
         vals = [float(x) for x in text.split(",")]
     except ValueError:
-        raise InputError(f"effect value {spec}: expected numbers after '=', got {text!r}") from None
+        raise InputError(f"effect value {spec}: expected numbers after '=', got {text!r}", key="effect value") from None
     if not all(np.isfinite(vals)):
-        raise InputError(f"effect value {spec}: expected finite numbers after '=', got {text!r}")
+        raise InputError(f"effect value {spec}: expected finite numbers after '=', got {text!r}", key="effect value")
     return vals
 
 
@@ -99,7 +99,7 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
              noise_axis: float = NOISE_AXIS_RAD, plan: ins.Plan | None = None, setup_scale: float = 1.0,
              options: dict | None = None, errors: dict | None = None,
              setup_kind: str | None = None, placements: dict | None = None, commands=None,
-             temperatures: dict | None = None) -> Simulation:
+             temperatures: dict | None = None, chain=None) -> Simulation:
     """A simulated measurement set. effects: specs (`ex_x:x1=2e-5`; a temperature effect's value: mm or rad per
     degC) or (effect, values) pairs.
 
@@ -115,7 +115,9 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
     directions ({axis: (n,) +1/-1}) giving the positions the axes are actually sent to (a compensation); the readings are then those of the machine there
     against the nominal tool of the poses; temperatures: {name: `KIND[:key=value,...]` or a temperatures.Channel}
     (`fiveaxis.measurement.temperatures`, in order: a mix reads earlier ones): the sensors' histories over t (a
-    temp_<name> column each, read with noise and resolution); the effects are driven by the true temperatures."""
+    temp_<name> column each, read with noise and resolution); the effects are driven by the true temperatures;
+    chain: None (the model's kernels), or a function (poses, E (n, n_errors in the model's order), L) -> (P_err,
+    V_err) computing the true machine's tool errors elsewhere (an independent chain: `fiveaxis.model.htm`)."""
     _check(n, noise, noise_axis, duration, tool_lengths)
     rng = np.random.default_rng(seed)
     machine = model.machine
@@ -154,11 +156,19 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
     truth, coefficients = {}, {}
     for eff, vals in parsed:
         dE, dl = fx.per_pose([eff], [vals], ctx, model.errors)
+        bad = ~(np.all(np.isfinite(dE), axis=1) & np.isfinite(dl))
+        if bad.any():                        # an expression undefined there: no reading, not a blank cell
+            i = int(np.argmax(bad))
+            what = f" of {machine.path} ({eff.param} += {eff.expr})" if getattr(eff, "expr", None) else ""
+            raise InputError(f"effect '{eff.id}'{what}: not finite at pose {i + 1} ("
+                             + ", ".join(f"{v}={x:.6g}" for v, x in zip(model.variables, at[i])) + " mm, rad): "
+                             f"an expression undefined there (log or sqrt of a negative value?)", key="effect")
         truth[eff.id] = float(vals[0]) if len(vals) == 1 else [float(x) for x in vals]
         coefficients.update({nm: float(v) for nm, v in zip(eff.names, vals)})
         E += dE
         dL += dl
-    P, V = model.tool_errors(at, np.ascontiguousarray(E), plan.L + dL, exact=True)
+    P, V = (model.tool_errors(at, np.ascontiguousarray(E), plan.L + dL, exact=True) if chain is None
+            else chain(at, E, plan.L + dL))
     tip0, V0 = model.ideal_tool(plan.poses, plan.L)
     if commands is not None:                      # the machine sent elsewhere: against the nominal tool of the poses
         tip_at, V_at = model.ideal_tool(at, plan.L)

@@ -248,8 +248,8 @@ def _fit_result(results, rec: dict, lang: str):
     f = rec["fit"]
     r = _el(results, "result")
     _text(r, "name", "Fitted errors of the machine", lang)
-    _text(r, "description", "geometric errors and effects of the final model, fitted by weighted least squares on "
-                            "the exact kinematic chain; value with its expanded uncertainty U (k = 2); ISO 230 names "
+    _text(r, "description", "geometric errors and effects of the final model, fitted by weighted least squares with "
+                            "every error's prior (maximum a posteriori) on the exact kinematic chain; value with its expanded uncertainty U (k = 2); ISO 230 names "
                             "in brackets", lang)
     lst = _el(_el(r, "data"), "list")
     for p in f["parameters"]:

@@ -227,8 +227,8 @@ def _fit(rec: dict) -> str:
     f = rec["fit"]
     effects = ", ".join(f"{e} ({i})" if i else e for e, i in zip(f["effects"], f["effects_iso"])) or "none"
     out = ['<section id="fit"><h2>The fitted errors</h2>',
-           f"<p>The final model (geometric errors + effects: {_e(effects)}) fitted by weighted least squares on "
-           f"the exact kinematic chain: residual RMS {_v(rec, 'fit.rms_um')} \u00b5m; {_v(rec, 'fit.n_parameters', 'd')} "
+           f"<p>The final model (geometric errors + effects: {_e(effects)}) fitted by weighted least squares with "
+           f"every error's prior (maximum a posteriori) on the exact kinematic chain: residual RMS {_v(rec, 'fit.rms_um')} \u00b5m; {_v(rec, 'fit.n_parameters', 'd')} "
            f"parameters, of which the data determines {_v(rec, 'fit.rank', 'd')} independent directions (condition "
            f"number {_v(rec, 'fit.condition', '.3g')}). Uncertainty scale: {_e(f['sigma'])}"
            + (f", reduced chi\u00b2 {_v(rec, 'fit.reduced_chi2', '.3g')}" if f["reduced_chi2"] is not None else "")

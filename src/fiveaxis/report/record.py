@@ -29,7 +29,7 @@ from ..estimation.result import to_json as fit_json
 from ..estimation.solver import formula
 from ..iso230 import uncertainty as U
 from ..measurement import observations as ob
-from ..measurement.files import read
+from ..measurement.files import join, read
 from ..model import iso_names as iso
 from ..model.error_model import load
 from ..plots.residuals import residual_figure, series_of
@@ -95,7 +95,8 @@ def _data_record(model, meas) -> dict:
             "setups": list(meas.setups),
             "tool_length_mm": [float(meas.L.min()), float(meas.L.max())],
             "time_s": None if meas.t is None else [float(meas.t.min()), float(meas.t.max())],
-            "sigma_um": None if meas.sigma is None else float(np.sqrt(np.mean(meas.sigma ** 2)) * 1e3)}
+            "sigma_um": None if meas.sigma is None or np.isnan(meas.sigma).all()
+            else float(np.sqrt(np.nanmean(meas.sigma ** 2)) * 1e3)}
 
 
 def _readings_text(model, meas) -> str:
@@ -254,7 +255,8 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
           max_rounds: int = MAX_ROUNDS, sensitivity: bool = True, title: str | None = None,
           frame: str | None = None, campaign: dict | None = None, uncertainty: U.Statement | None = None,
           today: _dt.date | None = None) -> Report:
-    """Run the analyses of a measurement file and collect the report's record and figures.
+    """Run the analyses of a measurement file (or of several: one joint fit, `measurement.files.join`) and collect
+    the report's record and figures.
 
     added: effect ids added to the model before the first round (project or ISO names); compensation: a folder
     with summary.json (see report.compensation) or None. Rounds: diagnose, add the top candidate, repeat while
@@ -268,7 +270,9 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
     U.check(uncertainty)
     model = load(machine, convention)
     comp = C.read(compensation, model.machine.name) if compensation is not None else None
-    meas = read(data, model.machine, min_rows=2, frame=frame)
+    paths = list(data) if isinstance(data, (list, tuple)) else [data]
+    meas = join([read(p, model.machine, min_rows=2 if len(paths) == 1 else 1, frame=frame) for p in paths],
+                model.machine)
     effects = resolve_effects(model, machine_effects(model) + list(added))
     design_size.check(model, meas, effects)
     preconditions.check(meas)

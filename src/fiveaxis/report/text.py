@@ -53,6 +53,11 @@ def fit(j: dict) -> str:
         lines.append(f"    noise estimate:  {', '.join(noise)} (no sigma column: from the residual)")
     if j["effects"]:
         lines.append(f"    added effects:   {', '.join(j['effects'])}")
+    for f in j.get("files", []):
+        noise = ", ".join(human(f[k], u) for k, u in (("noise_mm", "mm"), ("noise_rad", "rad")) if k in f)
+        rms = ", ".join(human(f[k], u) for k, u in (("rms_mm", "mm"), ("rms_rad", "rad")) if k in f)
+        lines.append(f"    file:            {f['file']}: {f['n']} poses, {f['readings']} readings, residual RMS "
+                     f"{rms}, noise {noise} ({f['sigma']})")
     lines += _prior_line(j)
     lines += _determined_lines(j)
     lines += _combination_lines(j)
@@ -209,7 +214,8 @@ def outlier_lines(j: dict, limit: int = 12) -> list[str]:
         return []
     items = []
     for o in j["outlier_readings"][:limit]:
-        items.append(f"row {o['row']} {o['reading']} {human(o['residual'], o['unit'])}")
+        where = f"{o['file'].rsplit('/', 1)[-1]} " if "file" in o else ""
+        items.append(f"{where}row {o['row']} {o['reading']} {human(o['residual'], o['unit'])}")
     more = len(j["outlier_readings"]) - limit
     many = len(j["outlier_readings"]) > OUTLIER_MANY * j["outlier_readings_of"]
     lines = [f"    outliers:        {len(j['outlier_readings'])} reading(s) in {len(j['outliers'])} data row(s) left "
@@ -259,6 +265,10 @@ def diagnosis(j: dict) -> str:
         coef = "" if c["coefficient"] is None or not fx.family(c["family"]).RATE_SHOWN \
             else f"coef {c['coefficient']:.3g} {c['unit']}: "
         shown = f"{c['id']} ({c['iso']})" if c.get("iso") else c["id"]
+        if c.get("plausible") is False:
+            lines.append(f"    {k:2d}. {shown:18s} -> {c['rms_mm'] * 1000:.4g} um ({c['explained']:.1%}) its size over "
+                         f"the data: {IMPLAUSIBLE}")
+            continue
         lines.append(f"    {k:2d}. {shown:18s} -> {c['rms_mm'] * 1000:.4g} um ({c['explained']:.1%}) "
                      f"{coef}{c['description']}")
         if c["aliases"]:
