@@ -65,7 +65,7 @@ def test_a_fifo_or_a_device_is_refused_at_once(tmp_path, capsys, kind, argv, nam
     f = _special(tmp_path, kind, name)
     (tmp_path / "out").mkdir()
     with deadline(AT_ONCE_S):
-        rc, out, err = run_cli(capsys, *[a.format(f=f, d=tmp_path) for a in argv])
+        rc, out, err = run_cli(*[a.format(f=f, d=tmp_path) for a in argv])
     assert rc == 2 and err.count("\n") == 1 and str(f) in err, err
     assert ("a FIFO" if kind == "fifo" else "a device") in err and "not a regular file" in err, err
     assert not (tmp_path / "s.csv").exists() and list((tmp_path / "out").iterdir()) == []

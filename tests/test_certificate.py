@@ -385,9 +385,9 @@ def test_dcc_validates_against_ptbs_schema():
 
 # -- real certificates: a laser run (ISO 230-2), an R-test, a ballbar (ISO 230-4) ---------------------------------
 def _simulate(tmp, name, *argv):
-    from fiveaxis.cli import main
+    from conftest import run_cli
     path = tmp / name
-    assert main(["simulate", *map(str, argv), "-o", str(path)]) == 0
+    assert run_cli("simulate", *map(str, argv), "-o", str(path))[0] == 0
     return path
 
 
@@ -421,13 +421,13 @@ def capsys_module():
     """Run the command line in-process and catch what it prints (a module-scoped capsys)."""
     import contextlib
     import io
-    from fiveaxis.cli import main
+    from conftest import run_cli
 
     def run(*argv):
         out, err = io.StringIO(), io.StringIO()
         with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
             try:
-                rc = main([str(a) for a in argv])
+                rc = run_cli(str(a) for a in argv)[0]
             except SystemExit as exc:
                 rc = exc.code
         return rc, out.getvalue(), err.getvalue()

@@ -7,9 +7,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from fiveaxis.cli import main
-
 from conftest import run_cli
+
 
 CASES = {"ac_trunnion": ["dx_x:x2", "ex_x:x1"], "li2018": ["ex_x:x1", "dz_x:x2"]}
 
@@ -28,15 +27,15 @@ def loop(request, tmp_path_factory):
     sim = ["simulate", "--machine", machine, "--n", "1000", "--seed", "4", "--noise", "0.001"]
     for e in CASES[machine]:
         sim += ["--effect", e]
-    assert main(sim + ["-o", str(d / "before.csv")]) == 0
+    assert run_cli(*sim, "-o", str(d / "before.csv"))[0] == 0
     fit = ["fit", str(d / "before.csv"), "--machine", machine, "-o", str(d / "model.json")]
     for e in CASES[machine]:
         fit += ["--add", e]
-    assert main(fit) == 0
-    assert main(["compensate", str(d / "model.json"), "-o", str(d / "comp"), "--poses", "1000"]) == 0
-    assert main(sim + ["--compensation", str(d / "comp"), "-o", str(d / "after.csv")]) == 0
+    assert run_cli(*fit)[0] == 0
+    assert run_cli("compensate", str(d / "model.json"), "-o", str(d / "comp"), "--poses", "1000")[0] == 0
+    assert run_cli(*sim, "--compensation", str(d / "comp"), "-o", str(d / "after.csv"))[0] == 0
     noiseless = [a if a != "0.001" else "0" for a in sim]
-    assert main(noiseless + ["--compensation", str(d / "comp"), "-o", str(d / "after0.csv")]) == 0
+    assert run_cli(*noiseless, "--compensation", str(d / "comp"), "-o", str(d / "after0.csv"))[0] == 0
     return machine, d, sim
 
 
@@ -127,13 +126,13 @@ def _one_line_error(rc, err, *words):
 def test_existing_outputs_are_not_overwritten(loop, capsys):
     machine, d, _ = loop
     before = (d / "comp" / "table.csv").read_bytes()
-    rc, _, err = run_cli(capsys, "compensate", d / "model.json", "-o", d / "comp")
+    rc, _, err = run_cli("compensate", d / "model.json", "-o", d / "comp")
     _one_line_error(rc, err, "exists", "--force")
     assert (d / "comp" / "table.csv").read_bytes() == before
-    rc, _, _ = run_cli(capsys, "compensate", d / "model.json", "-o", d / "comp", "--force", "--nodes", "X=2,Y=2,Z=2",
+    rc, _, _ = run_cli("compensate", d / "model.json", "-o", d / "comp", "--force", "--nodes", "X=2,Y=2,Z=2",
                    "--poses", "200", "--comp-points", "9")
     assert rc == 0 and (d / "comp" / "table.csv").read_bytes() != before
-    rc, _, err = run_cli(capsys, "fit", d / "before.csv", "--machine", machine, "-o", d / "model.json")
+    rc, _, err = run_cli("fit", d / "before.csv", "--machine", machine, "-o", d / "model.json")
     _one_line_error(rc, err, "exists")
 
 
@@ -151,24 +150,24 @@ def test_compensate_bad_input(loop, capsys, tmp_path):
         (["--comp-points", "300", "-o", tmp_path / "g"], ["--comp-points"]),
     ]
     for extra, words in cases:
-        rc, _, err = run_cli(capsys, "compensate", model, *extra)
+        rc, _, err = run_cli("compensate", model, *extra)
         _one_line_error(rc, err, *words)
     assert not (tmp_path / "missing").exists()
     bad = tmp_path / "bad.json"
     bad.write_text('{"errors_mm_rad": {}}')
-    rc, _, err = run_cli(capsys, "compensate", bad, "-o", tmp_path / "h")
+    rc, _, err = run_cli("compensate", bad, "-o", tmp_path / "h")
     _one_line_error(rc, err, "format")
-    rc, _, err = run_cli(capsys, "compensate", tmp_path / "nothing.json", "-o", tmp_path / "i")
+    rc, _, err = run_cli("compensate", tmp_path / "nothing.json", "-o", tmp_path / "i")
     _one_line_error(rc, err, "not found")
 
 
 def test_simulate_compensation_of_another_machine_is_refused(loop, capsys, tmp_path):
     machine, d, _ = loop
     other = "li2018" if machine == "ac_trunnion" else "ac_trunnion"
-    rc, _, err = run_cli(capsys, "simulate", "--machine", other, "--n", "10", "--compensation", d / "comp",
+    rc, _, err = run_cli("simulate", "--machine", other, "--n", "10", "--compensation", d / "comp",
                      "-o", tmp_path / "x.csv")
     _one_line_error(rc, err, "compensation for machine")
-    rc, _, err = run_cli(capsys, "simulate", "--machine", machine, "--n", "10", "--compensation", tmp_path / "none",
+    rc, _, err = run_cli("simulate", "--machine", machine, "--n", "10", "--compensation", tmp_path / "none",
                      "-o", tmp_path / "y.csv")
     _one_line_error(rc, err, "not found")
 
@@ -184,12 +183,12 @@ def test_tool_length_table_on_the_simulated_machine(capsys, tmp_path):
     d = tmp_path
     sim = ["simulate", "--machine", "ac_trunnion", "--n", "800", "--seed", "4", "--effect", "dx_x:x2",
            "--effect", "ex_x:x1", "--tool-lengths", "60,400"]
-    assert main(sim + ["--noise", "0.001", "-o", str(d / "before.csv")]) == 0
-    assert main(["fit", str(d / "before.csv"), "--machine", "ac_trunnion", "--add", "dx_x:x2", "--add", "ex_x:x1",
-                 "-o", str(d / "model.json")]) == 0
+    assert run_cli(*sim, "--noise", "0.001", "-o", str(d / "before.csv"), echo=True)[0] == 0
+    assert run_cli("fit", str(d / "before.csv"), "--machine", "ac_trunnion", "--add", "dx_x:x2", "--add", "ex_x:x1",
+                 "-o", str(d / "model.json"), echo=True)[0] == 0
     base = ["compensate", str(d / "model.json"), "--nodes", "X=3,Y=3,Z=3", "--poses", "300"]
-    assert main(base + ["-o", str(d / "one")]) == 0
-    assert main(base + ["--tool-lengths", "60:400:3", "-o", str(d / "tl")]) == 0
+    assert run_cli(*base, "-o", str(d / "one"), echo=True)[0] == 0
+    assert run_cli(*base, "--tool-lengths", "60:400:3", "-o", str(d / "tl"), echo=True)[0] == 0
     one = pd.read_csv(d / "one" / "table.csv")
     tl = pd.read_parquet(d / "tl" / "table.parquet")
     assert list(tl.columns) == ["L"] + list(one.columns) and len(tl) == 3 * len(one)
@@ -199,7 +198,8 @@ def test_tool_length_table_on_the_simulated_machine(capsys, tmp_path):
     assert "predicted_by_tool_length" not in json.loads((d / "one" / "summary.json").read_text())
     capsys.readouterr()
     for name in ("one", "tl"):
-        assert main(sim + ["--noise", "0", "--compensation", str(d / name), "-o", str(d / f"after_{name}.csv")]) == 0
+        assert run_cli(*sim, "--noise", "0", "--compensation", d / name, "-o", d / f"after_{name}.csv",
+                       echo=True)[0] == 0
     assert "warning" not in capsys.readouterr().err
     measured = {n: rms_mm(d / f"after_{n}.csv") for n in ("one", "tl")}
     # the model's prediction at the same poses and tool lengths
@@ -223,21 +223,21 @@ def test_tool_length_table_on_the_simulated_machine(capsys, tmp_path):
     assert abs(measured["tl"] - pred) < 0.2 * pred + 1e-4
     assert measured["tl"] < measured["one"]
     # a tool outside the table's lengths: held at the edge, and said
-    assert main(["simulate", "--machine", "ac_trunnion", "--n", "50", "--tool-lengths", "420,450", "--compensation",
-                 str(d / "tl"), "-o", str(d / "out.csv")]) == 0
+    assert run_cli("simulate", "--machine", "ac_trunnion", "--n", "50", "--tool-lengths", "420,450", "--compensation",
+                 str(d / "tl"), "-o", str(d / "out.csv"), echo=True)[0] == 0
     assert "outside the table's 60 to 400 mm" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("spec, words", [("100", ["--tool-lengths", "at least 2"]),
-                                         ("100,100", ["--tool-lengths", "duplicates"]),
+                                         ("100,100", ["--tool-lengths", "closer than 0.001 mm"]),
                                          ("200,100", ["--tool-lengths", "ascending"]),
-                                         ("-5,100", ["--tool-lengths", "positive"]),
+                                         ("-5,100", ["--tool-lengths", "from 0 to"]),
                                          ("a,b", ["--tool-lengths", "L1,L2"]),
                                          ("100:50:3", ["--tool-lengths", "LO < HI"]),
-                                         ("50:100:1", ["--tool-lengths", "COUNT >= 2"]),
+                                         ("50:100:1", ["--tool-lengths", "COUNT from 2"]),
                                          ("50:100:2", ["over the limit", "--max-nodes"])])
 def test_tool_lengths_bad_input_cli(loop, capsys, tmp_path, spec, words):
     machine, d, _ = loop
-    rc, _, err = run_cli(capsys, "compensate", d / "model.json", "-o", tmp_path / "x", f"--tool-lengths={spec}",
+    rc, _, err = run_cli("compensate", d / "model.json", "-o", tmp_path / "x", f"--tool-lengths={spec}",
                          *(["--max-nodes", "1000"] if "over the limit" in words else []))
     _one_line_error(rc, err, *words)

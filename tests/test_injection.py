@@ -40,9 +40,9 @@ README_COMMANDS = ["$ sudo apt-get install linuxcnc-uspace-dev", "$ sudo halcomp
 def fitted(tmp_path_factory):
     """A fitted model of li2018 (fit -o), its folder."""
     d = tmp_path_factory.mktemp("fit")
-    from fiveaxis.cli import main
-    assert main(["simulate", "--n", "200", "--no-time", "--seed", "5", "-o", str(d / "m.csv")]) == 0
-    assert main(["fit", str(d / "m.csv"), "-o", str(d / "model.json")]) == 0
+    from conftest import run_cli
+    assert run_cli("simulate", "--n", "200", "--no-time", "--seed", "5", "-o", str(d / "m.csv"))[0] == 0
+    assert run_cli("fit", str(d / "m.csv"), "-o", str(d / "model.json"))[0] == 0
     return d / "model.json"
 
 
@@ -70,7 +70,7 @@ def test_a_hostile_model_path_is_only_a_comment(fitted, tmp_path, capsys, name):
     model.write_text(json.dumps(data))
     out = tmp_path / "out"
     out.mkdir()
-    rc, _, err = run_cli(capsys, "compensate", model, "-o", out, *SMALL)
+    rc, _, err = run_cli("compensate", model, "-o", out, *SMALL)
     assert rc == 0, err
     kins = kins_component("li2018")
     vol = out / "linuxcnc" / "volumetric"
@@ -180,7 +180,7 @@ def test_a_pin_name_longer_than_hal_allows_is_refused_before_anything_is_written
 
 # -- links in the output folder (point 3) --------------------------------------------------------------------------
 def _compensate(capsys, fitted, out, *extra):
-    return run_cli(capsys, "compensate", fitted, "-o", out, *SMALL, *extra)
+    return run_cli("compensate", fitted, "-o", out, *SMALL, *extra)
 
 
 @pytest.mark.parametrize("link, to", [("linuxcnc/volumetric/fiveaxis.hal", "../../../victim.hal"),

@@ -162,11 +162,11 @@ def test_an_added_instrument_is_planned_written_and_checked(gauge, model, rs274,
     (w,) = chk.worst
     assert w.limit.name == "tool axis tilt" and w.samples > 0 and w.value < 1e-9
     # the command line takes it as it takes the shipped ones
-    rc, out, err = run_cli(capsys, "plan", "--machine", "li2018", "--instrument", gauge.name, "--n", "10",
+    rc, out, err = run_cli("plan", "--machine", "li2018", "--instrument", gauge.name, "--n", "10",
                            "-o", tmp_path / "g.csv")
     assert rc == 0, err
     assert "[[Plan]] height-gauge on li2018" in out and "tool axis tilt: worst 0 deg" in out
-    rc, out, err = run_cli(capsys, "plan", "--check", tmp_path / "g.ngc", "--machine", "li2018")
+    rc, out, err = run_cli("plan", "--check", tmp_path / "g.ngc", "--machine", "li2018")
     assert rc == 0 and "verdict: every move keeps" in out, err
     # a program that tilts the tool with the gauge mounted is refused
     bad = (tmp_path / "g.ngc").read_text().replace("A0.0000", "A1.0000", 3)

@@ -247,14 +247,14 @@ def test_known_etve_by_hand(tmp_path):
 # -- the command line ---------------------------------------------------------------------------------------------
 def test_command_line_text_json_plot(tmp_path, capsys):
     out = tmp_path / "sim.csv"
-    rc, _, err = run_cli(capsys, "iso230-3-simulate", out, "--hours", "5", "--seed", "2", "--truth",
+    rc, _, err = run_cli("iso230-3-simulate", out, "--hours", "5", "--seed", "2", "--truth",
                          tmp_path / "truth.json")
     assert rc == 0 and "wrote" in err
-    rc, text, _ = run_cli(capsys, "iso230-3", out, "--spacing", "100", "--plot", tmp_path / "plots")
+    rc, text, _ = run_cli("iso230-3", out, "--spacing", "100", "--plot", tmp_path / "plots")
     assert rc == 0 and "thermal distortion caused by a rotating spindle" in text
     assert "X to 0.1 um" in text and "A to 1 urad" in text and "running 0 to 239 min, 8000 rpm" in text
     assert (tmp_path / "plots" / "iso230-3_spindle.png").stat().st_size > 10_000
-    rc, js, _ = run_cli(capsys, "iso230-3", out, "--spacing", "100", "--json")
+    rc, js, _ = run_cli("iso230-3", out, "--spacing", "100", "--json")
     rec = json.loads(js)
     z = next(d for d in rec["directions"] if d["direction"] == "Z")
     assert f"{z['max_drift_um']:10.1f}" in text              # the text prints the record's numbers, to 0.1 um
@@ -309,11 +309,11 @@ def test_bad_statements(tmp_path, capsys):
         T.evaluate_file(path, spindle=T.Spindle(off_min=10))
     c["dx2"] = c["dx"] + 1e-4 * np.arange(30)
     path = write(tmp_path, c, "pair.csv")
-    rc, _, err = run_cli(capsys, "iso230-3", path)
+    rc, _, err = run_cli("iso230-3", path)
     assert rc == 2 and "state it with --spacing MM" in err and err.count("\n") == 1
-    rc, _, err = run_cli(capsys, "iso230-3", path, "--spacing", "0.001")
+    rc, _, err = run_cli("iso230-3", path, "--spacing", "0.001")
     assert rc == 2 and "--spacing: expected the distance" in err
-    rc, _, err = run_cli(capsys, "iso230-3", path, "--spacing", "50", "--test", "axis")
+    rc, _, err = run_cli("iso230-3", path, "--spacing", "50", "--test", "axis")
     assert rc == 2 and "needs the axis' position" in err
 
 
@@ -355,7 +355,7 @@ def test_report_refuses_a_bad_thermal_file_before_the_fit(tmp_path, capsys):
     c["temp_spindle"][4] = 2000.0
     bad = write(tmp_path, c, "bad.csv")
     out = tmp_path / "r.html"
-    rc, _, err = run_cli(capsys, "report", ROOT / "examples" / "li2018_measurements.csv", "-o", out, "--iso230-3",
+    rc, _, err = run_cli("report", ROOT / "examples" / "li2018_measurements.csv", "-o", out, "--iso230-3",
                          bad)
     assert rc == 2 and err.count("\n") == 1 and "bad.csv: data row 5" in err and "temp_spindle" in err
     assert not out.exists()
@@ -365,7 +365,7 @@ def test_report_refuses_a_bad_thermal_file_before_the_fit(tmp_path, capsys):
 def test_report_with_a_thermal_test(tmp_path, capsys):
     path, _ = simulated(tmp_path, "spindle", hours=5.0, run_hours=3.0, seed=9)
     out = tmp_path / "r.html"
-    rc, js, err = run_cli(capsys, "report", ROOT / "examples" / "li2018_measurements.csv", "-o", out, "--iso230-3",
+    rc, js, err = run_cli("report", ROOT / "examples" / "li2018_measurements.csv", "-o", out, "--iso230-3",
                           path, "--spacing", "100", "--rounds", "1", "--no-sensitivity", "--json")
     assert rc == 0, err
     rec = json.loads(js)["iso230_3"]

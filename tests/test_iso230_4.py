@@ -152,7 +152,7 @@ def test_ballbar_diagnostics_warn_when_the_fit_is_ill_conditioned(model, circles
 
 def test_cli_json_and_polar_plots(model, circles_file, tmp_path, capsys):
     path, _, _ = circles_file
-    rc, out, err = run_cli(capsys, "iso230-4", path, "--json", "--no-diagnosis", "--feed", "1000", "--plot",
+    rc, out, err = run_cli("iso230-4", path, "--json", "--no-diagnosis", "--feed", "1000", "--plot",
                            tmp_path / "plots")
     assert rc == 0, err
     rec = json.loads(out)
@@ -162,7 +162,7 @@ def test_cli_json_and_polar_plots(model, circles_file, tmp_path, capsys):
     assert {"G_um", "G_mz_um", "F_max_um", "F_min_um", "direction"} <= set(c["runs"][0])
     for plane in ("XY", "YZ", "ZX"):
         assert (tmp_path / "plots" / f"iso230-4_{plane}.png").stat().st_size > 10_000
-    rc, out, _ = run_cli(capsys, "iso230-4", path, "--no-diagnosis")
+    rc, out, _ = run_cli("iso230-4", path, "--no-diagnosis")
     assert rc == 0 and "circular hysteresis H (ccw / cw)" in out and "G (MZ)" in out
 
 

@@ -11,7 +11,7 @@ import fiveaxis
 from fiveaxis.estimation import fit as F
 from fiveaxis.planning import criterion, exchange, files, pool
 from fiveaxis.planning import plan as P
-from fiveaxis.cli import main
+from conftest import run_cli
 from fiveaxis.diagnosis.diagnose import diagnose
 from fiveaxis.exceptions import InputError
 from fiveaxis.linuxcnc.rs274 import run as run_rs274
@@ -179,30 +179,30 @@ def test_named_effect_found_at_the_planned_poses_where_random_plans_miss_it(mode
 # -- the command and bad input ----------------------------------------------------------------------------------
 def test_cli_writes_csv_and_gcode_and_simulate_reads_the_plan(tmp_path, capsys):
     out = tmp_path / "plan.csv"
-    assert main(["plan", "--machine", "ac_trunnion", "--instrument", "probe-sphere", "--n", "10", "-o", str(out),
-                 "--json"]) == 0
+    assert run_cli("plan", "--machine", "ac_trunnion", "--instrument", "probe-sphere", "--n", "10", "-o", str(out),
+                 "--json", echo=True)[0] == 0
     j = json.loads(capsys.readouterr().out, parse_constant=lambda c: pytest.fail(f"{c} in the JSON"))
     assert j["n"] == 10 and j["criterion"]["rank"] == j["criterion"]["identifiable_directions"]
     assert (tmp_path / "plan.ngc").read_text().rstrip().endswith("%")
     sim = tmp_path / "sim.csv"
-    assert main(["simulate", "--machine", "ac_trunnion", "--poses", str(out), "-o", str(sim), "--seed", "3"]) == 0
+    assert run_cli("simulate", "--machine", "ac_trunnion", "--poses", str(out), "-o", str(sim), "--seed", "3")[0] == 0
     model = fiveaxis.load("ac_trunnion")
     meas = read(sim, model.machine)
     assert meas.frame == "machine" and meas.n == 10
-    assert main(["fit", str(sim), "--machine", "ac_trunnion"]) == 0
+    assert run_cli("fit", str(sim), "--machine", "ac_trunnion")[0] == 0
 
 
 def test_json_has_no_infinity_when_random_plans_are_rank_deficient(tmp_path, capsys):
     """Random ballbar plans of four circles on li2018 often miss a plane: their D is -inf, printed as null."""
-    assert main(["plan", "--machine", "li2018", "--instrument", "ballbar", "--n", "96", "-o",
-                 str(tmp_path / "b.csv"), "--json"]) == 0
+    assert run_cli("plan", "--machine", "li2018", "--instrument", "ballbar", "--n", "96", "-o",
+                 str(tmp_path / "b.csv"), "--json", echo=True)[0] == 0
     j = json.loads(capsys.readouterr().out, parse_constant=lambda c: pytest.fail(f"{c} in the JSON"))
     assert j["criterion"]["D"] is not None
     assert j["random"]["D_median"] is None and None in j["random"]["D"] and j["worth_random_poses"] is None
 
 
 def _error(capsys, argv):
-    assert main(argv) == 2
+    assert run_cli(*argv, echo=True)[0] == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("fiveaxis: error:") and "\n" not in err and "Traceback" not in err, err
     return err
@@ -238,5 +238,5 @@ def test_bad_input(tmp_path, capsys):
     err = _error(capsys, ["plan", "--machine", "li2018", "--n", "20", "-o", out])
     assert "exists" in err and "--force" in err
     assert (tmp_path / "p.csv").read_text() == "keep me\n"
-    assert main(["plan", "--machine", "li2018", "--n", "20", "-o", out, "--force"]) == 0
+    assert run_cli("plan", "--machine", "li2018", "--n", "20", "-o", out, "--force")[0] == 0
     assert read(tmp_path / "p.csv", fiveaxis.load("li2018").machine, readings_required=False).n == 20

@@ -553,7 +553,7 @@ def test_an_edited_program_that_breaks_a_limit_is_refused_with_line_and_deviatio
     lines, edited = _edit(kind, prog.read_text().splitlines(), model, res.kinematics)
     bad = tmp_path / "edited.ngc"
     bad.write_text("\n".join(lines) + "\n")
-    rc, out, err = run_cli(capsys, "plan", "--check", bad, "--machine", machine, "--instrument", instrument)
+    rc, out, err = run_cli("plan", "--check", bad, "--machine", machine, "--instrument", instrument)
     assert rc == 2 and "REFUSED" in out, (what, out)
     assert err.startswith("fiveaxis: error: refused:") and "\n" not in err.strip(), err
     assert f"line {edited}:" in err, (what, err)
@@ -598,11 +598,11 @@ def test_rules_without_a_limit_are_refused(rs274, models, tmp_path_factory, tmp_
 # -- the command --------------------------------------------------------------------------------------------------
 def test_plan_writes_a_checked_program_and_check_reports_it(rs274, tmp_path, capsys):
     out = tmp_path / "rt.csv"
-    rc, stdout, err = run_cli(capsys, "plan", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "12",
+    rc, stdout, err = run_cli("plan", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "12",
                               "-o", out)
     assert rc == 0, err
     assert "[[Check]]" in stdout and "tcp kinematics" in stdout and "verdict: every move keeps" in stdout
-    rc, stdout, err = run_cli(capsys, "plan", "--check", tmp_path / "rt.ngc", "--machine", "ac_trunnion",
+    rc, stdout, err = run_cli("plan", "--check", tmp_path / "rt.ngc", "--machine", "ac_trunnion",
                               "--poses", out, "--json")
     assert rc == 0, err
     import json
@@ -610,10 +610,10 @@ def test_plan_writes_a_checked_program_and_check_reports_it(rs274, tmp_path, cap
     assert j["ok"] and j["kinematics"] == "tcp" and j["instrument"] == "rtest"
     assert j["limits"][0]["worst"] <= GEOMETRY["rtest"].limit_mm and j["strokes"]["moves_outside"] == 0
     assert j["poses"]["marked"] == 12 and j["poses"]["max_linear_mm"] <= 1e-6
-    rc, _, err = run_cli(capsys, "plan", "--check", tmp_path / "rt.ngc", "--machine", "ac_trunnion",
+    rc, _, err = run_cli("plan", "--check", tmp_path / "rt.ngc", "--machine", "ac_trunnion",
                          "--instrument", "ballbar")
     assert rc == 2 and "for instrument rtest, not ballbar" in err
-    rc, _, err = run_cli(capsys, "plan", "--check", tmp_path / "rt.ngc", "--machine", "li2018")
+    rc, _, err = run_cli("plan", "--check", tmp_path / "rt.ngc", "--machine", "li2018")
     assert rc == 2 and "for machine ac_trunnion, not li2018" in err
 
 
@@ -621,13 +621,13 @@ def test_the_documented_two_tool_length_rtest_is_made_and_passes_its_check(rs274
     """docs/plan.md's R-test with two tool lengths (issue 32: "no path within the strokes", then its own checker
     refused the program): written, with a tool change at the travel height, and `plan --check` passes it."""
     out = tmp_path / "rt2.csv"
-    rc, stdout, err = run_cli(capsys, "plan", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "30",
+    rc, stdout, err = run_cli("plan", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "30",
                               "--tool-lengths", "100,200", "-o", out)
     assert rc == 0, err
     assert "the second tool length adds" in stdout and "verdict: every move keeps" in stdout
     text = (tmp_path / "rt2.ngc").read_text()
     assert text.count("(fiveaxis: tool length=") == 2
-    rc, stdout, err = run_cli(capsys, "plan", "--check", tmp_path / "rt2.ngc", "--machine", "ac_trunnion",
+    rc, stdout, err = run_cli("plan", "--check", tmp_path / "rt2.ngc", "--machine", "ac_trunnion",
                               "--poses", out)
     assert rc == 0 and "verdict: every move keeps" in stdout, err
     assert "margins (1 mm, 0.5 deg)" in stdout and "the first `G53 G0 Z" in stdout
@@ -637,21 +637,21 @@ def test_when_a_plan_cannot_be_made_it_says_what_to_change(rs274, tmp_path, caps
     """Too few candidates (a tool so long the tip cannot reach the spheres): the one-line error names what to
     change; margins that leave an axis no room are refused; a tighter margin than the program keeps is refused by
     the checker with the line."""
-    rc, _, err = run_cli(capsys, "plan", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "12",
+    rc, _, err = run_cli("plan", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "12",
                          "--tool-lengths", "450", "-o", tmp_path / "a.csv")
     assert rc == 2 and "what to change: a shorter tool (--tool-lengths) or smaller margins (--margin)" in err, err
     assert not (tmp_path / "a.csv").exists() and not (tmp_path / "a.ngc").exists()
-    rc, _, err = run_cli(capsys, "plan", "--machine", "li2018", "--n", "12", "--margin", "30,40",
+    rc, _, err = run_cli("plan", "--machine", "li2018", "--n", "12", "--margin", "30,40",
                          "-o", tmp_path / "b.csv")
     assert rc == 2 and "no room within its stroke" in err and "A" in err, err
-    rc, _, err = run_cli(capsys, "plan", "--machine", "li2018", "--n", "12", "--margin", "x", "-o", tmp_path / "b.csv")
+    rc, _, err = run_cli("plan", "--machine", "li2018", "--n", "12", "--margin", "x", "-o", tmp_path / "b.csv")
     assert rc == 2 and "--margin: expected MM or MM,DEG" in err
     out = tmp_path / "c.csv"
-    rc, _, err = run_cli(capsys, "plan", "--machine", "li2018", "--n", "12", "--margin", "5,2", "-o", out)
+    rc, _, err = run_cli("plan", "--machine", "li2018", "--n", "12", "--margin", "5,2", "-o", out)
     assert rc == 0, err
-    rc, stdout, _ = run_cli(capsys, "plan", "--check", tmp_path / "c.ngc", "--machine", "li2018", "--margin", "5,2")
+    rc, stdout, _ = run_cli("plan", "--check", tmp_path / "c.ngc", "--machine", "li2018", "--margin", "5,2")
     assert rc == 0 and "margins (5 mm, 2 deg)" in stdout
-    rc, stdout, err = run_cli(capsys, "plan", "--check", tmp_path / "c.ngc", "--machine", "li2018", "--margin", "20")
+    rc, stdout, err = run_cli("plan", "--check", tmp_path / "c.ngc", "--machine", "li2018", "--margin", "20")
     assert rc == 2 and "from the end of its stroke (margin 20 mm)" in err, err
 
 

@@ -9,6 +9,7 @@ import pytest
 
 import fiveaxis
 from fiveaxis.estimation import fitted_model as MF
+from fiveaxis.estimation import priors
 from fiveaxis.model import htm
 from fiveaxis.planning import recommend as R
 from fiveaxis.planning.pool import NOISE_MM
@@ -35,13 +36,14 @@ def _tip_jacobian(machine, errors, names, poses, L, h=1e-7):
 
 def test_what_a_tip_plan_leaves_equals_a_closed_form_on_the_plain_chain(model):
     """Tip readings (3-D, no setups) of the recommended plan: I = A^T A / noise^2 from finite differences of the
-    plain chain, C = (prior + I)^-1, the workspace's RMS of sqrt(trace(J C J^T)) x 2: equal to the command's figure
-    (and the figure before any plan to the prior's), and the plan leaves less than before."""
+    plain chain, C = (prior + I)^-1 (the prior: 0 with the size of each error's ISO 230 class), the workspace's RMS
+    of sqrt(trace(J C J^T)) x 2: equal to the command's figure (and the figure before any plan to the prior's), and
+    the plan leaves less than before."""
     rec = R.recommend(model, pool_units=150, instruments=("tip", "rtest"))
     tip = next(o for o in rec.options if o.instrument == "tip")
     m = model.machine
     names = [e for e in model.errors if e not in m.fixed]
-    s = np.array([m.angular_error if m.is_angular(n) else m.linear_error for n in names])
+    s = np.array([priors.CLASSES[priors.error_class(m, n)][1] for n in names])     # the class sizes
     prior = np.diag(1.0 / s ** 2)
     A = _tip_jacobian(m, model.errors, names, tip.plan.poses, m.tool_length).reshape(-1, len(names))
     C = np.linalg.inv(prior + A.T @ A / NOISE_MM ** 2)
@@ -67,10 +69,10 @@ def test_a_fit_already_known_lowers_what_is_left(model, tmp_path, capsys):
     assert known.before_um < 0.5 * alone.before_um
     assert known.options[0].after_um <= alone.options[0].after_um + 1e-9
     path = MF.save(fm, tmp_path / "model.json")
-    rc, out, err = run_cli(capsys, "plan", "--recommend", "--machine", "li2018", "--model", path, "--json")
+    rc, out, err = run_cli("plan", "--recommend", "--machine", "li2018", "--model", path, "--json")
     assert rc == 0, err
     j = json.loads(out)
     assert j["from"] == str(path) and j["recommended"] in [o["instrument"] for o in j["instruments"]]
     assert all(o["leaves_um"] <= j["before_um"] + 1e-9 for o in j["instruments"])
-    rc, _, err = run_cli(capsys, "plan", "--recommend", "--machine", "li2018", "--n", "10")
+    rc, _, err = run_cli("plan", "--recommend", "--machine", "li2018", "--n", "10")
     assert rc == 2 and "--recommend: --n is for planning" in err

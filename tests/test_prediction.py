@@ -220,7 +220,7 @@ def rtest_campaign(request, tmp_path_factory):
     or bad (also BAD_AXES); an R-test of 40 planned poses (`plan`), simulated (1 um noise), written as a controller
     writes it (0.001 mm, 0.0001 deg, readings to 0.01 um), fitted, compensated (3 nodes per linear axis); the true
     tool-tip error over 2000 random poses before and after the table from the NumPy chain (model/htm.py)."""
-    from fiveaxis.cli import main
+    from conftest import run_cli
     from fiveaxis.compensation.table import compensated_commands
     from fiveaxis.measurement.files import read
     from fiveaxis.model import htm
@@ -238,13 +238,13 @@ def rtest_campaign(request, tmp_path_factory):
         else:
             base[n] = float(rng.normal(0, 1e-6 if ang else 0.5e-3))
     effects = BAD_AXES if kind == "bad" else {}
-    assert main(["plan", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "40", "-o", str(d / "plan.csv"),
-                 "--gcode", str(d / "plan.ngc")]) == 0
+    assert run_cli("plan", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "40", "-o", str(d / "plan.csv"),
+                 "--gcode", str(d / "plan.ngc"))[0] == 0
     sim = ["simulate", "--machine", "ac_trunnion", "--poses", str(d / "plan.csv"), "--seed", "11",
            "-o", str(d / "raw.csv")]
     sim += [a for n, v in base.items() for a in ("--error", f"{n}={v!r}")]
     sim += [a for e, v in effects.items() for a in ("--effect", f"{e}={v!r}")]
-    assert main(sim) == 0
+    assert run_cli(*sim)[0] == 0
     df = pd.read_csv(d / "raw.csv")
     for c, digits in (("X", 3), ("Y", 3), ("Z", 3), ("A", 4), ("C", 4), ("dx", 5), ("dy", 5), ("dz", 5)):
         df[c] = df[c].round(digits)

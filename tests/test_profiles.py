@@ -151,21 +151,21 @@ def test_lead_screw_comp_file_leaves_the_noise(model, lead_screw, tmp_path):
 def test_lead_screw_through_the_command_line(model, lead_screw, tmp_path, capsys):
     from conftest import run_cli
     _, _, _, path = lead_screw
-    rc, out, err = run_cli(capsys, "diagnose", path, "--machine", "ac_trunnion", "--add", "dx_x:xr", "--top", "2")
+    rc, out, err = run_cli("diagnose", path, "--machine", "ac_trunnion", "--add", "dx_x:xr", "--top", "2")
     assert rc == 0, err
     assert "1. dx_x:xk100" in out and "a per-position positioning error profile of X" in out
-    rc, out, err = run_cli(capsys, "fit", path, "--machine", "ac_trunnion", "--add", "dx_x:xr", "--add",
+    rc, out, err = run_cli("fit", path, "--machine", "ac_trunnion", "--add", "dx_x:xr", "--add",
                            "dx_x:xk100", "-o", tmp_path / "m.json")
     assert rc == 0, err
-    rc, out, err = run_cli(capsys, "compensate", tmp_path / "m.json", "-o", tmp_path / "c", "--nodes",
+    rc, out, err = run_cli("compensate", tmp_path / "m.json", "-o", tmp_path / "c", "--nodes",
                            "X=9,Y=2,Z=2,A=2,C=2", "--poses", "100")
     assert rc == 0, err
-    rc, out, err = run_cli(capsys, "simulate", "--machine", "ac_trunnion", "--instrument", "interferometer",
+    rc, out, err = run_cli("simulate", "--machine", "ac_trunnion", "--instrument", "interferometer",
                            "--axes", "X", "--targets", "9", "--effect", "dx_x:xr=0.0125", "--seed", "3", "-o",
                            tmp_path / "after.csv", "--compensation", tmp_path / "c", "--linuxcnc")
     assert rc == 0 and "compensated by LinuxCNC with" in err, err
-    rc, _, err = run_cli(capsys, "simulate", "--machine", "ac_trunnion", "--effect", "dx_x:xk100=0.01", "-o",
+    rc, _, err = run_cli("simulate", "--machine", "ac_trunnion", "--effect", "dx_x:xk100=0.01", "-o",
                          tmp_path / "x.csv")
     assert rc == 2 and "--effect dx_x:xk100=0.01: a profile needs its value at each of its 9 knots (-400, -300" in err
-    rc, _, err = run_cli(capsys, "simulate", "--machine", "ac_trunnion", "--linuxcnc", "-o", tmp_path / "x.csv")
+    rc, _, err = run_cli("simulate", "--machine", "ac_trunnion", "--linuxcnc", "-o", tmp_path / "x.csv")
     assert rc == 2 and "--linuxcnc applies the LinuxCNC files of a compensation folder" in err

@@ -6,7 +6,7 @@ from html.parser import HTMLParser
 
 import pytest
 
-from fiveaxis.cli import main
+from conftest import run_cli
 from fiveaxis.exceptions import InputError
 from fiveaxis.report import compensation as C
 from fiveaxis.report import html, record
@@ -138,11 +138,11 @@ def _png(path):
 def test_compensation_folder(tmp_path, example):
     """The report reads the folder `fiveaxis compensate` writes: the predicted tip error per stage, the map, the
     files for the controller; a summary for another machine or a damaged number is a one-line error."""
-    from fiveaxis.cli import main
+    from conftest import run_cli
     d = tmp_path
-    assert main(["simulate", "--n", "300", "--seed", "2", "--effect", "ex_x:x1", "-o", str(d / "m.csv")]) == 0
-    assert main(["fit", str(d / "m.csv"), "--add", "ex_x:x1", "-o", str(d / "model.json")]) == 0
-    assert main(["compensate", str(d / "model.json"), "-o", str(d / "comp"), "--poses", "300", "--plot"]) == 0
+    assert run_cli("simulate", "--n", "300", "--seed", "2", "--effect", "ex_x:x1", "-o", str(d / "m.csv"))[0] == 0
+    assert run_cli("fit", str(d / "m.csv"), "--add", "ex_x:x1", "-o", str(d / "model.json"))[0] == 0
+    assert run_cli("compensate", str(d / "model.json"), "-o", str(d / "comp"), "--poses", "300", "--plot")[0] == 0
     summary = json.loads((d / "comp" / "summary.json").read_text())
     comp = C.read(d / "comp", "li2018")
     assert [st["key"] for st in comp["stages"]][0] == "before"
@@ -167,13 +167,13 @@ def test_compensation_folder(tmp_path, example):
 def test_compensation_by_tool_length(tmp_path, example):
     """A table over tool lengths (`compensate --tool-lengths`): the report shows the predicted error at each length,
     the numbers of summary.json's predicted_by_tool_length; a damaged length is a one-line error."""
-    from fiveaxis.cli import main
+    from conftest import run_cli
     d = tmp_path
-    assert main(["simulate", "--n", "300", "--seed", "2", "--effect", "ex_x:x1", "-o", str(d / "m.csv")]) == 0
-    assert main(["fit", str(d / "m.csv"), "--add", "ex_x:x1", "-o", str(d / "model.json")]) == 0
+    assert run_cli("simulate", "--n", "300", "--seed", "2", "--effect", "ex_x:x1", "-o", str(d / "m.csv"))[0] == 0
+    assert run_cli("fit", str(d / "m.csv"), "--add", "ex_x:x1", "-o", str(d / "model.json"))[0] == 0
     nodes = [a for v in ("X=2", "Y=2", "Z=2", "A=3", "B=3") for a in ("--nodes", v)]
-    assert main(["compensate", str(d / "model.json"), "-o", str(d / "comp"), "--poses", "400",
-                 "--tool-lengths", "150,250", *nodes]) == 0
+    assert run_cli("compensate", str(d / "model.json"), "-o", str(d / "comp"), "--poses", "400",
+                 "--tool-lengths", "150,250", *nodes)[0] == 0
     summary = json.loads((d / "comp" / "summary.json").read_text())
     comp = C.read(d / "comp", "li2018")
     by = comp["by_tool_length"]
@@ -201,7 +201,7 @@ def test_people_units():
 
 def run(capsys, *argv):
     try:
-        rc = main([str(a) for a in argv])
+        rc = run_cli(*argv, echo=True)[0]
     except SystemExit as exc:
         rc = exc.code
     out, err = capsys.readouterr()
@@ -210,8 +210,8 @@ def run(capsys, *argv):
 
 def test_cli_writes_once_and_refuses_to_overwrite(capsys, tmp_path):
     small = tmp_path / "small.csv"
-    assert main(["simulate", "--effect", "E_AX:x1=2e-5", "--n", "200", "--seed", "5", "--with-sigma",
-                 "-o", str(small)]) == 0
+    assert run_cli("simulate", "--effect", "E_AX:x1=2e-5", "--n", "200", "--seed", "5", "--with-sigma",
+                 "-o", str(small))[0] == 0
     out = tmp_path / "r.html"
     rc, stdout, err = run(capsys, "report", small, "-o", out, "--rounds", "2", "--no-sensitivity", "--json")
     assert rc == 0 and f"wrote {out}" in err and out.stat().st_mode & 0o044 == 0o044

@@ -21,12 +21,15 @@ from fiveaxis.model.error_model import load
 from fiveaxis.measurement.files import read
 from fiveaxis.estimation import result as R
 
-FIVEAXIS = [sys.executable, "-m", "fiveaxis.cli"]
+from conftest import run_cli
+
+FIVEAXIS = [sys.executable, "-m", "fiveaxis.cli"]       # its own process: a Dask client, a memory bound
 
 
 def simulate(tmp_path, name, *args):
     out = tmp_path / name
-    subprocess.run(FIVEAXIS + ["simulate", *args, "-o", str(out), "--force"], check=True, capture_output=True)
+    rc, _, err = run_cli("simulate", *args, "-o", out, "--force")
+    assert rc == 0, err
     return out
 
 

@@ -6,7 +6,6 @@ report and the diagnosis; null sets without false alarms.
 The references are the simulations' truths: the simulated noise (1 um), the hidden effects, the absence of any."""
 import json
 import subprocess
-import sys
 
 import numpy as np
 import pandas as pd
@@ -20,12 +19,11 @@ from fiveaxis.measurement.simulate import simulate, to_frame
 from fiveaxis.model.error_model import load
 from fiveaxis.report import record
 
-from conftest import first_fast
+from conftest import first_fast, run_cli
 
 NOISE = 0.001
 MACHINES = ("li2018", "ac_trunnion", "tilting_head")
 INSTRUMENTS = ("tip", "rtest", "probe-sphere", "ballbar", "interferometer", "tracker", "test-part")
-FIVEAXIS = [sys.executable, "-m", "fiveaxis.cli"]
 
 
 def as_written(model, sim, tmp_path, resolution: str):
@@ -243,8 +241,8 @@ def test_simulate_at_the_poses_of_a_file_keeps_its_times(tmp_path):
     pd.DataFrame({"X": [0.0, 10, 20, 30], "Y": 0.0, "Z": 0.0, "A": 0.0, "B": 0.0,
                   "t": [5.0, 65.0, 125.0, 3600.5]}).to_csv(poses, index=False)
     out = tmp_path / "sim.csv"
-    r = subprocess.run(FIVEAXIS + ["simulate", "--poses", str(poses), "-o", str(out)], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
+    rc, _, err = run_cli("simulate", "--poses", poses, "-o", out)
+    assert rc == 0, err
     assert pd.read_csv(out)["t"].tolist() == [5.0, 65.0, 125.0, 3600.5]
 
 
@@ -266,9 +264,8 @@ def test_fit_text_leads_with_physical_quantities(tmp_path):
     leads = {q["iso"] for q in j["quantities"]}
     assert {"E_X0C", "E_Y0A", "E_Z0A"} <= leads, leads
     assert all(abs(c) < 1e3 for comb in j["combinations"] for c in comb["terms"].values())
-    r = subprocess.run(FIVEAXIS + ["fit", str(tmp_path / "controller.csv"), "--machine", "ac_trunnion"],
-                       capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    assert "E_X0C" in r.stdout and "only as combinations" in r.stdout     # issue 29: printed as the combination
-    assert "c_x[sphere1]" not in r.stdout                  # placements are named, not in formulas of the text
+    rc, out, err = run_cli("fit", tmp_path / "controller.csv", "--machine", "ac_trunnion")
+    assert rc == 0, err
+    assert "E_X0C" in out and "only as combinations" in out     # issue 29: printed as the combination
+    assert "c_x[sphere1]" not in out                  # placements are named, not in formulas of the text
     json.dumps(j)

@@ -12,22 +12,11 @@ import json
 import pandas as pd
 import pytest
 
-from conftest import run_cli
+from conftest import DATA, run_cli
 from fiveaxis.compensation import plausible
 
 #: One linear axis of 42 mm measured with a laser (the issue's machine).
-STAGE = """# a 42 mm stage measured with a laser interferometer
-name = "stage42"
-[tool]
-length = 50.0
-cutting_length = 5.0
-direction = [0, 0, 1]
-[[tool_chain]]
-axis = "X"
-type = "linear"
-direction = [1, 0, 0]
-stroke = [0, 42]
-"""
+STAGE = (DATA / "stage42.toml").read_text()
 HINT = "did you write um in a mm column?"
 EFFECTS = ["dx_x:x1", "dx_x:xr"]
 
@@ -38,10 +27,10 @@ def files(tmp_path_factory):
     numbers written in um into the mm column."""
     d = tmp_path_factory.mktemp("stage")
     (d / "stage42.toml").write_text(STAGE)
-    from fiveaxis.cli import main
-    assert main(["simulate", "--machine", str(d / "stage42.toml"), "--instrument", "interferometer", "--n", "60",
+    from conftest import run_cli
+    assert run_cli("simulate", "--machine", str(d / "stage42.toml"), "--instrument", "interferometer", "--n", "60",
                  "--seed", "4", "--no-time", "--noise", "0.0001", "--effect", "dx_x:x1=0.003",
-                 "--effect", "dx_x:xr=0.00032", "-o", str(d / "mm.csv")]) == 0
+                 "--effect", "dx_x:xr=0.00032", "-o", str(d / "mm.csv"))[0] == 0
     df = pd.read_csv(d / "mm.csv")
     df["du"] = df["du"] * 1000.0
     df.to_csv(d / "um.csv", index=False)
@@ -50,7 +39,7 @@ def files(tmp_path_factory):
 
 def _fit(capsys, d, name, *extra):
     argv = ["fit", d / f"{name}.csv", "--machine", d / "stage42.toml", *sum((["--add", e] for e in EFFECTS), [])]
-    return run_cli(capsys, *argv, *extra)
+    return run_cli(*argv, *extra)
 
 
 def test_the_mm_file_passes_without_a_word(files, capsys, tmp_path):
@@ -58,10 +47,10 @@ def test_the_mm_file_passes_without_a_word(files, capsys, tmp_path):
     rc, out, err = _fit(capsys, d, "mm", "-o", tmp_path / "mm.json")
     assert rc == 0 and HINT not in err + out, err
     (tmp_path / "c").mkdir()
-    rc, out, err = run_cli(capsys, "compensate", tmp_path / "mm.json", "-o", tmp_path / "c")
+    rc, out, err = run_cli("compensate", tmp_path / "mm.json", "-o", tmp_path / "c")
     assert rc == 0 and HINT not in err + out, err
     assert (tmp_path / "c" / "linuxcnc" / "joint0-X.comp").is_file()
-    rc, out, err = run_cli(capsys, "iso230-2", d / "mm.csv", "--machine", d / "stage42.toml")
+    rc, out, err = run_cli("iso230-2", d / "mm.csv", "--machine", d / "stage42.toml")
     assert rc == 0 and HINT not in err + out, err
 
 
@@ -72,11 +61,11 @@ def test_fit_and_diagnose_say_the_hint_and_compensate_refuses(files, capsys, tmp
     assert rc == 0 and len(warnings) == 1 and HINT in warnings[0] and "um.csv" in warnings[0], err
     rc, out, err = _fit(capsys, d, "um", "--json")
     assert json.loads(out)["warnings"][0].endswith(HINT)
-    rc, out, err = run_cli(capsys, "diagnose", d / "um.csv", "--machine", d / "stage42.toml", "--top", "2")
+    rc, out, err = run_cli("diagnose", d / "um.csv", "--machine", d / "stage42.toml", "--top", "2")
     assert rc == 0 and HINT in err, err
     out_dir = tmp_path / "c"
     out_dir.mkdir()
-    rc, out, err = run_cli(capsys, "compensate", tmp_path / "um.json", "-o", out_dir)
+    rc, out, err = run_cli("compensate", tmp_path / "um.json", "-o", out_dir)
     assert rc == 2 and err.count("\n") == 1 and HINT in err and "um.json" in err, err
     assert "nothing is written for the controller" in err
     assert list(out_dir.iterdir()) == []
@@ -84,10 +73,10 @@ def test_fit_and_diagnose_say_the_hint_and_compensate_refuses(files, capsys, tmp
 
 def test_iso230_2_says_the_figures_are_no_machines(files, capsys):
     d = files
-    rc, out, err = run_cli(capsys, "iso230-2", d / "um.csv", "--machine", d / "stage42.toml")
+    rc, out, err = run_cli("iso230-2", d / "um.csv", "--machine", d / "stage42.toml")
     assert rc == 0 and HINT in err and "42 mm stroke" in err, err
     assert f"not a machine's figures" in out and HINT in out
-    rc, out, err = run_cli(capsys, "iso230-2", d / "um.csv", "--machine", d / "stage42.toml", "--json")
+    rc, out, err = run_cli("iso230-2", d / "um.csv", "--machine", d / "stage42.toml", "--json")
     assert any(HINT in n for n in json.loads(out)["axes"][0]["notes"])
 
 

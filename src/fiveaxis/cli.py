@@ -9,8 +9,10 @@ import argparse
 import atexit
 import importlib
 import os
+import re
 import sys
 
+from .commands import options
 from .exceptions import InputError, one_line
 from . import __version__
 
@@ -66,45 +68,45 @@ def _version() -> str:
     return __version__
 
 
-#: The library speaks Python (keyword arguments); on the command line its messages name the options instead.
-TRANSLATIONS = (("(force=True replaces it)", "(use --force to replace it)"),
-                ("(in_place=True rewrites it)", "(use --in-place to rewrite it)"),
-                ("give it as machine=...", "give it with --machine"),
-                ("LE: the effective cutting length", "--le: the effective cutting length"),
-                ("L0: the tool length", "--l0: the tool length"),
-                ("L0/LE: expected", "--l0/--le: expected"),
-                ("worker_kernel: expected", "--worker-kernel: expected"),
-                ("chunk: expected", "--chunk: expected"),
-                ("cone: expected", "--cone: expected"),
-                ("axis spec '", "--axis '"),
-                ("order: the Gauss-Legendre order", "--order: the Gauss-Legendre order"),
-                ("give order=N", "give --order N"),
-                ("normal_mode: expected", "--normal-mode: expected"),
-                ("effect value ", "--effect "),
-                ("bound: expected a positive", "--bound: expected a positive"),
-                ("samples: expected a power of 2", "--samples: expected a power of 2"),
-                ("poses: give a normal", "--pose: give a normal"),
-                ("u_device_um: expected", "--u-device: expected"),
-                ("expansion_ppm_per_K: expected", "--expansion-ppm-per-K: expected"),
-                ("misalignment_mm: expected", "--misalignment: expected"),
-                ("drift_um: expected", "--drift: expected"),
-                ("temperature_deviation_K: expected", "--temperature-deviation: expected"),
-                ("temperature_deviation_K and expansion_ppm_per_K: state both",
-                 "--temperature-deviation and --expansion-ppm-per-K: state both"),
-                ("target tolerance: expected", "--tolerance: expected"),
-                ("(spacing_mm: state the spacing in mm)", "(state it with --spacing MM)"),
-                ("spacing_mm: expected", "--spacing: expected"),
-                ("spindle_on_min", "--spindle-on"), ("spindle_off_min", "--spindle-off"),
-                ("spindle_speed_rpm: expected", "--spindle-speed: expected"),
-                ("test_hours:", "--hours:"), ("run_hours: expected", "--run-hours: expected"),
-                ("interval_s: expected", "--interval: expected"), ("speed_rpm: expected", "--speed: expected"),
-                ("give the kinematics (", "give --kinematics ("))
+#: The library speaks Python: an InputError carries the keyword argument(s) it is about (`exc.key`), spelled in its
+#: message as `key:`, `key=VALUE`, `key=True` or `key 'VALUE'`. On the command line the message names the option
+#: that sets it: one map, library key -> option (COMMAND_OPTIONS: where a command spells a key differently).
+OPTIONS = {
+    "force": "--force", "in_place": "--in-place", "machine": "--machine", "convention": "--convention",
+    "LE": "--le", "L0": "--l0", "order": "--order", "normal_mode": "--normal-mode", "cone": "--cone",
+    "worker_kernel": "--worker-kernel", "chunk": "--chunk", "axis spec": "--axis", "positions": "--positions",
+    "errors": "--errors", "effect value": "--effect", "effect": "--effect", "bound": "--bound",
+    "samples": "--samples", "poses": "--poses", "damping": "--damping", "tool_lengths": "--tool-lengths",
+    "feed": "--feed", "the kinematics": "--kinematics", "target tolerance": "--tolerance",
+    "u_device_um": "--u-device", "expansion_ppm_per_K": "--expansion-ppm-per-K", "misalignment_mm": "--misalignment",
+    "drift_um": "--drift", "temperature_deviation_K": "--temperature-deviation",
+    "spacing_mm": "--spacing", "spindle_on_min": "--spindle-on", "spindle_off_min": "--spindle-off",
+    "spindle_speed_rpm": "--spindle-speed", "test_hours": "--hours", "run_hours": "--run-hours",
+    "interval_s": "--interval", "speed_rpm": "--speed",
+}
+COMMAND_OPTIONS = {"lsa": {"poses": "--pose"}, "fit": {"effect": "--add"}, "diagnose": {"effect": "--add"},
+                   "report": {"effect": "--add"}}
+#: What may follow a key in a message for it to be the key (not a word of the sentence).
+_AFTER = r"(?=:|/|,|\)| '| and | \()"
 
 
-def to_command_line(message: str) -> str:
-    """A library message with its Python argument names replaced by the command-line options that set them."""
-    for library, cli in TRANSLATIONS:
-        message = message.replace(library, cli)
+def option(key: str, command: str | None = None) -> str | None:
+    """The command-line option of a library key (for command), or None."""
+    return COMMAND_OPTIONS.get(command, {}).get(key) or OPTIONS.get(key)
+
+
+def to_command_line(message: str, keys=None, command: str | None = None) -> str:
+    """A library message about keys (InputError.key: a str or a tuple) with each key replaced by the option that
+    sets it: `damping: expected` -> `--damping: expected`, `(force=True replaces it)` -> `(--force replaces it)`,
+    `give order=N` -> `give --order N`, `axis spec 'Y=0'` -> `--axis 'Y=0'`."""
+    for key in (keys,) if isinstance(keys, str) else (keys or ()):
+        opt = option(key, command)
+        if opt is None:
+            continue
+        word = rf"(?<![\w-]){re.escape(key)}"
+        message = re.sub(word + r"=True\b", opt, message)
+        message = re.sub(word + "=", opt + " ", message)
+        message = re.sub(word + (r"(?=[ :/,)])" if " " in key else _AFTER), opt, message)
     return message
 
 
@@ -113,13 +115,14 @@ def main(argv=None) -> int:
     command = next((a for a in argv if not a.startswith("-")), None)
     parser = build_parser(command if command in COMMANDS else None)
     args = parser.parse_args(argv)
+    options.resolve(args)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
     try:
         return int(args.func(args) or 0)
     except InputError as exc:
-        print(f"fiveaxis: error: {to_command_line(str(exc))}", file=sys.stderr)
+        print(f"fiveaxis: error: {to_command_line(str(exc), exc.key, args.command)}", file=sys.stderr)
         return 2
     except OSError as exc:            # a file that cannot be read or written: its name and the reason, on one line
         if isinstance(exc, BrokenPipeError):

@@ -77,14 +77,17 @@ def target(path, force: bool = False, follow_links: bool | None = None) -> Path:
     real = Path(os.path.realpath(path)) if path.is_symlink() else path
     if path.is_symlink() and not real.exists() and not force:
         raise InputError(f"{path}: a symbolic link to {real}, which does not exist; not following it "
-                         f"(force=True replaces it)")
+                         f"(force=True replaces it)", key="force")
     if path.is_symlink() and follow_links is False:
         raise InputError(f"{path}: a symbolic link (to {real}); not writing through it (a file of ours goes here)")
     if real.is_dir():
         raise InputError(f"{path}: is a folder (expected a file name)")
-    check_folder(real.parent)
+    try:
+        check_folder(real.parent)
+    except InputError as exc:                 # name the file asked for, then why its folder cannot be
+        raise InputError(f"{path}: {exc}") from None
     if real.exists() and not force:
-        raise InputError(f"{path}: exists; not overwriting it (force=True replaces it)")
+        raise InputError(f"{path}: exists; not overwriting it (force=True replaces it)", key="force")
     return real
 
 
@@ -263,19 +266,21 @@ def _check_inside(folder: Path, parts: tuple, force: bool) -> None:
         if last and not stat.S_ISREG(info.st_mode):
             raise InputError(f"{p}: not a regular file; not replacing it")
         if last and not force:
-            raise InputError(f"{p}: exists; not overwriting it (force=True replaces it)")
+            raise InputError(f"{p}: exists; not overwriting it (force=True replaces it)", key="force")
 
 
-def _open_below(folder_fd: int, folder: Path, parts: tuple) -> int:
-    """A descriptor of the folder folder/parts[:-1], its missing folders created; every component opened without
-    following a link (O_NOFOLLOW: one planted after the check is refused here, not followed)."""
+def _open_below(folder_fd: int, folder: Path, parts: tuple, created: list) -> int:
+    """A descriptor of the folder folder/parts[:-1], its missing folders created (appended to created, relative to
+    folder); every component opened without following a link (O_NOFOLLOW: one planted after the check is refused
+    here, not followed)."""
     fd = os.dup(folder_fd)
     p = folder
     try:
-        for part in parts[:-1]:
+        for k, part in enumerate(parts[:-1]):
             p = p / part
             try:
                 os.mkdir(part, dir_fd=fd)
+                created.append(os.path.join(*parts[:k + 1]))
             except FileExistsError:
                 pass
             try:
@@ -313,11 +318,11 @@ def write_set(files, seal, seal_text: Callable[[dict], str], force: bool = False
         folder_fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY | getattr(os, "O_CLOEXEC", 0))
     except OSError as exc:
         raise InputError(f"{folder}: cannot write ({exc.strerror or exc})") from None
-    staged, hashes, fds = [], {}, []
+    staged, hashes, fds, created = [], {}, [], []
     try:
         try:
             for path, writer in items:
-                dir_fd = _open_below(folder_fd, folder, parts[path])
+                dir_fd = _open_below(folder_fd, folder, parts[path], created)
                 fds.append(dir_fd)
                 digest = hashlib.sha256()
                 staged.append((_stage(dir_fd, path, writer, digest), path.name, dir_fd))
@@ -337,6 +342,7 @@ def write_set(files, seal, seal_text: Callable[[dict], str], force: bool = False
             staged.append((tmp, seal.name, folder_fd))
             os.replace(tmp, seal.name, src_dir_fd=folder_fd, dst_dir_fd=folder_fd)
             staged = []
+            created = []
             _fsync_dir(folder_fd)
         except OSError as exc:
             name = exc.filename if exc.filename and os.path.isabs(str(exc.filename)) else seal
@@ -344,6 +350,11 @@ def write_set(files, seal, seal_text: Callable[[dict], str], force: bool = False
         finally:
             for tmp, _, dir_fd in staged:
                 _remove(tmp, dir_fd)
+            for rel in reversed(created):           # folders this call made for a set it did not write
+                try:
+                    os.rmdir(rel, dir_fd=folder_fd)
+                except OSError:
+                    pass
     finally:
         for fd in fds:
             os.close(fd)

@@ -4,13 +4,14 @@ from __future__ import annotations
 import json
 import os
 
+from . import options
 from ..exceptions import InputError
 from .sensitivity import GSA_MAX_POSES as MAX_POSES, _count
 
 
 def register_dask(p):
-    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
-    p.add_argument("--convention", default="equations", help="'equations' or a convention of the machine file")
+    options.machine(p)
+    options.convention(p)
     p.add_argument("--preset", choices=("paper",), default=None,
                    help="a named workspace instead of the machine's (as `fiveaxis gsa --preset`)")
     p.add_argument("--axis", action="append", default=[], metavar="NAME=LO:HI:COUNT",
@@ -36,7 +37,7 @@ def register_dask(p):
     bar = p.add_mutually_exclusive_group()
     bar.add_argument("--progress", action="store_true", default=None, help="always show the progress bar")
     bar.add_argument("--no-progress", dest="progress", action="store_false", help="never show the progress bar")
-    p.add_argument("--json", action="store_true", help="print {indices, ranking, settings} as JSON")
+    options.json_output(p, "print {indices, ranking, settings} as JSON")
     p.add_argument("--top", type=int, default=10, help="rows of the printed ranking (default 10)")
     p.set_defaults(func=run_dask)
 

@@ -6,6 +6,7 @@ import sys
 import time
 from pathlib import Path
 
+from . import options
 from ..exceptions import InputError
 from ..model.machine import MACHINES_DIR, load_machine
 
@@ -19,13 +20,11 @@ def register_derive(p):
 
 
 def register_table2(p):
-    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
-    p.add_argument("--convention", default="equations",
-                   help="'equations' (errors where Eq. 1-6 place them) or a convention of the machine file "
-                        "(li2018: 'printed', S_yz in the X->Y joint as behind the printed Table 2)")
+    options.machine(p)
+    options.convention(p)
     fmt = p.add_mutually_exclusive_group()
     fmt.add_argument("--latex", action="store_true", help="LaTeX tabular (default)")
-    fmt.add_argument("--json", action="store_true", help="JSON: {machine, convention, groups: [...]}")
+    options.json_output(fmt, "JSON: {machine, convention, groups: [...]}")
     fmt.add_argument("--reconcile", action="store_true",
                      help="compare with the paper's printed Table 2, row by row (li2018)")
     p.set_defaults(func=run_table2)

@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 from ..compensation import plausible
+from . import options
 from ..exceptions import InputError
 
 
@@ -17,11 +18,11 @@ def _common(p):
     p.add_argument("file", type=Path, help="measurements: CSV or Parquet with 1-D readings du along ux,uy,uz, the "
                                            "machine's axes (mm, deg), dir_<AXIS>, optional t and setup "
                                            "(docs/measurements.md, docs/iso230-2-4.md)")
-    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
-    p.add_argument("--convention", default="equations", help="convention of the machine file (default: equations)")
+    options.machine(p)
+    options.convention(p)
     p.add_argument("--frame", default=None, choices=("workpiece", "machine"),
                    help="frame of the directions ux,uy,uz (default: the file's frame column, else workpiece)")
-    p.add_argument("--json", action="store_true", help="print the JSON record instead of the tables")
+    options.json_output(p, "print the JSON record instead of the tables")
     p.add_argument("--plot", type=Path, default=None, metavar="DIR",
                    help="write the standard's plots as PNG into DIR (created if its parent exists)")
 
@@ -72,12 +73,9 @@ def register_iso230_4(p):
 
 
 def _read(args):
-    from ..measurement.files import read
     from ..model.error_model import load
     model = load(args.machine, args.convention)
-    meas = read(args.file, model.machine, min_rows=2, frame=args.frame)
-    for w in meas.warnings:
-        print(f"fiveaxis: warning: {w}", file=sys.stderr)
+    meas = options.measurements(args, model.machine, min_rows=2, frame=args.frame)
     return model, meas
 
 

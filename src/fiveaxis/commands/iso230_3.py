@@ -9,6 +9,8 @@ import json
 import sys
 from pathlib import Path
 
+from . import options
+
 
 def thermal_options(p):
     """The options that say how an ISO 230-3 test was made (for `iso230-3` and `report --iso230-3`)."""
@@ -31,7 +33,7 @@ def register_iso230_3(p):
                                            "optional dx2, dy2 (mm), temp_<name> (degC), spindle_rpm, X|Y|Z (mm) "
                                            "(docs/iso230-3.md)")
     thermal_options(p)
-    p.add_argument("--json", action="store_true", help="print the JSON record instead of the tables")
+    options.json_output(p, "print the JSON record instead of the tables")
     p.add_argument("--plot", type=Path, default=None, metavar="DIR",
                    help="write the drift and temperature curves as PNG into DIR (created if its parent exists)")
     p.set_defaults(func=run_iso230_3)
@@ -54,7 +56,7 @@ def register_iso230_3_simulate(p):
     p.add_argument("--seed", type=int, default=0, help="seed of the sensors' noise (default 0)")
     p.add_argument("--truth", type=Path, default=None, metavar="JSON",
                    help="also write the truth (the noise-free drift, um and urad, and temperatures) as JSON")
-    p.add_argument("--force", action="store_true", help="replace output files that exist")
+    options.force(p)
     p.set_defaults(func=run_iso230_3_simulate)
 
 

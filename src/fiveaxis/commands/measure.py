@@ -11,12 +11,13 @@ from pathlib import Path
 
 import numpy as np
 
+from . import options
 from ..exceptions import InputError, one_line
 from ..compensation import plausible
 from ..diagnosis import preconditions
 from ..estimation import design_size
 from ..measurement import instruments as ins
-from ..model.columns import FRAMES, MAX_AXIS_DEVIATION, MAX_DEVIATION_MM, MAX_TOOL_LENGTH_MM, SETUP_KINDS
+from ..model.columns import FRAMES, MAX_AXIS_DEVIATION, MAX_DEVIATION_MM, SETUP_KINDS
 
 
 def _common(p, file_arg=True, several=False):
@@ -26,8 +27,8 @@ def _common(p, file_arg=True, several=False):
                             "mm and/or di,dj,dk, or du with ux,uy,uz; optional L,t,sigma,sigma_axis,setup,dir_<AXIS>; "
                             "docs/measurements.md)" + ("; several files: one joint fit, each file with its own "
                                                        "instrument, setups and noise" if several else ""))
-    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
-    p.add_argument("--convention", default="equations", help="convention of the machine file (default: equations)")
+    options.machine(p)
+    options.convention(p)
     p.add_argument("--frame", default=None, choices=FRAMES,
                    help="frame of the deviations and directions: workpiece (default; the frame the errors are derived "
                         "in) or machine (the bed: probe cycles, bed-mounted trackers; rotated by the nominal table "
@@ -68,10 +69,10 @@ def register_fit(p):
     _common(p, several=True)
     _fit_options(p)
     p.add_argument("--first-order", action="store_true", help="skip the refinement on the exact model")
-    p.add_argument("--json", action="store_true", help="print JSON instead of the report")
+    options.json_output(p, "print JSON instead of the report")
     p.add_argument("-o", "--output", type=Path, default=None, metavar="MODEL.json",
                    help="write the fitted model (for compensate, gsa --errors)")
-    p.add_argument("--force", action="store_true", help="replace the model file if it exists")
+    options.force(p, "replace the model file if it exists")
     p.set_defaults(func=run_fit)
 
 
@@ -82,7 +83,7 @@ def register_diagnose(p):
     p.add_argument("--rounds", type=int, default=1, metavar="N",
                    help="the calibration loop: diagnose, add the top candidate, diagnose again while an effect is "
                         "missing, at most N diagnoses (default 1: one diagnosis); --json gives {\"rounds\": [...]}")
-    p.add_argument("--json", action="store_true", help="print JSON instead of the report")
+    options.json_output(p, "print JSON instead of the report")
     p.add_argument("--plot", type=Path, default=None, metavar="DIR",
                    help="write residuals.png (residuals against each variable, before/after the top candidate; "
                         "of the last round)")
@@ -115,13 +116,13 @@ def register_simulate(p):
                    help="refuse --n above this (default 10^7: minutes and gigabytes); raise it if you mean it")
     p.add_argument("--noise", type=float, default=1e-3, help="measurement noise, mm (default 0.001)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--tool-lengths", default=None, metavar="MIN,MAX",
-                   help="random tool length per pose in [MIN, MAX] mm (adds an L column)")
+    options.tool_lengths(p, "tool lengths: each pose's drawn uniformly between the smallest and the largest given, "
+                            "mm (adds an L column)")
     p.add_argument("--duration", type=float, default=3600.0, help="length of the run, s (t column; default 3600)")
     p.add_argument("--no-time", action="store_true", help="write no t column")
     p.add_argument("--with-sigma", action="store_true", help="write a sigma column (the noise level)")
     p.add_argument("-o", "--output", type=Path, required=True, help="output file, .csv or .parquet")
-    p.add_argument("--force", action="store_true", help="replace the output file if it exists")
+    options.force(p, "replace the output files if they exist")
     p.add_argument("--compensation", type=Path, default=None, metavar="DIR",
                    help="apply the compensation table of `fiveaxis compensate -o DIR` to the commands (a table with "
                         "tool lengths: at each pose's own tool length; a warning for lengths outside the table's)")
@@ -144,11 +145,11 @@ def register_simulate(p):
 def register_model(p):
     p.add_argument("action", choices=["add"], help="add: write effects into a copy of the machine file")
     p.add_argument("effects", nargs="+", metavar="EFFECT", help="effect ids, e.g. ex_x:x1")
-    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
+    options.machine(p)
     out = p.add_mutually_exclusive_group(required=True)
     out.add_argument("-o", "--output", type=Path, help="the new machine file (a copy with the effects)")
     out.add_argument("--in-place", action="store_true", help="rewrite the machine file itself")
-    p.add_argument("--force", action="store_true", help="replace the output file if it exists")
+    options.force(p, "replace the output file if it exists")
     p.set_defaults(func=run_model)
 
 
@@ -157,7 +158,6 @@ def _load(args):
     from ..estimation.problem import machine_effects, resolve_effects
     from ..model.error_model import load
     from ..model.machine import load_machine
-    from ..measurement.files import join, read
     if getattr(args, "scheduler", None) is not None:
         from ..parallel import scheduler_address
         try:
@@ -167,33 +167,12 @@ def _load(args):
     machine = load_machine(args.machine)
     model = load(machine, args.convention)
     prior = _prior(model, args.prior)                # before the data are read: a wrong model file fails at once
-    files = args.file if isinstance(args.file, list) else [args.file]
-    resolution = _resolution(args.resolution)
-    sets = [read(f, model.machine, min_rows=2 if len(files) == 1 else 1, frame=args.frame,
-                 setup_kind=args.setup_kind, setup_frame=args.setup_frame, resolution=resolution,
-                 resolution_strict=len(files) == 1) for f in files]
-    if len(files) > 1:
-        _check_joint(files, sets, resolution)
-    meas = join(sets, model.machine)
-    for w in meas.warnings:
-        print(f"fiveaxis: warning: {w}", file=sys.stderr)
+    meas = options.measurements(args, model.machine, min_rows=2, frame=args.frame, setup_kind=args.setup_kind,
+                                setup_frame=args.setup_frame, resolution=_resolution(args.resolution))
     added = machine_effects(model) + list(args.add)
     effects = resolve_effects(model, added)
     design_size.check(model, meas, effects)          # before a design is built: memory of the setups' unknowns
     return model, meas, effects, _fixed(model, args.fix), prior
-
-
-def _check_joint(files, sets, resolution) -> None:
-    """Several files: each once, and each --resolution column in one of them at least."""
-    seen = set()
-    for f in files:
-        key = Path(f).resolve()
-        if key in seen:
-            raise InputError(f"{f}: given twice (a joint fit takes each file once)")
-        seen.add(key)
-    for name in resolution:
-        if not any(name in getattr(m, "columns", ()) for m in sets):
-            raise InputError(f"--resolution {name}=...: no such column in {', '.join(str(f) for f in files)}")
 
 
 def _prior(model, specs):
@@ -343,24 +322,14 @@ def run_diagnose(args) -> int:
 def run_simulate(args) -> int:
     from ..model.error_model import load
     from ..measurement.files import in_frame, write
-    from ..outputs import write_text
+    from ..outputs import target, write_text
     from ..measurement.simulate import simulate, to_frame
-    if args.output.exists() and not args.force:
-        raise InputError(f"{args.output}: exists; not overwriting it (use --force to replace it)")
     truth_path = args.truth or args.output.with_name(args.output.name + ".truth.json")
-    if truth_path.exists() and not args.force:
-        raise InputError(f"{truth_path}: exists; not overwriting it (use --force to replace it)")
+    for path in (args.output, truth_path):         # both checked before either is written: nothing half left
+        target(path, args.force)
     model = load(args.machine, args.convention)
-    lengths = None
-    if args.tool_lengths:
-        try:
-            lo, hi = (float(x) for x in args.tool_lengths.split(","))
-        except ValueError:
-            raise InputError(f"--tool-lengths: expected MIN,MAX in mm, got {args.tool_lengths!r}") from None
-        if not (lo == lo and hi == hi and 0 <= lo <= hi <= MAX_TOOL_LENGTH_MM):
-            raise InputError(f"--tool-lengths: expected 0 <= MIN <= MAX <= {MAX_TOOL_LENGTH_MM:g} mm, got "
-                             f"{args.tool_lengths!r}")
-        lengths = (lo, hi)
+    given = options.tool_lengths_of(args.tool_lengths)
+    lengths = None if given is None else (min(given), max(given))
     if not (args.duration > 0 and args.duration < float("inf")):
         raise InputError(f"--duration: expected a positive, finite time in s, got {args.duration}")
     for opt, v in (("--noise", args.noise), ("--noise-axis", args.noise_axis), ("--setup-scale", args.setup_scale)):
@@ -392,7 +361,7 @@ def run_simulate(args) -> int:
     plan = None
     if args.poses is not None:
         plan = _plan_from_file(args, model, lengths)
-    options = {}
+    standard = {}
     for key in ("axes", "targets", "cycles"):
         value = getattr(args, key)
         if value is None:
@@ -400,7 +369,7 @@ def run_simulate(args) -> int:
         owner = next(r for r in ins.REGISTRY.values() if key in r.plan_options)
         if owner.name != args.instrument or args.poses is not None:
             raise InputError(f"--{key}: an option of the {owner.name}'s standard plan (--instrument {owner.name})")
-        options[key] = [a.strip() for a in value.split(",")] if key == "axes" else value
+        standard[key] = [a.strip() for a in value.split(",")] if key == "axes" else value
     errors = {}
     for spec in args.error:
         name, sep, raw = spec.partition("=")
@@ -420,7 +389,7 @@ def run_simulate(args) -> int:
                    duration=None if args.no_time else args.duration, with_sigma=args.with_sigma,
                    instrument=args.instrument, with_axis=args.with_axis, noise_axis=args.noise_axis, plan=plan,
                    setup_scale=args.setup_scale, errors=errors, setup_kind=args.setup_kind, commands=commands,
-                   options=options, temperatures=temperatures)
+                   options=standard, temperatures=temperatures)
     meas = sim.meas
     _check_simulated(meas)
     if table is not None:

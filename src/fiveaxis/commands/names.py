@@ -3,13 +3,13 @@ from __future__ import annotations
 
 import json
 
+from . import options
+
 
 def register_names(p):
-    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
-    p.add_argument("--convention", default="equations",
-                   help="'equations' (errors where the file places them) or a convention of the machine file")
-    p.add_argument("--json", action="store_true",
-                   help="print {machine, convention, names: [{error, iso, kind, unit, frame, ...}]} as JSON")
+    options.machine(p)
+    options.convention(p)
+    options.json_output(p, "print {machine, convention, names: [{error, iso, kind, unit, frame, ...}]} as JSON")
     p.set_defaults(func=run_names)
 
 

@@ -12,9 +12,12 @@ import json
 import sys
 from pathlib import Path
 
+from . import options
 from ..exceptions import InputError
 
 
+#: The feeds a program may ask for (mm/min): 1e-9 was written as F0.0000, which rs274 refused as a zero feed.
+FEED_RANGE_MM_MIN = (1.0, 1e5)
 #: What to change when a plan's program cannot be made or is refused, and when too few candidates fit.
 CHANGE_PROGRAM = ("what to change: another seed (--seed), fewer poses (--n), a shorter tool (--tool-lengths) or "
                   "smaller margins (--margin)")
@@ -26,8 +29,8 @@ def register_plan(p):
     from ..planning.plan import MAX_POSES
     from ..planning.pool import NOISE_MM
     from ..linuxcnc.program import DWELL_S, FEED_MM_MIN, KINEMATICS
-    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
-    p.add_argument("--convention", default="equations", help="convention of the machine file (default: equations)")
+    options.machine(p)
+    options.convention(p)
     p.add_argument("--instrument", default=None, choices=planners(),
                    help="what will measure: tip (any pose, 3-D tool tip; default), rtest and probe-sphere (tool tip "
                         "on a sphere), ballbar (circles), interferometer (along an axis), tracker (stations); with "
@@ -36,9 +39,8 @@ def register_plan(p):
                                                        f"{MAX_POSES})")
     p.add_argument("--effects", action="append", default=[], metavar="ID,...",
                    help="effects the plan should detect and tell apart, e.g. ex_x:x2,ez_C:C1 (repeatable)")
-    p.add_argument("--tool-lengths", default=None, metavar="L1[,L2]",
-                   help="tool lengths to plan with, mm (two separate angular from translational errors; default: the "
-                        "machine's L0)")
+    options.tool_lengths(p, "tool lengths to plan with, mm (two separate angular from translational errors; "
+                            "default: the machine's L0)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the candidates (default 0)")
     p.add_argument("--noise", type=float, default=NOISE_MM,
                    help=f"assumed noise of one reading, mm (default {NOISE_MM}): predicted uncertainties scale with it")
@@ -70,19 +72,9 @@ def register_plan(p):
                         "plan of each would leave over the workspace (from the machine alone, or --model)")
     p.add_argument("--model", type=Path, default=None, metavar="MODEL.json",
                    help="with --recommend: what a fit already determined (its covariance)")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON instead of the report")
-    p.add_argument("--force", action="store_true", help="replace the output files if they exist")
+    options.json_output(p, "print the summary as JSON instead of the report")
+    options.force(p, "replace the output files if they exist")
     p.set_defaults(func=run_plan)
-
-
-def _lengths(text):
-    if text is None:
-        return None
-    try:
-        vals = [float(x) for x in text.split(",")]
-    except ValueError:
-        raise InputError(f"--tool-lengths: expected L1 or L1,L2 in mm, got {text!r}") from None
-    return vals
 
 
 def _margins(text) -> tuple:
@@ -190,9 +182,11 @@ def run_plan(args) -> int:
                          f"time allows; for more, simulate an instrument's standard plan)")
     if args.seed < 0:
         raise InputError(f"--seed: expected a number >= 0, got {args.seed}")
-    for opt, v, low in (("--noise", args.noise, "a positive"), ("--feed", args.feed, "a positive")):
-        if not (v > 0 and v < float("inf")):
-            raise InputError(f"{opt}: expected {low}, finite number, got {v}")
+    if not (args.noise > 0 and args.noise < float("inf")):
+        raise InputError(f"--noise: expected a positive, finite number, got {args.noise}")
+    if not (FEED_RANGE_MM_MIN[0] <= args.feed <= FEED_RANGE_MM_MIN[1]):
+        raise InputError(f"--feed: expected {FEED_RANGE_MM_MIN[0]:g} to {FEED_RANGE_MM_MIN[1]:g} mm/min (the "
+                         f"program writes F with 4 decimals; no machine moves slower or faster), got {args.feed:g}")
     if not (args.dwell >= 0 and args.dwell < float("inf")):
         raise InputError(f"--dwell: expected a finite time >= 0 s, got {args.dwell}")
     machine = load_machine(args.machine)
@@ -203,7 +197,7 @@ def run_plan(args) -> int:
     model = load(machine, args.convention)
     effects = [e.strip() for spec in args.effects for e in spec.split(",") if e.strip()]
     try:
-        res = P.make(model, instrument, args.n, effects=effects, lengths=_lengths(args.tool_lengths),
+        res = P.make(model, instrument, args.n, effects=effects, lengths=options.tool_lengths_of(args.tool_lengths),
                      seed=args.seed, noise_mm=args.noise, where="--effects", kinematics=mode, margins=margins)
     except P.TooFewPoses as exc:
         raise InputError(f"--n {args.n}: {exc}") from None

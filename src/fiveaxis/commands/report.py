@@ -6,6 +6,7 @@ import json
 import sys
 from pathlib import Path
 
+from . import options
 from ..exceptions import InputError
 from .iso230 import uncertainty_inputs, uncertainty_options
 from .iso230_3 import spindle, thermal_options
@@ -15,8 +16,8 @@ def register_report(p):
     p.add_argument("file", type=Path, nargs="+",
                    help="measurements: CSV or Parquet, one row per pose (as for `fiveaxis fit`); several files: one "
                         "joint fit, each file with its own instrument, setups and noise")
-    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
-    p.add_argument("--convention", default="equations", help="convention of the machine file (default: equations)")
+    options.machine(p)
+    options.convention(p)
     p.add_argument("--frame", default=None, choices=("workpiece", "machine"),
                    help="frame of the deviations (default: the file's frame column, else workpiece)")
     p.add_argument("--add", action="append", default=[], metavar="EFFECT",
@@ -44,8 +45,8 @@ def register_report(p):
     p.add_argument("--dcc", nargs="?", const=True, default=None, metavar="XML",
                    help="also write the certificate as a PTB Digital Calibration Certificate (DCC 3.3.0 XML; needs "
                         "a campaign; default name: the HTML file's, .xml)")
-    p.add_argument("--json", action="store_true", help="also print the report's record (without figures) as JSON")
-    p.add_argument("--force", action="store_true", help="replace output files that exist")
+    options.json_output(p, "also print the report's record (without figures) as JSON")
+    options.force(p)
     p.set_defaults(func=run_report)
 
 
@@ -83,8 +84,17 @@ def run_report(args) -> int:
     if args.iso230_3 is not None:                 # checked before the fit: a bad file ends the run at once
         from ..report.iso230_3 import section
         thermal = section(args.iso230_3, args.test, spindle(args), args.spacing)
+    sensitivity = not args.no_sensitivity
+    if sensitivity:                               # GSIL integrates over a cutting length: a machine without a tool
+        from ..model.machine import load_machine
+        m = load_machine(args.machine)
+        if not 0 < m.cutting_length <= m.tool_length:
+            print(f"fiveaxis: warning: {m.path}: tool.length {m.tool_length:g} mm, tool.cutting_length "
+                  f"{m.cutting_length:g} mm: no cutting tool to rank the errors for, so the report leaves out the "
+                  f"sensitivity (GSIL)", file=sys.stderr)
+            sensitivity = False
     rep = record.build(args.file, args.machine, args.convention, args.add, args.compensation, args.rounds,
-                       sensitivity=not args.no_sensitivity, title=args.title, frame=args.frame, campaign=camp,
+                       sensitivity=sensitivity, title=args.title, frame=args.frame, campaign=camp,
                        uncertainty=statement)
     if thermal is not None:
         rep.record["iso230_3"], figs = thermal

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import options
 from ..exceptions import InputError
 
 #: Default most poses of one run (fiveaxis.guards): gsa and sobol evaluate and forget (10^9), lsa keeps 41
@@ -51,11 +52,9 @@ def _count(text: str) -> int:
 
 
 def _common(p, le_default: str, order_default: str, max_poses: int):
-    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
-    p.add_argument("--convention", default="equations",
-                   help="'equations' (errors where Eq. 1-6 place them) or a convention of the machine file "
-                        "(li2018: 'printed', the placement behind the printed Table 2 and the paper's results)")
-    p.add_argument("--json", action="store_true", help="print {indices, ranking, settings} as JSON")
+    options.machine(p)
+    options.convention(p)
+    options.json_output(p, "print {indices, ranking, settings} as JSON")
     p.add_argument("--plot", type=Path, metavar="DIR", help="write PNG plots into DIR (their paths go to stderr)")
     p.add_argument("--l0", type=float, default=None,
                    help="tool length L0, mm (default: the machine file's; li2018: 200, the paper's)")
@@ -89,7 +88,17 @@ def _setup(args, L0_default=None, LE_default=None):
     ev = read(model, args.errors)
     L0 = args.l0 if args.l0 is not None else (L0_default if L0_default is not None else model.machine.tool_length)
     LE = args.le if args.le is not None else (LE_default if LE_default is not None else model.machine.cutting_length)
-    quadrature(L0, LE, 1)                    # L0 > 0, 0 < LE <= L0, finite
+    try:
+        quadrature(L0, LE, 1)                # L0 > 0, 0 < LE <= L0, finite
+    except InputError as exc:               # lengths the user did not give: the machine file's, named as such
+        given = {"L0": args.l0 is not None or L0_default is not None,
+                 "LE": args.le is not None or LE_default is not None}
+        keys = (exc.key,) if isinstance(exc.key, str) else tuple(exc.key or ())
+        if keys and not any(given.get(k, True) for k in keys):
+            raise InputError(f"{model.machine.path}: tool.length {model.machine.tool_length:g} mm, "
+                             f"tool.cutting_length {model.machine.cutting_length:g} mm: {exc} (the machine file's; "
+                             f"give the tool with --l0 and --le, mm)") from None
+        raise
     if args.plot is not None and args.plot.exists() and not args.plot.is_dir():
         raise InputError(f"--plot {args.plot}: exists and is not a directory")
     return model, ev, L0, LE
@@ -359,7 +368,8 @@ def run_lsa(args) -> int:
     if cone:
         if args.positions < 1:
             raise InputError(f"--positions: expected at least 1, got {args.positions}")
-        check_size(args.positions, "cone positions", args.max_poses, "--max-poses {n}")
+        check_size(args.positions, "cone positions", args.max_poses, "--max-poses {n}",
+                   detail=f"--positions {args.positions}")
         poses = presets.cone_poses(model, cone, args.positions)
         mode = 0 if args.normal_mode is None else args.normal_mode
     else:

@@ -155,9 +155,31 @@ def read_summary(folder) -> dict:
             raise InputError(f"{f}: {exc.strerror or exc} (summary.json lists it: an incomplete compensation folder; "
                              f"run compensate again)") from None
         if digest.hexdigest() != sha:
-            raise InputError(f"{f}: not the file summary.json vouches for (its SHA-256 differs: a compensate run "
-                             f"killed mid-way, or the file edited); run compensate again")
+            raise InputError(f"{f}: not the file summary.json vouches for (its SHA-256 differs: {_changed(f, data)}); "
+                             f"run compensate again (with --force over this folder)")
     return data
+
+
+def _changed(f: Path, data: dict) -> str:
+    """What differs in a table file that no longer matches summary.json, for the message: a missing column, the
+    first cell that is not a finite number, or numbers edited; other files: edited or left by a killed run."""
+    if f.name not in ("table.csv", "table.parquet"):
+        return "the file edited, or a compensate run killed mid-way"
+    import pandas as pd          # pandas: heavy, loaded only for this message
+    try:
+        df = pd.read_parquet(f) if f.suffix == ".parquet" else pd.read_csv(f)
+    except Exception:            # pandas/pyarrow raise many types for damaged files
+        return "not a readable table any more"
+    want = [c for c in data.get("table", {}).get("columns", []) if isinstance(c, str)]
+    missing = [c for c in want if c not in df.columns]
+    if missing:
+        return f"column(s) {', '.join(missing)} missing"
+    values = df[want or list(df.columns)].apply(pd.to_numeric, errors="coerce").to_numpy(dtype=float)
+    bad = np.argwhere(~np.isfinite(values))
+    if len(bad):
+        row, col = bad[0]
+        return f"data row {row + 1}, column {(want or list(df.columns))[col]}: not a finite number"
+    return "its numbers were edited after compensate wrote them"
 
 
 def summary_for(folder, model) -> dict:

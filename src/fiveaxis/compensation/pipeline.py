@@ -9,7 +9,6 @@ compensation.record's, the folder compensation.folder's. Units: mm and rad.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,6 +44,11 @@ class Compensation:
     module_note: str = ""      # why there is no module (one line), or ""
 
 
+#: The largest damping of rotary corrections (mu; mu^4 enters the solution: beyond this the rotary axes get no
+#: correction at all, and 1e300 overflowed).
+MAX_DAMPING = 10.0
+
+
 def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, damping: float = DAMPING,
                comp_points: int | None = None, poses: int = ACCOUNT_POSES, seed: int = 0,
                tool_lengths=None, temperatures=None) -> Compensation:
@@ -59,8 +63,9 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
         raise InputError(f"poses for the account: expected a positive number, got {poses}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise InputError(f"seed: expected a whole number >= 0, got {seed!r}")
-    if damping < 0 or not math.isfinite(damping):
-        raise InputError(f"damping: expected a number >= 0, got {damping}")
+    if not 0 <= damping <= MAX_DAMPING:
+        raise InputError(f"damping: expected a number from 0 to {MAX_DAMPING:g} (0: the exact tool axis everywhere; "
+                         f"{MAX_DAMPING:g}: hardly any rotary correction), got {damping:g}", key="damping")
     lengths = None if tool_lengths is None else check_tool_lengths(tool_lengths)
     plausible.check_model(fm, model.machine, getattr(fm, "source", "") or "fitted model")   # a unit slip: refused
     errors_fn = fitted_errors(fm, model)

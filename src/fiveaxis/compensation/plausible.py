@@ -176,8 +176,10 @@ def check_compensation(comp, texts: dict) -> None:
     """A Compensation (fiveaxis.compensation.table) and the texts of its LinuxCNC files: every number finite,
     corrections within LIMITS, the table not worse than no compensation; InputError otherwise."""
     tab, model = comp.table, comp.model
-    hint = HINT if comp.damping > 0 else ("refused: nothing is written for the controller (damping 0 leaves the "
-                                          "corrections unbounded near singular poses: use damping > 0)")
+    hint = HINT if comp.damping > 0 else ("refused: nothing is written for the controller (damping=0 leaves the "
+                                          "corrections unbounded near singular poses: give damping=0.2, the default, "
+                                          "or more)")
+    key = None if comp.damping > 0 else "damping"
     c = tab.c.reshape(-1, len(tab.variables))
     for j, (v, rotary) in enumerate(zip(tab.variables, tab.rotary)):
         key, unit = ("correction_rad", "rad") if rotary else ("correction_mm", "mm")
@@ -188,7 +190,7 @@ def check_compensation(comp, texts: dict) -> None:
             i = int(np.flatnonzero(bad)[0])
             raise InputError(f"compensation table: c_{v} = {col[i]:.3g} {unit} at "
                              f"{_pose(model, tab.poses()[i])}: more than {limit:g} {unit}, "
-                             f"beyond {what}; {hint}")
+                             f"beyond {what}; {hint}", key=key)
     for comp_file in comp.lc.comps:
         limit = LIMITS["correction_rad" if comp_file.unit == "deg" else "correction_mm"][0]
         limit = math.degrees(limit) if comp_file.unit == "deg" else limit
@@ -216,7 +218,8 @@ def check_compensation(comp, texts: dict) -> None:
         raise InputError(f"predicted tool-tip error: not finite (before {before:g} mm, after the table {after:g} mm)"
                          f"; {HINT}")
     if after > limit * before and after > 1e-6:
+        why = ("damping=0 leaves the rotary corrections near singular poses unbounded: give damping=0.2, the default"
+               if comp.damping == 0 else f"damping {comp.damping:g}")
         raise InputError(f"the table would make the tool tip worse than no compensation: RMS {1e3 * after:.4g} um "
-                         f"after it against {1e3 * before:.4g} um without (damping {comp.damping:g}: rotary "
-                         f"corrections near singular poses need damping > 0); refused: nothing is written for the "
-                         f"controller")
+                         f"after it against {1e3 * before:.4g} um without ({why}); refused: nothing is written for the "
+                         f"controller", key=key)

@@ -28,6 +28,7 @@ from .correction import rotary_mask, solve
 from ..exceptions import InputError
 from ..guards import check_memory
 from ..inputs import regular_file
+from ..model.columns import MIN_LENGTH_STEP_MM
 
 #: Default table density: nodes per linear axis, and the node spacing of rotary axes (degrees).
 DEFAULT_LINEAR_NODES = 5
@@ -147,7 +148,13 @@ def check_tool_lengths(lengths, key: str = "tool_lengths") -> np.ndarray:
                          f"{', '.join(f'{x:g}' for x in a)}")
     if np.any(np.diff(a) <= 0):
         raise InputError(f"{key}: expected ascending tool lengths in mm without duplicates, got "
-                         f"{', '.join(f'{x:g}' for x in a)}")
+                         f"{', '.join(f'{x:g}' for x in a)}", key="tool_lengths")
+    close = np.flatnonzero(np.diff(a) < MIN_LENGTH_STEP_MM)
+    if len(close):                            # 100 and 100.0000000001: one tool, an ill-posed interpolation
+        i = int(close[0])
+        raise InputError(f"{key}: {float(a[i])!r} and {float(a[i + 1])!r} mm are closer than "
+                         f"{MIN_LENGTH_STEP_MM:g} mm (a controller's resolution): expected distinct tool lengths",
+                         key="tool_lengths")
     plausible.check_tool_lengths(a, key)
     return a
 

@@ -349,6 +349,15 @@ def context(machine, poses, t=None, dirs=None, sc=None, temps=None, steady: bool
                          None, steady)
 
 
+def basis_of(eff, ctx: EffectContext) -> np.ndarray:
+    """An effect's basis at the context's poses; InputError naming the effect (key "effect": the option that
+    added it) when the data lack what it needs (a time or temperature column)."""
+    try:
+        return eff.basis(ctx)
+    except InputError as exc:
+        raise InputError(f"effect '{eff.id}': {exc}", key="effect") from None
+
+
 def per_pose(effects, coefs, ctx: EffectContext, errors):
     """Error values added per pose (n, n_errors) and tool-length change per pose (n,), for effects and their
     coefficient arrays coefs (one array per effect, len(effect.names) each)."""
@@ -356,7 +365,7 @@ def per_pose(effects, coefs, ctx: EffectContext, errors):
     dL = np.zeros(ctx.n)
     index = {e: i for i, e in enumerate(errors)}
     for eff, c in zip(effects, coefs):
-        term = eff.basis(ctx) @ np.asarray(c, dtype=float).reshape(-1)
+        term = basis_of(eff, ctx) @ np.asarray(c, dtype=float).reshape(-1)
         if eff.param == TOOL:
             dL += term
         else:
@@ -678,7 +687,7 @@ class VocabularyEffect:
             if len(vals) == 1 and k > 1:
                 vals = vals + [0.0] * (k - 1)
             if len(vals) != k:
-                raise InputError(f"effect value {spec}: expected {k} value(s) after '='")
+                raise InputError(f"effect value {spec}: expected {k} value(s) after '='", key="effect value")
             return np.array(vals, dtype=float)
         angular = self.param != TOOL and machine.is_angular(self.param)
         return np.array([EFFECT_ANGULAR_RAD if angular else EFFECT_LINEAR_MM] + [0.0] * (k - 1), dtype=float)

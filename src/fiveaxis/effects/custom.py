@@ -116,7 +116,8 @@ class CustomEffect:
     def simulated(self, given, machine, spec: str) -> np.ndarray:
         """Its parameters p1, p2, ... (default 10 um each)."""
         if given is not None and len(given) != len(self.names):
-            raise InputError(f"effect value {spec}: expected {len(self.names)} values ({', '.join(self.params)})")
+            raise InputError(f"effect value {spec}: expected {len(self.names)} values ({', '.join(self.params)})",
+                             key="effect value")
         return np.array(given) if given else np.full(len(self.names), EFFECT_LINEAR_MM)
 
     # -- the family

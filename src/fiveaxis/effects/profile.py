@@ -82,7 +82,8 @@ class Profile(base.VocabularyEffect):
             knots = ", ".join(f"{x:g}" for x in self.knots)
             ident = spec.partition("=")[0]
             raise InputError(f"effect value {spec}: a profile needs its value at each of its {k} knots ({knots}), "
-                             f"mm or rad, e.g. {ident}=" + ",".join(["0.001"] * min(k, 3)) + (",..." if k > 3 else ""))
+                             f"mm or rad, e.g. {ident}=" + ",".join(["0.001"] * min(k, 3)) + (",..." if k > 3 else ""),
+                             key="effect value")
         return np.array(given, dtype=float)
 
     def describe(self, machine, coefs=None, ctx=None) -> str:

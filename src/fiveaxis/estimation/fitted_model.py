@@ -62,7 +62,7 @@ from pathlib import Path
 import numpy as np
 
 from ..effects import families as fx
-from ..effects.base import EffectRecord
+from ..effects.base import EffectRecord, split_id
 from ..exceptions import InputError
 from ..inputs import read_bytes, read_json
 from ..model.machine import MACHINES_DIR, MAX_MACHINE_BYTES, check_made_for, machine_from_text
@@ -217,6 +217,11 @@ def check_model(fm: FittedModel, model, where: str = "model file") -> None:
                          f"'{model.convention}'")
     if set(fm.errors) != set(model.errors):
         raise InputError(f"{where}: errors_mm_rad: the error names differ from the model's")
+    for i, rec in enumerate(fm.effects):          # each effect rebuilt against this machine: its file named if bad
+        try:
+            effect_of(rec, model)
+        except InputError as exc:
+            raise InputError(f"{fm.source or where}: effects[{i}]: {exc}") from None
 
 
 def checked_machine_file(fm: FittedModel, where: str = "model file") -> Path:
@@ -250,7 +255,8 @@ def checked_machine_file(fm: FittedModel, where: str = "model file") -> Path:
             why.append(f"{path}: not the machine file the model was fitted for (its SHA-256 differs)")
             continue
         return path
-    raise InputError(f"{where}: machine.file: {'; '.join(why) or 'no machine file'}; give it as machine=...")
+    raise InputError(f"{where}: machine.file: {'; '.join(why) or 'no machine file'}; give it with machine=FILE",
+                     key="machine")
 
 
 def load_model(fm: FittedModel, where: str = "model file"):
@@ -395,6 +401,34 @@ def _get(d, key, kind, where):
     return v
 
 
+#: The range of a period, time constant or knot spacing in a model file (the variable's unit: mm, deg or s): a
+#: period of 1e-300 mm or 1e300 mm is no machine's and must not reach a controller.
+ARG_RANGE = (1e-3, 1e6)
+
+
+def _check_id(ident, family, param, var, deg, arg, where) -> None:
+    """An effect's id must follow its family's grammar for its own variable and say what the entry's keys say
+    (parameter, degree, period / time constant / spacing), that argument within ARG_RANGE; InputError naming the
+    file, the entry and the key. Custom effects (no variable) are the machine file's: checked there."""
+    if var is None:
+        return
+    got = split_id(ident, [var], (family,))
+    if got is None or got[1][0] != param:
+        raise InputError(f"{where}: key 'id': {ident!r} is not a {family.NAME} effect of {param} along {var} "
+                         f"(expected <param>:<var>{family.GRAMMAR}, e.g. {family.EXAMPLE})")
+    said = got[1][2]
+    if deg is not None and said != deg:
+        raise InputError(f"{where}: key 'degree': {json.dumps(deg)} where the id {ident!r} says {said:g}")
+    key = getattr(family, "ARG_KEY", None)
+    if key:
+        if arg is not None and float(arg) != said:
+            raise InputError(f"{where}: key '{key}': {arg:g} where the id {ident!r} says {said:g}")
+        lo, hi = ARG_RANGE
+        if not lo <= said <= hi:
+            raise InputError(f"{where}: key '{key}': {said:g}: expected {lo:g} to {hi:g} (the variable's unit: mm, "
+                             f"deg or s)")
+
+
 def load(path) -> FittedModel:
     """Read a model file written by `save`; InputError naming the key for anything malformed."""
     path = Path(path)
@@ -445,10 +479,11 @@ def load(path) -> FittedModel:
         coefs = _get(e, "coefficients_mm_rad", "dict", where)
         names = tuple(coefs)
         values = tuple(float(_get(coefs, n, "num", f"{where}: coefficients_mm_rad")) for n in names)
-        sd = e.get("std_mm_rad", {}) if isinstance(e.get("std_mm_rad", {}), dict) else {}
-        stds = tuple(float(sd[n]) if n in sd else None for n in names)
+        sd = _get(e, "std_mm_rad", "dict", where) if "std_mm_rad" in e else {}
+        stds = tuple(float(_get(sd, n, "num", f"{where}: std_mm_rad")) if n in sd else None for n in names)
         param = _get(e, "param", "str", where)
         var, deg, arg = fx.family(kind).read_json(e, values, scales, where)
+        _check_id(ident, fx.family(kind), param, var, deg, arg, where)
         effects.append(EffectRecord(ident, kind, param, var, deg, names, values, stds, arg))
     combos = tuple(c for c in data.get("combinations", []) if isinstance(c, dict))
     fit = data.get("fit", {}) if isinstance(data.get("fit", {}), dict) else {}

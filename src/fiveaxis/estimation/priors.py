@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..effects.base import basis_of
 from ..exceptions import InputError
 from ..measurement import setups as su
 
@@ -211,7 +212,7 @@ def build(model, names, effects, ctx, spec: PriorSpec | None) -> Prior:
         cls = None if eff.USER_WRITTEN else param_class(machine, eff.param)
         if cls is not None:
             with np.errstate(invalid="ignore", over="ignore"):
-                B = np.abs(np.asarray(eff.basis(ctx), float)) if ctx.n else np.ones((1, len(eff.names)))
+                B = np.abs(np.asarray(basis_of(eff, ctx), float)) if ctx.n else np.ones((1, len(eff.names)))
             top = np.nanmax(np.where(np.isfinite(B), B, 0.0), axis=0) if len(B) else np.ones(len(eff.names))
             for j, nm in enumerate(eff.names):
                 scale = top[j] if top[j] > 0 else 1.0

@@ -150,7 +150,8 @@ def evaluate(meas, model, tolerance: float = TARGET_TOL_MM) -> list[Positioning]
     setup (or one for the whole file), from its 1-D readings; InputError when the data does not have the
     structure the standard needs. tolerance: positions of one target (mm)."""
     if not tolerance > 0:
-        raise InputError(f"target tolerance: expected a positive distance in mm, got {tolerance}")
+        raise InputError(f"target tolerance: expected a positive distance in mm, got {tolerance}",
+                         key="target tolerance")
     groups = line_groups(meas, "ISO 230-2 evaluates positional deviations read along one linear axis: du with "
                                "ux,uy,uz along it")
     return [_evaluate_group(meas, model, setup, idx, tolerance) for setup, idx in groups]
@@ -192,6 +193,10 @@ def _evaluate_group(meas, model, setup, idx, tolerance) -> Positioning:
                          f"spread over {spread[k]:.4g} mm from {pos[tlabel == k].min():.4f} to "
                          f"{pos[tlabel == k].max():.4f} mm (expected the same targets in every cycle, within "
                          f"{tolerance:g} mm)")
+    if len(targets) < 2 and np.ptp(pos) > TARGET_TOL_MM:
+        raise InputError(f"{rows_txt}: target tolerance: {tolerance:g} mm groups the positions of {axis} from "
+                         f"{pos.min():.4f} to {pos.max():.4f} mm into one target (expected a distance below the "
+                         f"targets' spacing; the default is {TARGET_TOL_MM:g} mm)", key="target tolerance")
     if len(targets) < 2:
         raise InputError(f"{rows_txt}: one target position only ({targets[0]:.4f} mm; ISO 230-2 needs targets "
                          f"over the travel, at least {MIN_TARGETS})")

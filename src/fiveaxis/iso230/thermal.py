@@ -131,10 +131,10 @@ def _check_spindle(st: Spindle, data: TF.ThermalData) -> Spindle:
     for key in ("on_min", "off_min", "speed_rpm"):
         v = getattr(st, key)
         if v is not None and not (math.isfinite(v) and v >= 0):
-            raise InputError(f"spindle_{key}: expected a finite number >= 0, got {v}")
+            raise InputError(f"spindle_{key}: expected a finite number >= 0, got {v}", key=f"spindle_{key}")
     if st.on_min is not None and st.off_min is not None and st.off_min <= st.on_min:
         raise InputError(f"spindle_off_min: the spindle stops ({st.off_min:g} min) before it starts "
-                         f"({st.on_min:g} min)")
+                         f"({st.on_min:g} min)", key="spindle_off_min")
     if data.spindle is not None and (st.on_min is not None or st.off_min is not None):
         raise InputError(f"{data.path}: column {TF.SPINDLE} and stated spindle times: expected one of them")
     end = data.t[-1] / 60.0
@@ -143,7 +143,7 @@ def _check_spindle(st: Spindle, data: TF.ThermalData) -> Spindle:
         first = data.t[0] / 60.0
         if v is not None and not (first <= v <= end if key == "on_min" else first < v <= end):
             raise InputError(f"spindle_{key}: {v:g} min is not within the test (its readings run from "
-                             f"{data.t[0] / 60.0:g} to {end:g} min)")
+                             f"{data.t[0] / 60.0:g} to {end:g} min)", key=f"spindle_{key}")
     return st
 
 
@@ -163,7 +163,8 @@ def test_kind(data: TF.ThermalData, test: str | None, spindle: Spindle) -> str:
                          f"({data.spindle[i]:g} rpm): an ETVE test is made with the machine at rest")
     if test == "spindle" and not running and spindle.on_min is None and spindle.off_min is None:
         raise InputError(f"{data.path}: the spindle test needs the spindle's state: a column {TF.SPINDLE} (rpm, 0 "
-                         f"when stopped) or its times (spindle_on_min, spindle_off_min)")
+                         f"when stopped) or its times (spindle_on_min, spindle_off_min)",
+                         key=("spindle_on_min", "spindle_off_min"))
     if test == "axis" and data.axis is None:
         raise InputError(f"{data.path}: header: the test of a moving linear axis needs the axis' position at each "
                          f"reading (a column X, Y or Z in mm)")

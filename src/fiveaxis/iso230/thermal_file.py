@@ -205,9 +205,9 @@ def check_spacing(data: ThermalData, spacing_mm: float | None) -> float | None:
         return None
     if spacing_mm is None:
         raise InputError(f"{data.path}: column {pairs[0]}: a tilt needs the spacing of the sensors {pairs[0][:2]} and "
-                         f"{pairs[0]} along Z (spacing_mm: state the spacing in mm)")
+                         f"{pairs[0]} along Z (state it with spacing_mm=MM)", key="spacing_mm")
     lo, hi = SPACING_RANGE_MM
     if not (math.isfinite(spacing_mm) and lo <= spacing_mm <= hi):
         raise InputError(f"spacing_mm: expected the distance of the two radial sensors along the mandrel, from {lo:g} "
-                         f"to {hi:g} mm, got {spacing_mm:g}")
+                         f"to {hi:g} mm, got {spacing_mm:g}", key="spacing_mm")
     return float(spacing_mm)

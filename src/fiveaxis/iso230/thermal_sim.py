@@ -75,14 +75,15 @@ def simulate(test: str = "spindle", hours: float = 6.0, interval_s: float = 60.0
                            ("spacing_mm", spacing_mm, 1.0, 2000.0), ("run_hours", run_hours, 0.0, 200.0),
                            ("speed_rpm", speed_rpm, 0.0, 2e5)):
         if not (math.isfinite(v) and lo <= v <= hi):
-            raise InputError(f"{key}: expected a number from {lo:g} to {hi:g}, got {v:g}")
+            raise InputError(f"{key}: expected a number from {lo:g} to {hi:g}, got {v:g}", key=key)
     if not (isinstance(seed, (int, np.integer)) and 0 <= seed < 2 ** 63):
         raise InputError(f"seed: expected a whole number >= 0, got {seed!r}")
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, hours * 3600.0 + 1e-9, interval_s)
     n = len(t)
     if n < 3:
-        raise InputError(f"test_hours: {hours:g} h of readings every {interval_s:g} s are {n} readings (expected at least 3)")
+        raise InputError(f"test_hours: {hours:g} h of readings every {interval_s:g} s are {n} readings (expected at "
+                         f"least 3)", key="test_hours")
     on, off = (0.0, run_hours * 3600.0) if test == "spindle" else (math.inf, math.inf)
     sensor = {"noise": TEMP_NOISE, "resolution": TEMP_RESOLUTION}
     housing = heat.Channel("temp_spindle", "spindle", {

@@ -317,6 +317,7 @@ def _read_table(path: Path):
             if not header or all(not h.strip() for h in header):
                 raise InputError(f"{path}: empty file (expected a header line such as X,Y,Z,A,B,dx,dy,dz)")
             names = [h.strip() for h in header]
+            _separated_otherwise(path, names, fh)
             _duplicates(path, names)
             while True:
                 try:
@@ -336,11 +337,21 @@ def _read_table(path: Path):
                 lines.append(reader.line_num)
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a UTF-8 text file") from None
-    if len(names) == 1 and any(sep in names[0] for sep in ";\t"):
-        raise InputError(f"{path}: header: one column '{names[0][:40]}' (expected comma-separated columns; "
-                         f"is the file separated by ';' or tabs?)")
     cols = {n: [r[i] for r in rows] for i, n in enumerate(names)}
     return names, cols, lines, None
+
+
+def _separated_otherwise(path, names, fh) -> None:
+    """A header of one column holding ';' or tabs: a file separated otherwise (a spreadsheet's export with decimal
+    commas, often); said before its rows are read (their comma count would make a vague message)."""
+    if len(names) != 1 or not any(sep in names[0] for sep in ";\t"):
+        return
+    sep = "';'" if ";" in names[0] else "tabs"
+    line = fh.readline()
+    commas = bool(re.search(r"\d,\d", line))
+    raise InputError(f"{path}: header: one column '{names[0][:40]}' (expected comma-separated columns): the file is "
+                     f"separated by {sep}" + (" and has decimal commas" if commas else "") + "; save it as CSV with "
+                     f"',' between columns and '.' in numbers")
 
 
 def _duplicates(path, names):
@@ -472,8 +483,11 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     names, cols, lines, types = _read_table(path)
     variables = tuple(machine.variables)
     warnings = check_columns(path, names, variables, tuple(c.name for c in COLUMNS))     # misspelled columns
-    _check_header(path, cols, variables, readings_required)
     nrows = len(cols[names[0]]) if names else 0
+    along = _one_axis_line(path, machine, cols, frame)
+    if along is not None:                                 # blank until the rows are known (blank rows stay blank)
+        cols.update({n: np.full(nrows, np.nan) for n in LINE_DIRECTION})
+    _check_header(path, cols, variables, readings_required)
     # Rows that are entirely empty (blank lines) are skipped; row numbers stay those of the file.
     filled = np.zeros(nrows, bool)
     for c in cols.values():
@@ -482,6 +496,11 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     keep = np.flatnonzero(filled)
     if not len(keep):
         raise InputError(f"{path}: no data rows (expected one row per measured pose under the header)")
+    if along is not None:
+        u, note = along
+        for n, value in zip(LINE_DIRECTION, u):
+            cols[n] = np.where(filled, value, np.nan)
+        warnings.append(note)
     f = _File(path, cols, lines, types, keep, machine, variables, readings_required, warnings, {},
               resolution=_check_resolution(path, resolution if resolution_strict else
                                            {k: v for k, v in (resolution or {}).items() if k in names}, names))
@@ -497,6 +516,25 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     for rule in RULES:
         rule(f, frame, setup_kind, setup_frame, min_rows)
     return f.measurements()
+
+
+#: The columns of the direction of du.
+LINE_DIRECTION = ("ux", "uy", "uz")
+
+
+def _one_axis_line(path, machine, cols, frame):
+    """A laser file of a one-axis machine (`X,dir_X,du`) needs no ux,uy,uz: du is read along the axis. Returns
+    (the direction in the file's frame, a note) for such a file, else None. The direction is the axis' own in the
+    machine frame; in the workpiece frame the tip moves against a workpiece-chain axis' direction."""
+    if "du" not in cols or any(n in cols for n in LINE_DIRECTION) or len(machine.axes) != 1:
+        return None
+    ax = machine.axes[0]
+    if ax.type != "linear":
+        return None
+    sign = -1.0 if ax in machine.workpiece_chain and (frame or "workpiece") == "workpiece" else 1.0
+    u = tuple(sign * float(c) for c in ax.direction)
+    return u, (f"{path}: no ux,uy,uz columns: du read along the machine's one axis {ax.name}, ux,uy,uz = "
+               f"{', '.join(f'{c:g}' for c in u)} ({frame or 'workpiece'} frame)")
 
 
 def _check_resolution(path, resolution, names) -> dict:

@@ -73,9 +73,9 @@ def _floats(spec, text):
     try:
         vals = [float(x) for x in text.split(",")]
     except ValueError:
-        raise InputError(f"effect value {spec}: expected numbers after '=', got {text!r}") from None
+        raise InputError(f"effect value {spec}: expected numbers after '=', got {text!r}", key="effect value") from None
     if not all(np.isfinite(vals)):
-        raise InputError(f"effect value {spec}: expected finite numbers after '=', got {text!r}")
+        raise InputError(f"effect value {spec}: expected finite numbers after '=', got {text!r}", key="effect value")
     return vals
 
 
@@ -156,6 +156,13 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
     truth, coefficients = {}, {}
     for eff, vals in parsed:
         dE, dl = fx.per_pose([eff], [vals], ctx, model.errors)
+        bad = ~(np.all(np.isfinite(dE), axis=1) & np.isfinite(dl))
+        if bad.any():                        # an expression undefined there: no reading, not a blank cell
+            i = int(np.argmax(bad))
+            what = f" of {machine.path} ({eff.param} += {eff.expr})" if getattr(eff, "expr", None) else ""
+            raise InputError(f"effect '{eff.id}'{what}: not finite at pose {i + 1} ("
+                             + ", ".join(f"{v}={x:.6g}" for v, x in zip(model.variables, at[i])) + " mm, rad): "
+                             f"an expression undefined there (log or sqrt of a negative value?)", key="effect")
         truth[eff.id] = float(vals[0]) if len(vals) == 1 else [float(x) for x in vals]
         coefficients.update({nm: float(v) for nm, v in zip(eff.names, vals)})
         E += dE

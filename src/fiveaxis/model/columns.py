@@ -17,6 +17,8 @@ SETUP_KINDS = ("point", "rigid", "planar")
 MAX_DEVIATION_MM = 1000.0          # a deviation above a metre
 MAX_AXIS_DEVIATION = 2.0           # difference of two unit vectors
 MAX_TOOL_LENGTH_MM = 1e5
+#: The least step between two tool lengths (mm): a controller's resolution (100 and 100.0000000001 are one tool).
+MIN_LENGTH_STEP_MM = 1e-3
 MAX_TIME_S = 1e9
 SIGMA_RANGE_MM = (1e-9, 1e3)
 SIGMA_AXIS_RANGE_RAD = (1e-12, 1.0)

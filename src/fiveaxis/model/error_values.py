@@ -92,7 +92,8 @@ class _Reader:
             return
         path = Path(spec)
         if not path.exists():
-            raise InputError(f"{spec}: not NAME=VALUE and no such file")
+            raise InputError(f"errors {spec!r}: not NAME=VALUE and no such file (expected NAME=VALUE, e.g. "
+                             f"ex_x=1e-5, or a file of them, a JSON object or a fitted model file)", key="errors")
         text = read_text(path, "NAME=VALUE lines, a JSON object or a fitted model file")
         if not text.strip():
             raise InputError(f"{path}: empty (expected NAME=VALUE lines, a JSON object or a fitted model file)")

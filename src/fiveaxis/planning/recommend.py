@@ -3,10 +3,8 @@ size (`typical_poses` of its record), what the plan would determine, and how muc
 leave over the workspace, from what is known before (the machine alone, or a fitted model).
 
 What is known is information about the machine's free constant errors (effect coefficients are left out):
-- a prior per error, N(0, s^2): s the machine file's [errors] size of its kind (linear_error mm, angular_error rad),
-  the physical size an error of the machine can have (the same fallback the compensation's prediction uses);
-- with a fitted model (model.json), the fit's information about them: the pseudo-inverse of its covariance's
-  block of these errors (the fit determines nothing along its undetermined directions);
+- the estimator's prior of each (`fiveaxis.estimation.priors`: 0 with its ISO 230 class's size, or the machine
+  file's `[fit] prior`); with a fitted model (model.json), its posterior (values and covariance) instead;
 - a plan's readings: the information of its design (`criterion.information`: weighted by the assumed noise, every
   setup's unknowns estimated alongside).
 The covariance C = (prior + fit + plan)^-1 gives, at random poses of the workspace at the machine's tool length,
@@ -21,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..estimation import priors
 from ..estimation.problem import build
 from ..exceptions import InputError
 from ..measurement import instruments as ins
@@ -30,7 +29,7 @@ from .pool import NOISE_MM, NOISE_RAD, measurements
 
 #: Random poses of the workspace the tool tip's uncertainty is averaged over.
 WORKSPACE_POSES = 400
-#: The information of a prior or a fit below this (relative to its largest eigenvalue) is taken as none.
+#: The information about the machine file's effect coefficients below this (relative to the largest) is none.
 PINV_RTOL = 1e-10
 
 
@@ -49,7 +48,7 @@ class Option:
 class Recommendation:
     machine: str
     source: str                     # "the machine alone" or the model file
-    prior: dict                     # {"mm": s, "rad": s}
+    prior: dict                     # error -> its prior's standard uncertainty (mm, rad) and where it comes from
     before_um: float
     options: list = field(default_factory=list)      # Option, best first
 
@@ -57,31 +56,6 @@ class Recommendation:
     def best(self) -> Option | None:
         usable = [o for o in self.options if o.n]
         return usable[0] if usable else None
-
-
-def _prior(model, names) -> np.ndarray:
-    """The prior's information (p, p): 1 / s^2 per error."""
-    m = model.machine
-    s = np.array([m.angular_error if m.is_angular(n) else m.linear_error for n in names], float)
-    if not np.all(np.isfinite(s) & (s > 0)):
-        raise InputError(f"machine {m.name}: [errors] linear and angular sizes must be positive to weigh what a plan "
-                         f"leaves undetermined")
-    return np.diag(1.0 / s ** 2)
-
-
-def _fitted(fm, names) -> np.ndarray:
-    """The fit's information (p, p) about the errors `names`: the pseudo-inverse of its covariance's block (its
-    marginal covariance of them); zero for errors it does not name."""
-    out = np.zeros((len(names), len(names)))
-    if fm is None or fm.covariance is None:
-        return out
-    have = list(fm.parameter_names)
-    idx = [k for k, n in enumerate(names) if n in have]
-    if not idx:
-        return out
-    sub = fm.covariance[np.ix_([have.index(names[k]) for k in idx], [have.index(names[k]) for k in idx])]
-    out[np.ix_(idx, idx)] = np.linalg.pinv(sub, rcond=PINV_RTOL, hermitian=True)
-    return out
 
 
 def _marginal(I: np.ndarray, keep: list) -> np.ndarray:
@@ -116,11 +90,17 @@ def recommend(model, fm=None, source: str = "the machine alone", seed: int = 0, 
     machine (FittedModel) or None."""
     machine = model.machine
     names = [n for n in model.errors if n not in machine.fixed]
-    known = _prior(model, names) + _fitted(fm, names)
+    spec = priors.spec_from(machine, fm=fm, model_path=source if fm is not None else "")
+    prior = priors.build(model, list(model.errors), (), None, spec).subset(names, model.errors)
+    if not prior.has.all():
+        raise InputError(f"machine {machine.name}: errors without a prior ({', '.join(np.array(names)[~prior.has])}):"
+                         f" what a plan leaves undetermined has no size")
+    known = prior.precision()
     poses = workspace(machine, seed)
     L = machine.tool_length
     before = 2e3 * tip_uncertainty(model, names, np.linalg.inv(known), poses, L)
-    out = Recommendation(machine.name, source, {"mm": machine.linear_error, "rad": machine.angular_error}, before)
+    out = Recommendation(machine.name, source, {n: (float(s), src) for n, s, src in zip(names, prior.sd, prior.source)},
+                         before)
     for name in (instruments or ins.planners()):
         rec = ins.REGISTRY[name]
         try:
@@ -148,8 +128,8 @@ def recommend(model, fm=None, source: str = "the machine alone", seed: int = 0, 
 
 def to_json(r: Recommendation) -> dict:
     """The record (um, k = 2; the prior's sizes mm and rad)."""
-    return {"machine": r.machine, "from": r.source, "prior": {"linear_error_mm": r.prior["mm"],
-                                                             "angular_error_rad": r.prior["rad"]},
+    return {"machine": r.machine, "from": r.source,
+            "prior_sd_mm_rad": {n: {"sd": s, "from": src} for n, (s, src) in r.prior.items()},
             "workspace": {"poses": WORKSPACE_POSES,
                           "statistic": "RMS over random poses at the machine's tool length of the tool tip's standard "
                                        "uncertainty, k = 2"},

@@ -171,7 +171,8 @@ def check(path, model, instrument: str, kinematics: str | None = None, tool_leng
         source = "the program's header"
         if kinematics is None:
             raise InputError(f"{path}: the program does not say its kinematics mode (no `(fiveaxis: program ... "
-                             f"kinematics=...)` comment); give the kinematics ({' or '.join(KINEMATICS)})")
+                             f"kinematics=...)` comment); give the kinematics ({' or '.join(KINEMATICS)})",
+                             key="the kinematics")
     if kinematics not in KINEMATICS:
         raise InputError(f"{path}: kinematics mode '{kinematics}': expected one of {', '.join(KINEMATICS)}")
     check_mode(model.machine, kinematics)

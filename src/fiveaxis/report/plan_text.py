@@ -38,7 +38,7 @@ def plan(res: PlanResult) -> str:
              f"    chosen from: {j['candidates']} candidates (greedy D-optimal selection, then "
              f"{res.passes} exchange pass(es))",
              f"    program:     {res.kinematics} kinematics ({KINEMATICS_TEXT[res.kinematics]}; docs/plan.md); "
-             f"every pose and move {res.strokes.text()} from the ends of the strokes"]
+             f"every pose and move keeps {res.strokes.text()} from the ends of the strokes"]
     if res.random_D:
         lines.insert(2, f"    random plan: D = {_fmt_D(res.random_median, min(res.random_rank), res.r)} for "
                         f"{res.n} random poses (median of {len(res.random_D)})"
@@ -136,10 +136,14 @@ def check(res: CheckResult) -> str:
 def recommendation(r: Recommendation, tool_length: float) -> str:
     """Which instrument next: what each one's typical plan would leave of the tool tip's uncertainty over the
     workspace (um, k = 2)."""
+    counts = {}
+    for _, src in r.prior.values():
+        key = src.split(" (")[0]
+        counts[key] = counts.get(key, 0) + 1
+    sources = [f"{'its ISO 230 class size' if k == 'class' else k} for {n} error(s)" for k, n in counts.items()]
     out = [f"[[Next instrument]] on {r.machine}, from {r.source}: the tool tip's uncertainty over the workspace a plan "
            f"of each instrument would leave (k = 2, RMS over {WORKSPACE_POSES} random poses at L = {tool_length:g} mm; "
-           f"the machine's constant errors, each with a prior of 0 +- {r.prior['mm'] * 1e3:g} um [linear] or "
-           f"{r.prior['rad'] * 1e6:g} urad [angular], the machine file's [errors])",
+           f"the machine's constant errors, each with the estimator's prior: {', '.join(sources)})",
            f"    before: {r.before_um:.4g} um"]
     best = r.best
     for o in r.options:

@@ -339,7 +339,7 @@ def from_specs(specs, machine) -> Toolpath:
         rows.append([_convert(np.array(vals[v]), machine.axis(v).type) for v in variables])
         normals.append([vals[c] for c in NORMAL_COLUMNS] if given else None)
     if any(n is None for n in normals) and not all(n is None for n in normals):
-        raise InputError("poses: give a normal (nx, ny, nz) for every pose or for none")
+        raise InputError("poses: give a normal (nx, ny, nz) for every pose or for none", key="poses")
     q = np.array(rows, dtype=float)
     check_strokes(machine, q, lambda i: f"--pose {specs[i]!r}")
     N = None if normals[0] is None else _normals(np.array(normals, dtype=float), lambda i: f"--pose {specs[i]!r}")
