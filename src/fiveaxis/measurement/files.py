@@ -201,6 +201,9 @@ def _concat_quantum(a: Measurements, b: Measurements) -> dict | None:
 MAX_DIGITS = 17
 
 
+_SCI = re.compile(r"^(\d*)\.?(\d*)[eE]([+-]?\d+)$")
+
+
 def written_digits(cells) -> tuple[int, int] | None:
     """What the text of a column's cells says of its resolution: (decimals, significant digits), the most any
     cell writes ('200.000': 3 decimals and 6 digits; '0.00123': 5 and 3; '1.5e-05': 6 and 2), trailing zeros
@@ -208,32 +211,29 @@ def written_digits(cells) -> tuple[int, int] | None:
     when no cell writes a decimal point or an exponent: a column of whole numbers holds nominal values (commanded
     angles 0, 30, 60; a beam along x: 1, 0, 0; tools of 200 and 300 mm), exact; a controller that rounds writes its
     decimals (0.001 mm, 0.0001 deg)."""
-    import pandas as pd   # heavy (about 0.5 s): loaded where a file is read
     if isinstance(cells, np.ndarray):
         return None
-    s = pd.Series([str(c) for c in cells if isinstance(c, (str, Decimal)) and str(c).strip()], dtype=object)
-    if not len(s):
+    a = np.array([str(c) for c in cells if isinstance(c, (str, Decimal))])
+    if not a.size:
         return None
-    s = s.str.strip().str.lstrip("+-")
-    sci = s.str.contains("[eE]", regex=True)
-    if not (sci.any() or s.str.contains(".", regex=False).any()):
+    a = np.char.lstrip(np.char.strip(a), "+-")       # vectorised: 10^6 cells in about 2 s
+    a = a[np.char.str_len(a) > 0]
+    if not a.size:
+        return None
+    sci = (np.char.find(a, "e") >= 0) | (np.char.find(a, "E") >= 0)
+    dot = np.char.find(a, ".")
+    if not (sci.any() or (dot >= 0).any()):
         return None
     decimals, digits = [], []
-    plain = s[~sci]
-    if len(plain):
-        dot = plain.str.find(".").to_numpy()
-        size = plain.str.len().to_numpy()
-        decimals.append(int(np.max(np.where(dot >= 0, size - dot - 1, 0))))
-        digits.append(int(plain.str.replace(".", "", regex=False).str.lstrip("0").str.len().max()))
-    if sci.any():
-        parts = s[sci].str.extract(r"^(\d*)\.?(\d*)[eE]([+-]?\d+)$")
-        ok = parts.notna().all(axis=1)
-        if ok.any():
-            parts = parts[ok]
-            frac = parts[1].str.len().to_numpy()
-            exp = parts[2].astype(int).to_numpy()
-            decimals.append(int(np.max(frac - exp)))
-            digits.append(int((parts[0] + parts[1]).str.lstrip("0").str.len().max()))
+    plain, pdot = a[~sci], dot[~sci]
+    if plain.size:
+        decimals.append(int(np.max(np.where(pdot >= 0, np.char.str_len(plain) - pdot - 1, 0))))
+        digits.append(int(np.max(np.char.str_len(np.char.lstrip(np.char.replace(plain, ".", ""), "0")))))
+    for cell in a[sci]:
+        m = _SCI.match(str(cell))
+        if m:
+            decimals.append(len(m.group(2)) - int(m.group(3)))
+            digits.append(len((m.group(1) + m.group(2)).lstrip("0")))
     return (max(decimals), min(max(digits), MAX_DIGITS)) if decimals else None
 
 
