@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 
 from . import options
-from ..exceptions import InputError
+from ..exceptions import InputError, one_line
 from ..model.machine import MACHINES_DIR, load_machine
 
 
@@ -52,10 +52,10 @@ def run_derive(args) -> int:
                         stale.append(committed)
             continue
         for path, changed in generate(machine, args.out) + kins.generate(machine, args.out):
-            print(f"{'wrote' if changed else 'unchanged'} {path} ({time.perf_counter() - t0:.2f} s)")
+            print(f"{'wrote' if changed else 'unchanged'} {one_line(path)} ({time.perf_counter() - t0:.2f} s)")
     if stale:
         for path in stale:
-            print(f"stale: {path} (run `make derive`)", file=sys.stderr)
+            print(f"stale: {one_line(path)} (run `make derive`)", file=sys.stderr)
         return 1
     return 0
 

@@ -9,11 +9,12 @@ for LinuxCNC, once its checker has found every move safe for the instrument. `--
 from __future__ import annotations
 
 import json
+import shlex
 import sys
 from pathlib import Path
 
 from . import options
-from ..exceptions import InputError
+from ..exceptions import InputError, one_line
 
 
 #: The feeds a program may ask for (mm/min): 1e-9 was written as F0.0000, which rs274 refused as a zero feed.
@@ -227,8 +228,9 @@ def run_plan(args) -> int:
                          f"{safety.first_problem(chk)}; {CHANGE_PROGRAM}")
     path = write(files.to_frame(res), args.output, force=args.force)
     write_text(gcode, text, force=args.force)
-    print(f"fiveaxis: wrote {path}: {res.n} poses ({instrument}, {res.plan.frame} frame); "
-          f"`fiveaxis simulate --poses {path} --machine {args.machine}` simulates them", file=sys.stderr)
-    print(f"fiveaxis: wrote {gcode}: the G-code program (LinuxCNC, {mode} kinematics, G21 G90; checked: "
-          f"`fiveaxis plan --check {gcode} --machine {args.machine}`)", file=sys.stderr)
+    q = [one_line(shlex.quote(str(x))) for x in (path, gcode, args.machine)]   # commands to paste into a shell
+    print(f"fiveaxis: wrote {q[0]}: {res.n} poses ({instrument}, {res.plan.frame} frame); "
+          f"`fiveaxis simulate --poses {q[0]} --machine {q[2]}` simulates them", file=sys.stderr)
+    print(f"fiveaxis: wrote {q[1]}: the G-code program (LinuxCNC, {mode} kinematics, G21 G90; checked: "
+          f"`fiveaxis plan --check {q[1]} --machine {q[2]}`)", file=sys.stderr)
     return 0
