@@ -297,23 +297,47 @@ def residual(design, w, theta, free, exact_model: bool = True) -> np.ndarray:
     return exact(design, w, theta, free, grad=False)[0] if exact_model else linear(design, w, theta, free)[0]
 
 
+def _linear_exact_block(block, w, theta, free):
+    A = block.A
+    r = block.prob.d - A @ theta
+    r_exact = block.prob.d - block.prob.exact(theta)
+    return r, r_exact, A[:, free].T @ (w ** 2 * r_exact)
+
+
+def linear_and_exact(design, w, theta, free):
+    """One pass: the first-order residual (m,), and the exact model's residual (m,) and gradient (A_free w)^T (r w)
+    (`linear` and `exact` at the same theta, each block's design built once)."""
+    parts = design.map(partial(_linear_exact_block, theta=theta, free=free), (w,))
+    if not parts:
+        return np.zeros(0), np.zeros(0), None
+    return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
+            np.sum([p[2] for p in parts], axis=0))
+
+
 def _stack(parts):
     r = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0)
     gs = [p[1] for p in parts if p[1] is not None]
     return r, (np.sum(gs, axis=0) if gs else None)
 
 
-def least_squares(design, w, free, fixed_vals, floor: float | None = None):
-    """The first-order weighted least-squares fit: (theta (p,), identifiability, first-order residual (m,))."""
+def least_squares(design, w, free, fixed_vals, floor: float | None = None, exact_too: bool = False):
+    """The first-order weighted least-squares fit: (theta (p,), identifiability, first-order residual (m,), at):
+    at is, with exact_too, the exact model's residual and gradient at theta (`exact`) from the same pass as the
+    residual; None without exact_too or without a determined direction."""
     idf, g = factor(design, w, free, fixed_vals, floor)
     theta = np.zeros(len(free))
     theta[~free] = fixed_vals
     theta[free] = solve(idf, g)
     r, g1 = linear(design, w, theta, free)
+    at = None
     if idf.rank:
         theta[free] += solve(idf, g1)           # one step of iterative refinement of the semi-normal equations
-        r = linear(design, w, theta, free)[0]
-    return theta, idf, r
+        if exact_too:
+            r, r_exact, g_exact = linear_and_exact(design, w, theta, free)
+            at = (r_exact, g_exact)
+        else:
+            r = linear(design, w, theta, free)[0]
+    return theta, idf, r, at
 
 
 @dataclass
@@ -326,12 +350,12 @@ class Refinement:
     note: str = ""
 
 
-def refine(design, w, free, theta0, idf: Identifiability, r_first, max_iter: int) -> Refinement:
+def refine(design, w, free, theta0, idf: Identifiability, r_first, max_iter: int, at=None) -> Refinement:
     """Gauss-Newton steps on the exact model from the first-order solution theta0, in the determined subspace,
     with a line search; the first-order result when the exact model cannot get below it (weighted RMS within
-    EXACT_TOLERANCE)."""
+    EXACT_TOLERANCE). at: the exact model's (residual, gradient) at theta0 if known (`least_squares`)."""
     theta = theta0.copy()
-    r, g = exact(design, w, theta, free)
+    r, g = exact(design, w, theta, free) if at is None else at
     cost = float(np.sum((r * w) ** 2))
     iterations = 0
     for it in range(1, max_iter + 1):
