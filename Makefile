@@ -68,7 +68,7 @@ test-fast: install warm
 ## message where the package manager is not available)
 test-linuxcnc: install
 	@scripts/linuxcnc-deps.sh; rc=$$?; if [ $$rc -eq 77 ]; then exit 0; elif [ $$rc -ne 0 ]; then exit $$rc; fi; \
-	$(BIN)/python -m pytest -q --linuxcnc tests/test_linuxcnc.py tests/test_linuxcnc_kins.py
+	$(BIN)/python -m pytest -q --linuxcnc tests/test_linuxcnc.py tests/test_linuxcnc_kins.py tests/test_linuxcnc_thermal.py
 
 ## the adversarial corpus (tests/adversarial.py): every command under hostile files, absurd numbers, symbolic
 ## links and kill -9, each trial a subprocess under a memory limit and a timeout; prints the totals per class

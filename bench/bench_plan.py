@@ -22,6 +22,7 @@ import time
 import numpy as np
 
 import fiveaxis
+from fiveaxis.planning import criterion, exchange, pool
 from fiveaxis.planning import plan as P
 from fiveaxis.diagnosis.diagnose import diagnose
 from fiveaxis.measurement.simulate import simulate
@@ -50,15 +51,16 @@ def part_d(cases, random: int = RANDOM, fresh_units: int = 20000) -> list:
         rng = np.random.default_rng(7)
         med = {}
         for mult in (1, 2, 3):
-            med[mult] = float(np.median([dsg.criterion(P.random_units(dsg, mult * n, rng))[0] for _ in range(random)]))
-        logdet_w, dmax, M = P.bound(dsg.X[:, :, dsg.cols("base")])
+            med[mult] = float(np.median([dsg.criterion(exchange.random_units(dsg, mult * n, rng))[0]
+                                         for _ in range(random)]))
+        logdet_w, dmax, M = exchange.bound(dsg.X[:, :, dsg.cols("base")])
         b = logdet_w + res.r * math.log(n)
         # The bound holds for any plan within the constraints if no fresh candidate has d above r (equivalence
         # theorem): a second, larger pool from another seed, its rows in the same reference coordinates.
-        fresh_pool = P.pool(model, instrument, fresh_units, fresh_units, np.random.default_rng(99))
-        fresh = P.design(model, fresh_pool, [], model.machine.fixed)
-        Xf = (P._block(fresh.problem).A[:, P._theta_columns(fresh.problem)] * fresh.problem.w[:, None]
-              / dsg.ref.scale) @ dsg.ref.basis
+        fresh_pool = pool.pool(model, instrument, fresh_units, fresh_units, np.random.default_rng(99))
+        fresh = criterion.design(model, fresh_pool, [], model.machine.fixed)
+        A = criterion.design_block(fresh.problem).A[:, criterion.theta_columns(fresh.problem)]
+        Xf = (A * fresh.problem.w[:, None] / dsg.ref.scale) @ dsg.ref.basis
         Xf = Xf[np.argsort(fresh.pool.unit[fresh.problem.obs.row], kind="stable")].reshape(fresh.C, fresh.k, -1)
         Xf = Xf.reshape(-1, res.r)
         d_fresh = np.sum((Xf @ np.linalg.inv(M)) * Xf, axis=1).reshape(fresh.C, fresh.k).sum(axis=1).max()
@@ -118,8 +120,8 @@ def part_detect(cases, sizes, noise_seeds: int = NOISE_SEEDS, random_detect: int
                 continue
             p = np.mean([found(model, res.plan, spec, 100 + s) for s in range(noise_seeds)])
             rr = np.random.default_rng(1000 + n)
-            r = np.mean([found(model, P.subplan(res.design.pool, P.random_units(res.design, len(res.units), rr)),
-                               spec, 200 + s) for s in range(random_detect)])
+            rand = pool.subplan(res.design.pool, exchange.random_units(res.design, len(res.units), rr))
+            r = np.mean([found(model, rand, spec, 200 + s) for s in range(random_detect)])
             plan_share.append((n, p))
             rand_share.append((n, r))
             std = res.effect_std.get(eff, {})

@@ -14,7 +14,6 @@ from sympy.printing.pycode import PythonCodePrinter
 
 from fiveaxis import outputs
 from fiveaxis.model import provenance
-from fiveaxis.exceptions import one_line
 from fiveaxis.model.machine import MACHINES_DIR, Machine, data_dir, load_machine, module_name
 
 from .model import Model, derive_model
@@ -133,10 +132,10 @@ def render(model: Model, source_text: bytes, source_label: str) -> str:
 
 def source_label(machine: Machine) -> str:
     """The machine file's path as written in headers: `machines/<file>` for shipped machines (wherever they are
-    installed), the file name otherwise. On one line whatever the file is called (a line break in a file name would
-    end the header comment and make the rest of the name a line of code in the generated module)."""
+    installed), the file name otherwise, reduced to a safe alphabet (outputs.comment_text): a line break, quotes or
+    `*/` in a file name would end the header comment or a string and make the rest of the name code."""
     path = Path(machine.path).resolve()
-    return one_line(f"machines/{path.name}" if path.parent == MACHINES_DIR.resolve() else path.name)
+    return outputs.comment_text(f"machines/{path.name}" if path.parent == MACHINES_DIR.resolve() else path.name)
 
 
 def generate(machine_ref, out_dir: Path | None = None, conventions=None, file_names=None) -> list[tuple[Path, bool]]:

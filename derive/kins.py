@@ -1,6 +1,7 @@
 """The LinuxCNC kinematics module of a machine: halcompile source (C) from the same derivation as the kernels.
 
-`render(machine, convention)` gives the text of `fiveaxis_kins.comp` (templates/linuxcnc/fiveaxis_kins.comp.j2):
+`render(machine, convention)` gives the text of `<component>.comp` (templates/linuxcnc/fiveaxis_kins.comp.j2), the
+module named after its machine and convention (fiveaxis.model.machine.kins_component: `li2018_kins`):
 the exact chain factor by factor with every error symbol (the factors of `chain.build_chain`, as the numba kernel
 `exact_transform` multiplies them), the nominal tool tip and axis with their joint derivatives (the nominal
 Jacobian of the inverse's Newton steps and of the damped rotary world coordinates), printed by SymPy's C printer
@@ -22,7 +23,8 @@ from sympy.printing.precedence import precedence
 
 from fiveaxis import outputs
 from fiveaxis.model import provenance
-from fiveaxis.model.machine import Machine, load_machine, module_name
+from fiveaxis.model.columns import TEMPERATURE_RANGE_DEGC
+from fiveaxis.model.machine import Machine, kins_component, load_machine
 
 from .chain import L
 from .codegen import BANNER, GENERATED, _trig_symbols, environment, source_label
@@ -31,11 +33,13 @@ from .model import derive_model
 TEMPLATE = "linuxcnc/fiveaxis_kins.comp.j2"
 #: Effect slots of the module (HAL pins each): how many position-dependent effects one calibration may have.
 SLOTS = 16
+#: Temperature sensors the module reads (a HAL input pin each, degC).
+TEMPS = 8
 #: Newton steps of the inverse at most, and the step below which it stops (mm, rad).
 MAX_ITER = 12
 TOL_MM = "1e-9"
 TOL_RAD = "1e-10"
-#: The volumetric table's damping of rotary corrections (fiveaxis.compensation.table.DAMPING), the default pin value.
+#: The volumetric table's damping of rotary corrections (fiveaxis.compensation.chain.DAMPING), the default pin value.
 DAMPING = "0.2"
 ROTARY_FIELDS = {"A": "a", "B": "b", "C": "c"}
 
@@ -74,7 +78,7 @@ def supported(machine: Machine) -> str | None:
 
 def file_name(machine_name: str, convention: str = "equations") -> str:
     """The generated file of a machine and convention: `ac_trunnion_kins.comp`, `li2018__printed_kins.comp`."""
-    return f"{module_name(machine_name, convention)}_kins.comp"
+    return f"{kins_component(machine_name, convention)}.comp"
 
 
 def _c_names(chain) -> dict:
@@ -146,7 +150,9 @@ def _literal(x) -> str:
 
 
 def render(machine: Machine, convention: str = "equations") -> str:
-    """The text of fiveaxis_kins.comp for a machine and convention (ValueError if `supported` says no)."""
+    """The text of the module's source for a machine and convention (ValueError if `supported` says no). User text
+    (the machine file's name) only in the header comment, reduced to a safe alphabet (source_label); the component,
+    the description and the code hold checked identifiers only (names of the machine, convention, axes, errors)."""
     why = supported(machine)
     if why:
         raise ValueError(why)
@@ -177,13 +183,15 @@ def render(machine: Machine, convention: str = "equations") -> str:
         centre.append(_literal(math.radians(0.5 * (lo + hi)) if full else 0.0))
     source = Path(machine.path).read_bytes()
     text = environment().get_template(TEMPLATE).render(
-        banner=BANNER, machine=machine.name, source=source_label(machine), convention=convention or "equations",
+        banner=BANNER, machine=machine.name, component=kins_component(machine.name, convention or "equations"),
+        source=source_label(machine), convention=convention or "equations",
         source_sha256=hashlib.sha256(source).hexdigest(),
         kins_hash=provenance.kins_hash(source, convention or "equations", sp.__version__),
         generator_version=provenance.GENERATOR_VERSION, sympy_version=sp.__version__,
         variables=variables, rotary_names=[variables[i] for i in rot], rot_index=rot, lin_index=lin,
         rot_fields=[ROTARY_FIELDS[variables[i]] for i in rot], errors=list(model.error_names),
-        slots=SLOTS, max_iter=MAX_ITER, tol_mm=TOL_MM, tol_rad=TOL_RAD, damping=DAMPING,
+        slots=SLOTS, max_iter=MAX_ITER, tol_mm=TOL_MM, tol_rad=TOL_RAD, damping=DAMPING, temps=TEMPS,
+        temp_min=_literal(TEMPERATURE_RANGE_DEGC[0]), temp_max=_literal(TEMPERATURE_RANGE_DEGC[1]),
         tool_length=_literal(machine.tool_length), wrap=wrap, wrap_centre=centre,
         transform_unpack=_unpack(model, used, names), error_unpack=_unpack(model, used, names, errors=True),
         ideal_unpack=_unpack(model, ideal_used, names), factors=factors, ideal_body=ideal_body, axis=axis)

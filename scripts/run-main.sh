@@ -28,25 +28,14 @@ fi
 # --- end section: sensitivity
 
 # --- section: measurements (issues 4, 8)
-# Confront the model with measurements: diagnose, add the top candidate, diagnose again, until the verdict is no
-# longer "missing effect" ("no missing effect", or "unexplained structure": then the template of a custom effect).
-# loop FILE MACHINE [options...]: the rounds, reading `diagnose --json`; prints the RMS trail and the verdict.
+# Confront the model with measurements: the calibration loop (fiveaxis.diagnosis.rounds, as `fiveaxis report` runs
+# it): diagnose, add the top candidate, diagnose again, until the verdict is no longer "missing effect" ("no missing
+# effect", or "unexplained structure": then the template of a custom effect); then the RMS trail and the verdict.
+# loop FILE MACHINE [options...]
 loop() {
     local file=$1 machine=$2; shift 2
-    local add=() found=() trail="" noise="" rms="" next="" verdict=""
-    for round in 1 2 3 4; do
-        say "diagnose, round $round: fiveaxis diagnose $file --machine $machine $* ${add[*]}"
-        "$BIN/fiveaxis" diagnose "$file" --machine "$machine" "$@" "${add[@]}" --top 3
-        IFS=$'\t' read -r rms noise next verdict < <("$BIN/fiveaxis" diagnose "$file" --machine "$machine" "$@" \
-            "${add[@]}" --json | "$BIN/python" -c 'import json, sys; j = json.load(sys.stdin); c = j["candidates"]
-print("%.4g\t%.4g\t%s\t%s" % (j["rms_mm_without_outliers"] * 1000, j["noise_mm"] * 1000,
-      c[0]["id"] if j["verdict"] == "missing effect" and c else "-", j["verdict"]))')
-        trail="$trail${trail:+ -> }$rms um"
-        [ "$next" != "-" ] || break
-        add+=(--add "$next")
-        found+=("$next")
-    done
-    say "The error fell: residual RMS $trail against noise $noise um; effects found: ${found[*]:-none}; verdict: $verdict"
+    say "The calibration loop: fiveaxis diagnose $file --machine $machine $* --rounds 4 --top 3"
+    "$BIN/fiveaxis" diagnose "$file" --machine "$machine" "$@" --rounds 4 --top 3
 }
 
 MEAS=examples/li2018_measurements.csv
@@ -128,6 +117,27 @@ AFTER=$(sed -n 's/.*deviation RMS \([0-9.e+-]*\) um.*/\1/p' "$CDIR/after.log")
 say "Measured tool-tip error RMS before: $BEFORE um; the model's residual: $RESID um; measured after compensation: $AFTER um (1 um noise per axis: sqrt(3) um of it is noise)"
 # --- end section: compensation
 
+# --- section: heat (issue 31)
+# Heat from temperature sensors: which sensor drives which error, the calibration loop on a thermal test, the fitted
+# model in the LinuxCNC kinematics module (a HAL input pin per sensor) and its predicted error at a warm state.
+HDIR=out/heat
+mkdir -p "$HDIR"
+HEAT="$HDIR/li2018_heat.csv"
+say "A 4-hour test on li2018 with four temperature sensors (spindle running 2 h, then stopped): the tool length grows 1.5 um/degC with temp_spindle through a 600 s lag, the X scale 11.5 um/m/degC with temp_xscale; temp_air and temp_motor drive nothing"
+"$BIN/fiveaxis" simulate --machine li2018 --n 1500 --duration 14400 --seed 3 \
+    --temperature spindle=spindle:rise=15,tau=900,off=7200 --temperature xscale=bed:rise=3,tau=5000 \
+    --temperature air=air:amp=1 --temperature motor=mix:spindle=0.4,air=1 \
+    --effect L:temp_spindle~600=0.0015 --effect dx_x:x.temp_xscale=0.0287 -o "$HEAT" --force
+loop "$HEAT" li2018
+FOUND=$("$BIN/fiveaxis" diagnose "$HEAT" --rounds 4 --json | "$BIN/python" -c 'import json, sys
+r = json.load(sys.stdin)["rounds"]; print(" ".join("--add " + i for i in r[-1]["added"]))')
+say "Fit what the loop found ($FOUND) and compensate at a warm state (temp_spindle 35 degC, temp_xscale its warmest reading)"
+"$BIN/fiveaxis" fit "$HEAT" --machine li2018 $FOUND -o "$HDIR/model.json" --force | sed -n '/residual RMS/p;/temp_/p'
+"$BIN/fiveaxis" compensate "$HDIR/model.json" -o "$HDIR/comp" --temperature spindle=35 --force | sed -n '/^  at /,/only the kinematics/p'
+say "How the kinematics module reads the sensors (linuxcnc/volumetric/fiveaxis.hal)"
+grep -E "temperature sensors|connected|thermal correction|temp-fault|net temp_|\.temp\.|\.channel |\.lag " "$HDIR/comp/linuxcnc/volumetric/fiveaxis.hal"
+# --- end section: heat
+
 # --- section: report (issue 11)
 # The calibration report: one self-contained HTML page (and a PDF printed by headless Chromium) per data set.
 OUT=out/report
@@ -142,6 +152,9 @@ say "Calibration report of the R-test on the A/C trunnion (above: $RTEST)"
 say "Calibration report of the compensated A/C trunnion, with the compensation's predicted error maps"
 "$BIN/fiveaxis" report "$CDIR/before.csv" --machine ac_trunnion --compensation "$CDIR/comp" \
     -o "$OUT/ac_trunnion_compensated.html" "${PDF[@]}" --force
+say "Calibration certificate of the ISO 230-2 laser run above ($LASER) with a campaign file: HTML, PDF and DCC XML"
+"$BIN/fiveaxis" report "$LASER" --machine ac_trunnion --campaign examples/campaign.toml --rounds 2 \
+    -o "$OUT/ac_trunnion_laser_certificate.html" "${PDF[@]}" --dcc --force
 say "Reports written (open in a browser):"
 scripts/list-outputs.sh "$OUT"
 # --- end section: report

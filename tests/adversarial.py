@@ -1,6 +1,8 @@
 """An adversarial corpus over every command (issue 19, point 4): hostile G-code, model, machine and measurement
 files, absurd numbers, NaN/Inf/huge values, malformed JSON/TOML/CSV/Parquet, symbolic links, kill -9 mid-write,
-options out of range.
+options out of range. Round 4 (issue 28, issue 34; `round4()`): hostile file names reaching LinuxCNC's files and the
+kinematics module, links planted inside an output folder, programs that never end, unit slips, one-axis machines
+and the options and columns whose messages did not name them; its checks: "inject", "kins", "hint", "clean".
 
 Every trial is a row of data: an id, a command line (with `{f}` the trial's hostile file, `{out}` a fresh output
 folder, `{m}` a marker path, `{base}` the folder of base files), the file it needs (a MAKERS entry and its
@@ -69,6 +71,7 @@ class Trial:
     reader: list | None = None         # kill trials: a command that reads the outputs afterwards
     suffix: str = ""                   # of {f}
     together: tuple = ()               # kill trials: the files that must come from one run (globs in {out})
+    filename: str | None = None        # the name of {f} (default hostile<suffix>): hostile names of round 4
 
 
 # -- base files, made once per run ------------------------------------------------------------------------------------
@@ -85,16 +88,44 @@ def make_base(base: Path, run) -> None:
         (["simulate", "--instrument", "interferometer", "--n", "200", "--seed", "3", "--effect", "dx_x:x1=0.005",
           "-o", "{base}/iso2.csv"], "iso2.csv"),
         (["simulate", "--instrument", "ballbar", "--n", "200", "--seed", "4", "-o", "{base}/iso4.csv"], "iso4.csv"),
+        (["iso230-3-simulate", "{base}/iso3.csv", "--hours", "4", "--seed", "5"], "iso3.csv"),
     ]
     (base / "comp").mkdir(exist_ok=True)
+    (base / "stage42.toml").write_text(STAGE)
+    (base / "nocut.toml").write_text(STAGE.replace('name = "stage42"', 'name = "nocut"').replace("length = 50.0",
+                                                                                              "length = 0.0"))
+    steps += [(["fit", "{base}/meas_nt.csv", "--add", "dx_x:xp800", "-o", "{base}/model_p.json"], "model_p.json"),
+              (["simulate", "--machine", "{base}/stage42.toml", "--instrument", "interferometer", "--n", "60",
+                "--no-time", "--seed", "4", "--noise", "0.0001", "--effect", "dx_x:x1=0.003", "--effect",
+                "dx_x:xr=0.00032", "-o", "{base}/stage_mm.csv"], "stage_mm.csv"),
+              (["fit", "{base}/stage_mm.csv", "--machine", "{base}/stage42.toml", "--add", "dx_x:x1", "--add",
+                "dx_x:xr", "-o", "{base}/stage_mm.json"], "stage_mm.json"),
+              (_stage_files, "stage_um.csv"),
+              (["fit", "{base}/stage_um.csv", "--machine", "{base}/stage42.toml", "--add", "dx_x:x1", "--add",
+                "dx_x:xr", "-o", "{base}/stage_um.json"], "stage_um.json")]
     for argv, made in steps:
         if not (base / made).exists():
+            if callable(argv):
+                argv(base)
+                continue
             rc, out, err = run([a.format(base=base) for a in argv])
             if rc != 0:
                 raise SystemExit(f"adversarial: making {made} failed: {err.strip()[-300:]}")
     shutil.copy(ROOT / "examples" / "ac_trunnion_sphere.ngc", base / "good.ngc")
     shutil.copy(DATA / "planar.toml", base / "planar.toml")
     shutil.copy(MACHINES / "li2018.toml", base / "li2018.toml")
+
+
+#: A 42 mm stage measured with a laser (round 4: the unit slip of issue 28, point 6; a one-axis machine).
+STAGE = (DATA / "stage42.toml").read_text()
+
+
+def _stage_files(base: Path) -> None:
+    """stage_um.csv: the laser readings written in um into the mm column; stage3.csv: X, dir_X, du only."""
+    import pandas as pd
+    df = pd.read_csv(base / "stage_mm.csv")
+    df.assign(du=df["du"] * 1000.0).to_csv(base / "stage_um.csv", index=False)
+    df[["X", "dir_X", "du"]].to_csv(base / "stage3.csv", index=False)
 
 
 # -- hostile files ------------------------------------------------------------------------------------------------------
@@ -438,6 +469,22 @@ ISO_FILES = {   # iso230-2 / iso230-4: hostile variants of an interferometer's a
     "good": ("copy", "{base}/{which}.csv", OK),
 }
 ISO_COMMANDS = {"iso230-2": ("iso2", ["iso230-2", "{f}"]), "iso230-4": ("iso4", ["iso230-4", "{f}", "--rounds", "1"])}
+ISO3_FILES = {   # iso230-3: hostile variants of a simulated spindle test (five sensors, temperatures, spindle_rpm)
+    "NaN dz": ("csv-edit", ("iso3.csv", _cell("dz", "nan")), REFUSE),
+    "1e300 dx": ("csv-edit", ("iso3.csv", _cell("dx", 1e300)), REFUSE),
+    "text dx": ("csv-edit", ("iso3.csv", _cell("dx", "x")), REFUSE),
+    "2000 degC": ("csv-edit", ("iso3.csv", _cell("temp_air", 2000.0)), REFUSE),
+    "time back": ("csv-edit", ("iso3.csv", _cell("t", 0.0, 5)), REFUSE),
+    "um in mm": ("csv-edit", ("iso3.csv", lambda df: df.assign(dz=df["dz"] * 1000)), REFUSE),
+    "hours in t": ("csv-edit", ("iso3.csv", lambda df: df.assign(t=df["t"] / 3600)), REFUSE),
+    "stuck sensor": ("csv-edit", ("iso3.csv", lambda df: df.assign(dy=0.0)), REFUSE),
+    "no time": ("csv-edit", ("iso3.csv", lambda df: df.drop(columns=["t"])), REFUSE),
+    "one row": ("csv-edit", ("iso3.csv", lambda df: df.head(1)), REFUSE),
+    "empty": ("text", "", REFUSE), "fifo": ("fifo", None, REFUSE), "dev zero": ("symlink", "/dev/zero", REFUSE),
+    "binary": ("bytes", bytes(range(256)) * 16, REFUSE),
+    "blank temperature": ("csv-edit", ("iso3.csv", _cell("temp_air", "")), OK),
+    "good": ("copy", "{base}/iso3.csv", OK),
+}
 TOOLPATH_CSV = {   # lsa --toolpath X.csv
     "NaN": ("text", "X,Y,Z,A,B\n0,0,0,0,0\nnan,0,0,0,0\n", REFUSE),
     "1e300": ("text", "X,Y,Z,A,B\n0,0,0,0,0\n1e300,0,0,0,0\n", REFUSE),
@@ -489,6 +536,15 @@ OPTION_TRIALS = [   # (command argv, expect, names)
         ("--tolerance", "0"), ("--tolerance", "-1"), ("--tolerance", "nan"), ("--u-device", "-1"),
         ("--u-device", "inf"), ("--temperature-deviation", "nan"), ("--expansion-ppm-per-K", "1e300"),
         ("--misalignment", "-1"), ("--drift", "nan"), ("--frame", "sideways"))],
+    *[(["iso230-3", "{base}/iso3.csv", "--spacing", "100", o, v], REFUSE, (o,)) for o, v in (
+        ("--spindle-off", "nan"), ("--spindle-off", "-5"), ("--spindle-off", "1e9"), ("--spindle-speed", "-1"),
+        ("--test", "bogus"))],
+    (["iso230-3", "{base}/iso3.csv", "--spacing", "100", "--test", "etve"], REFUSE, ("spindle_rpm", "row")),
+    *[(["iso230-3", "{base}/iso3.csv", "--spacing", v], REFUSE, ("--spacing",)) for v in ("nan", "-1", "1e300")],
+    (["iso230-3", "{base}/iso3.csv"], REFUSE, ("--spacing",)),
+    *[(["iso230-3-simulate", "{out}/t.csv", o, v], REFUSE, (o,)) for o, v in (
+        ("--hours", "0"), ("--hours", "nan"), ("--hours", "1e9"), ("--interval", "0"), ("--seed", "-1"),
+        ("--speed", "inf"), ("--spacing", "0"), ("--run-hours", "-1"))],
     *[(["iso230-4", "{base}/iso4.csv", o, v], REFUSE, (o,)) for o, v in (
         ("--rounds", "-1"), ("--rounds", "x"), ("--feed", "0"), ("--feed", "nan"), ("--feed", "-5"))],
     (["lsa", "--pose", "X=nan,Y=0,Z=0,A=0,B=0"], REFUSE, ("--pose",)),
@@ -569,6 +625,9 @@ WRITERS = {
                     "--comp-points", "9"], "table.csv", ()),
     "derive": (["derive", "{base}/planar.toml", "--out", "{out}"], "planar.py", ("exists",)),
     "iso230-2 --plot": (["iso230-2", "{base}/iso2.csv", "--plot", "{out}"], "iso230-2_X_laser-X.png", ("exists",)),
+    "iso230-3 --plot": (["iso230-3", "{base}/iso3.csv", "--spacing", "100", "--plot", "{out}"],
+                        "iso230-3_spindle.png", ("exists",)),
+    "iso230-3-simulate": (["iso230-3-simulate", "{o}"], "t.csv", ()),
 }
 OUTPUT_CASES = ("dangling link", "link to a file", "under a file", "a folder", "exists")
 #: kill -9 while writing: (id, argv, reader argv, files that must come from one run); killed the moment a file in
@@ -584,6 +643,85 @@ KILLS = [
     ("simulate -o --force", ["simulate", "--n", "3000", "-o", "{out}/s.csv", "--force"],
      ["fit", "{out}/s.csv", "--first-order"], ("s.csv",)),
 ]
+
+
+# -- round 4 (issue 28; issue 34's leftovers) ---------------------------------------------------------------------
+#: A model file named with a payload (compensate writes its path into LinuxCNC's files): a comment of safe
+#: characters only (check "inject": HAL lines are commands of ours, the INIs parse strictly, README's `$ ` lines ours).
+HOSTILE_MODEL_NAMES = {
+    "HAL loadusr": "m\nloadusr -W touch CANARY\n.json",
+    "README command": "m\n$ touch CANARY\n.json",
+    "INI section": "m\n[EMC]\nDISPLAY = touchy\n.json",
+    "CR and substitutions": "m\r\nsetp x 1 $(HOME) [EMC]X `touch CANARY`.json",
+}
+#: A machine file named with halcompile declarations (check "kins": none outside a // comment of the module).
+HOSTILE_MACHINE_NAMES = {
+    "halcompile option": 'x""";option userspace yes;option extra_link_args "`touch CANARY`";description """y.toml',
+    "halcompile pin": 'x""";include <stdio.h>;pin out float injected;description """y.toml',
+    "line feeds": 'x\n""";\npin out float injected;\n"""\ny.toml',
+}
+#: Links planted in a compensate folder (the previous run's), to a victim file or folder beside it: refused.
+PLANTED_LINKS = {"linuxcnc folder": ("linuxcnc", "dir"), "HAL file": ("linuxcnc/volumetric/fiveaxis.hal", "file"),
+                 "INI": ("linuxcnc/fiveaxis.ini", "file"), "summary": ("summary.json", "file")}
+#: Programs for `plan --check` that never end or block.
+PROGRAM_FILES = {"fifo": ("fifo", None, REFUSE), "dev zero": ("symlink", "/dev/zero", REFUSE),
+                 "folder": ("folder", None, REFUSE), "huge": ("huge", 300 * 2 ** 20, REFUSE),
+                 "good": ("copy", "{base}/plan.ngc", OK)}
+#: Effects of model_p.json (a periodic effect dx_x:xp800) edited: refused with the file and the key.
+EFFECT_EDITS = {
+    "std string": lambda e: e.update(std_mm_rad={k: "abc" for k in e["coefficients_mm_rad"]}),
+    "std list": lambda e: e.update(std_mm_rad={k: [1] for k in e["coefficients_mm_rad"]}),
+    "period 1e-300": lambda e: e.update(period=1e-300),
+    "period 1e300": lambda e: e.update(period=1e300),
+    "bad id": lambda e: e.update(id="dx_x:xq800"),
+    "id 1e-300": lambda e: e.update(id="dx_x:xp1e-300", period=1e-300),
+}
+#: (argv, expect, names, check) of round 4: unit slips, one-axis machines, the options issue 34 and 28 name.
+ROUND4 = [
+    (["compensate", "{base}/stage_um.json", "-o", "{out}"], REFUSE, ("did you write um in a mm column",), "clean"),
+    (["fit", "{base}/stage_um.csv", "--machine", "{base}/stage42.toml"], OK, (), "hint"),
+    (["diagnose", "{base}/stage_um.csv", "--machine", "{base}/stage42.toml", "--top", "2"], OK, (), "hint"),
+    (["iso230-2", "{base}/stage_um.csv", "--machine", "{base}/stage42.toml"], OK, (), "hint"),
+    (["compensate", "{base}/stage_mm.json", "-o", "{out}", "--plot"], OK, (), None),
+    (["report", "{base}/stage_mm.csv", "--machine", "{base}/nocut.toml", "-o", "{out}/r.html", "--rounds", "1"],
+     OK, (), None),
+    (["gsa", "--machine", "{base}/nocut.toml"], REFUSE, ("tool.length", "--l0"), None),
+    (["iso230-2", "{base}/stage3.csv"], REFUSE, ("--machine",), None),
+    (["iso230-2", "{base}/stage3.csv", "--machine", "{base}/stage42.toml"], OK, (), None),
+    (["iso230-2", "{base}/iso2.csv", "--tolerance", "1e9"], REFUSE, ("--tolerance",), None),
+    (["simulate", "--n", "20", "-o", "{out}/s.csv", "--truth", "{base}/meas.csv/t.json"], REFUSE, ("meas.csv",),
+     "clean"),
+    (["plan", "--n", "6", "-o", "{out}/p.csv", "--feed", "1e-9"], REFUSE, ("--feed",), "clean"),
+    (["compensate", "{base}/model.json", "-o", "{out}", "--damping", "1e300"], REFUSE, ("--damping",), "clean"),
+    (["compensate", "{base}/model.json", "-o", "{out}", "--tool-lengths", "100,100.0000000001"], REFUSE,
+     ("--tool-lengths",), "clean"),
+    (["plan", "--n", "6", "-o", "{out}/p.csv", "--tool-lengths", "100,100.0000000001"], REFUSE, ("--tool-lengths",),
+     "clean"),
+    (["simulate", "--n", "20", "-o", "{out}/s.csv", "--tool-lengths", "100,100.0000000001"], REFUSE,
+     ("--tool-lengths",), "clean"),
+    (["gsa", "--le", "500", "--axis", "X=0"], REFUSE, ("--le",), None),
+    (["gsa", "--errors", "ex_x", "--axis", "X=0"], REFUSE, ("--errors",), None),
+    (["lsa", "--positions", "100000000"], REFUSE, ("--positions",), None),
+    (["simulate", "--effect", "L:t1", "--no-time", "-o", "{out}/s.csv"], REFUSE, ("--effect 'L:t1'",), "clean"),
+    (["fit", "{base}/meas_nt.csv", "--add", "L:t1"], REFUSE, ("--add 'L:t1'",), None),
+    (["simulate", "--n", "20", "--machine", "{base}/li2018.toml", "--effect", "zz", "-o", "{out}/s.csv"], REFUSE,
+     ("--effect",), "clean"),
+]
+#: Measurement files of round 4 (fit, diagnose, report read them): a unit in a reading's name, a spreadsheet's
+#: export with ';' and decimal commas.
+MEASUREMENT_FILES_4 = {
+    "dx mm": ("csv-edit", ("meas.csv", _rename("dx", "dx mm")), REFUSE),
+    "du_um": ("csv-edit", ("meas.csv", _rename("dx", "du_um")), REFUSE),
+    "dx[um]": ("csv-edit", ("meas.csv", _rename("dx", "dx[um]")), REFUSE),
+    "decimal commas": ("csv-edit", ("meas.csv", lambda df: df.to_csv(index=False, sep=";", decimal=",")), REFUSE),
+}
+
+
+def _effects_edit(edit):
+    def apply(d):
+        edit(d["effects"][0])
+        return d
+    return apply
 
 
 # -- the trials ---------------------------------------------------------------------------------------------------------------
@@ -623,6 +761,9 @@ def trials() -> list[Trial]:
                 content.replace("{which}", which) if isinstance(content, str) else content
             out.append(Trial(f"{cmd} measurements: {name}", cmd, argv, expect, ("{f}", "column", "row", "du"),
                              (maker, what), suffix=".csv"))
+    for name, (maker, content, expect) in ISO3_FILES.items():
+        out.append(Trial(f"iso230-3 file: {name}", "iso230-3", ["iso230-3", "{f}", "--spacing", "100"], expect,
+                         ("{f}", "column", "row"), (maker, content), suffix=".csv"))
     for name, (maker, content, expect) in TOOLPATH_CSV.items():
         out.append(Trial(f"lsa toolpath csv: {name}", "lsa", ["lsa", "--toolpath", "{f}"], expect,
                          ("{f}", "row", "column"), (maker, content), suffix=".csv"))
@@ -643,6 +784,7 @@ def trials() -> list[Trial]:
     for name, argv, reader, together in KILLS:
         out.append(Trial(f"kill -9 {name}", argv[0], argv, EITHER, (), kill="write", reader=reader, timeout=400,
                          together=together))
+    out += round4()
     seen: dict = {}
     for t in out:                                     # ids are unique: a repeated one gets #2, #3...
         seen[t.id] = seen.get(t.id, 0) + 1
@@ -736,12 +878,36 @@ def _prepare(trial: Trial, tdir: Path, base: Path, marker: Path) -> dict:
         shutil.move(str(path), out / "comp" / "summary.json")
         values["f"] = out / "comp" / "summary.json"
         return values
-    values["f"] = make_file(tdir, "hostile" + trial.suffix, (maker, content), base, marker)
+    if maker == "model-copy":                     # the base model under a hostile name, beside its machine file
+        path = out.parent / trial.filename
+        data = json.loads(Path(content.format(base=base)).read_text())
+        data["machine"]["file"] = os.path.relpath((base / data["machine"]["file"]).resolve(), out.parent)
+        path.write_text(json.dumps(data))
+        values["f"] = path
+        return values
+    if maker.startswith("outlink:"):             # a previous run's folder with a link planted in it
+        rel = maker[len("outlink:"):]
+        shutil.copytree(base / "comp", out, dirs_exist_ok=True)
+        victim = tdir / "victim"
+        if content == "dir":
+            victim.mkdir()
+        else:
+            victim.write_text("the user's file\n")
+        link = out / rel
+        if link.is_dir() and not link.is_symlink():
+            shutil.rmtree(link)
+        elif link.exists() or link.is_symlink():
+            link.unlink()
+        link.symlink_to(victim)
+        return values
+    values["f"] = make_file(tdir, trial.filename or "hostile" + trial.suffix, (maker, content), base, marker)
     return values
 
 
 def _victims_untouched(tdir: Path) -> bool:
     v = tdir / "victim"
+    if v.is_dir():
+        return not any(v.iterdir())
     return not v.exists() or v.read_text() == "the user's file\n"
 
 
@@ -777,8 +943,46 @@ def _implausible_comp(out: Path) -> str | None:
     return None
 
 
+#: The command words of the HAL files compensate writes; the `$ ` lines of the kinematics module's README.
+HAL_WORDS = {"loadrt", "addf", "net", "setp"}
+README_COMMANDS = ("$ sudo apt-get install linuxcnc-uspace-dev", "$ sudo halcompile --install ",
+                   "$ linuxcnc fiveaxis.ini", "$ halcmd show pin ")
+
+
+def _injected(out: Path) -> str | None:
+    """What a payload in a path made of compensate's LinuxCNC files, or None: a HAL line that is not a command of
+    ours, an INI a strict parser refuses (a second section), a README command line that is not ours."""
+    import configparser
+    for f in out.rglob("*.hal"):
+        for line in f.read_text(errors="replace").splitlines():
+            if line.strip() and not line.lstrip().startswith("#") and line.split()[0] not in HAL_WORDS:
+                return f"{f.name}: {line[:60]!r}"
+    for f in out.rglob("*.ini"):
+        cp = configparser.ConfigParser(strict=True, interpolation=None, comment_prefixes=("#", ";"))
+        try:
+            cp.read_string(f.read_text(errors="replace"))
+        except configparser.Error as exc:
+            return f"{f.name}: {str(exc).splitlines()[0][:80]}"
+    for f in out.rglob("README.txt"):
+        for line in f.read_text(errors="replace").splitlines():
+            if line.startswith("$") and not line.startswith(README_COMMANDS):
+                return f"{f.name}: {line[:60]!r}"
+    return None
+
+
+def _kins_injected(out: Path) -> str | None:
+    """A halcompile declaration from a machine file's name in a generated module (outside its // comments)."""
+    for f in out.rglob("*_kins.comp"):
+        head = f.read_text(errors="replace").split("\n;;\n", 1)[0]
+        for line in head.splitlines():
+            if not line.startswith("//") and re.search(r"injected|extra_link_args|CANARY|include|userspace", line):
+                return f"{f.name}: {line[:60]!r}"
+    return None
+
+
 def classify(trial: Trial, rc, stdout: str, stderr: str, values: dict, marker: Path, tdir: Path) -> tuple[str, str]:
-    if marker.exists() or (marker.parent / "PWNED").exists() or list(marker.parent.glob("ran*")):
+    if marker.exists() or (marker.parent / "PWNED").exists() or list(marker.parent.glob("ran*")) or \
+            list(tdir.rglob("CANARY")):
         return "code-execution", "the marker file appeared"
     if rc is None:
         return "hang", f"no end within {trial.timeout:g} s"
@@ -795,7 +999,14 @@ def classify(trial: Trial, rc, stdout: str, stderr: str, values: dict, marker: P
         bad = _outputs_finite(out, stdout) or (_implausible_comp(out) if trial.check == "comp" else None)
         if bad:
             return "silent", f"non-finite or implausible output: {bad}"
+        bad = _injected(out) if trial.check == "inject" else _kins_injected(out) if trial.check == "kins" else None
+        if bad:
+            return "silent", f"user text in a file a controller or a shell runs: {bad}"
+        if trial.check == "hint" and "did you write um in a mm column" not in stderr:
+            return "silent", "a unit slip without the hint"
         return "ok", ""
+    if trial.check == "clean" and out.is_dir() and any(p.is_file() for p in out.rglob("*")):
+        return "silent", f"a refusal left {sorted(p.name for p in out.rglob('*') if p.is_file())[:3]} behind"
     errors = [line for line in stderr.splitlines() if line.startswith("fiveaxis: error: ")]
     last = errors[-1] if errors else (stderr.strip().splitlines() or [""])[-1]
     if trial.expect == OK:
@@ -875,7 +1086,39 @@ FAST = ("lsa ac_trunnion gcode: py", "lsa ac_trunnion gcode: ;py,", "lsa ac_trun
         "lsa ac_trunnion gcode: NUL", "lsa ac_trunnion gcode: o<abs path>", "gsa machine: dev zero",
         "names machine: fifo", "table2 machine: deep tables", "gsa --errors model: deep JSON",
         "lsa toolpath csv: NaN", "model output: dangling link", "simulate --n 10000000000 -o {out}/s.csv",
-        "compensate model: NaN literal", "sobol --bound inf")
+        "compensate model: NaN literal", "sobol --bound inf", "iso230-3 file: um in mm", "plan --check program: fifo",
+        "plan --check program: dev zero", "round 4: lsa --positions 100000000", "round 4: gsa --le 500 --axis X=0")
+
+
+def round4() -> list[Trial]:
+    """The trials of round 4 (issue 28, issue 34): classes kept as tables above."""
+    out = []
+    small = ["--nodes", "X=2,Y=2,Z=2", "--poses", "200", "--comp-points", "9"]
+    for name, filename in HOSTILE_MODEL_NAMES.items():
+        out.append(Trial(f"compensate model name: {name}", "compensate", ["compensate", "{f}", "-o", "{out}", *small],
+                         OK, (), ("model-copy", "{base}/model.json"), check="inject", filename=filename))
+    for name, filename in HOSTILE_MACHINE_NAMES.items():
+        out.append(Trial(f"derive machine name: {name}", "derive", ["derive", "{f}", "--out", "{out}/gen"], OK, (),
+                         ("copy", "{base}/li2018.toml"), check="kins", filename=filename))
+    for name, (rel, kind) in PLANTED_LINKS.items():
+        out.append(Trial(f"compensate link in the folder: {name}", "compensate",
+                         ["compensate", "{base}/model.json", "-o", "{out}", "--force", *small], REFUSE,
+                         ("symbolic link",), (f"outlink:{rel}", kind)))
+    for name, (maker, content, expect) in PROGRAM_FILES.items():
+        out.append(Trial(f"plan --check program: {name}", "plan", ["plan", "--check", "{f}"], expect, ("{f}",),
+                         (maker, content), suffix=".ngc"))
+    for name, edit in EFFECT_EDITS.items():
+        out.append(Trial(f"compensate model effect: {name}", "compensate", ["compensate", "{f}", "-o", "{out}",
+                                                                            *small], REFUSE,
+                         ("{f}", "effects[0]"), ("json-edit", ("model_p.json", _effects_edit(edit))), check="clean",
+                         suffix=".json"))
+    for argv, expect, names, check in ROUND4:
+        out.append(Trial("round 4: " + " ".join(argv)[:100], argv[0], argv, expect, names, check=check))
+    for name, (maker, content, expect) in MEASUREMENT_FILES_4.items():
+        for cmd, argv in COMMANDS_READING_MEASUREMENTS.items():
+            out.append(Trial(f"{cmd} measurements: {name}", cmd, argv, expect, ("{f}", "did you mean", "decimal"),
+                             (maker, content), suffix=".csv", check="clean"))
+    return out
 
 
 def _uses_base(trial: Trial) -> bool:

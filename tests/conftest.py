@@ -1,5 +1,8 @@
 """Shared fixtures: the shipped machines and random poses within their strokes."""
+import contextlib
+import io
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -56,15 +59,22 @@ def worst_z(res, sim):
     return float(np.max(np.abs(zs))), len(zs)
 
 
-def run_cli(capsys, *argv):
-    """Run the command line in-process: (exit code, stdout, stderr); argparse's SystemExit gives its code."""
-    from fiveaxis.cli import main
-    try:
-        rc = main([str(a) for a in argv])
-    except SystemExit as exc:          # argparse usage errors and --help
-        rc = exc.code
-    out, err = capsys.readouterr()
-    return rc, out, err
+def run_cli(*argv, echo: bool = False):
+    """The one way tests reach the command line (in-process; a subprocess only where a real process is the
+    point: exit under load, kill -9, an installed wheel): (exit code, stdout, stderr), argparse's SystemExit giving
+    its code. It captures by itself, so fixtures of any scope use it; echo: also write the output to sys.stdout /
+    sys.stderr afterwards (for a test that reads capsys)."""
+    from fiveaxis.cli import main            # (the package under test: imported when a test runs it)
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            rc = main([str(a) for a in argv])
+        except SystemExit as exc:          # argparse usage errors and --help
+            rc = exc.code
+    if echo:
+        sys.stdout.write(out.getvalue())
+        sys.stderr.write(err.getvalue())
+    return rc, out.getvalue(), err.getvalue()
 
 
 @pytest.fixture(scope="session")

@@ -32,10 +32,7 @@ def fitted_like(model, seed=0) -> MF.FittedModel:
     records = []
     for ident, value in EFFECTS[machine.name]:
         e = fx.parse(ident, machine, model.errors)
-        values = value if isinstance(value, tuple) else (value,)
-        kind = {"poly": "polynomial", "periodic": "periodic"}[e.kind]
-        records.append(MF.EffectRecord(e.id, kind, e.param, e.var, e.deg if kind == "polynomial" else None, e.names,
-                                       values, (), None if kind == "polynomial" else float(e.arg)))
+        records.append(e.record(value if isinstance(value, tuple) else (value,)))
     return MF.FittedModel(machine.name, str(machine.path), MF.sha256(machine.path), model.convention, errors,
                           {n: "rad" if machine.is_angular(n) else "mm" for n in model.errors}, (), {},
                           tuple(records), fx.scales(machine))
@@ -79,8 +76,17 @@ class Library:
         lib.fa_tool.argtypes = [p, p, d, p, p]
         lib.fa_inverse.argtypes = [p, p, d, p, p]
         lib.fa_inverse.restype = i
+        lib.fa_set_thermal.argtypes = [p, i, i, d, d]
+        lib.fa_set_temp.argtypes = [p, i, d]
+        lib.fa_temperatures.argtypes = [p, p, d]
+        lib.fa_temperatures.restype = i
+        lib.fa_slot_temperature.argtypes = [p, i]
+        lib.fa_slot_temperature.restype = d
+        lib.fa_lags_size.restype = ctypes.c_ulong
         self.values = ctypes.create_string_buffer(lib.fa_values_size())
+        self.lags = ctypes.create_string_buffer(lib.fa_lags_size())
         lib.fa_defaults(self.values)
+        lib.fa_lags_reset(self.lags)
 
     def set(self, values) -> None:
         """The pins' values of a linuxcnc.kinematics.ModuleValues."""
@@ -93,6 +99,19 @@ class Library:
         for k, s in enumerate(values.slots):
             lib.fa_set_slot(self.values, k, s.param, KINDS[s.kind], s.joint, s.degree, s.period, s.centre, s.half,
                             s.c0, s.c1)
+            if s.channel >= 0:
+                lib.fa_set_thermal(self.values, k, s.channel, s.reference, s.lag)
+        lib.fa_lags_reset(self.lags)
+        self.temperatures(values.references, 0.0)         # the sensors at their references, the lags at rest
+
+    def temperatures(self, readings, dt: float) -> int:
+        """The sensors' readings (degC, in pin order) after dt s: the temperature slots advanced; 1 on a fault."""
+        for c, T in enumerate(readings):
+            self.lib.fa_set_temp(self.values, c, float(T))
+        return self.lib.fa_temperatures(self.values, self.lags, float(dt))
+
+    def slot_temperature(self, k: int) -> float:
+        return self.lib.fa_slot_temperature(self.values, k)
 
     def forward(self, joints, L) -> np.ndarray:
         q = np.ascontiguousarray(np.atleast_2d(joints), dtype=float)

@@ -26,6 +26,7 @@ TINY = {
     "bench_plan_programs": None,          # needs a folder and rs274: its own test below
     "bench_scale": None,                  # subprocesses and a folder: its own test below
     "same_answers": None,                 # two folders of records: its own test below
+    "exam": ["--trials", "3", "--poses", "200"],
 }
 
 
@@ -137,3 +138,19 @@ def test_same_answers_compares_records(tmp_path):
     (b / "one.json").write_text(json.dumps(rec2))
     out = bench_module("same_answers").main(["compare", str(a), str(b)])
     assert out["other"] == 1
+
+
+def test_exam_runs_and_measures():
+    """The Monte-Carlo exam (issue 29) on three trials (tip readings on the three machines): every trial measured,
+    the residual after the fit at the noise, the compensated workspace error below the uncompensated one, the
+    summary's rates between 0 and 1 and its table printed."""
+    out = bench_module("exam").main(TINY["exam"])
+    s = out["summary"]
+    assert s["trials"] == 3 and len(out["trials"]) == 3
+    for r in out["trials"]:
+        assert r["instrument"] == "tip" and 0.8 < r["rms_over_noise"] < 1.3
+        assert r["workspace_after_um"] < r["workspace_before_um"] and r["band_um"][0] <= r["band_um"][1]
+        assert 0 < r["quantities"] and 0 <= r["covered"] <= r["quantities"]
+    for key in ("false_alarm_rate", "coverage_k2", "band_coverage"):
+        assert s[key] is None or 0.0 <= s[key] <= 1.0
+    assert out["table"].startswith("| measured | value |")

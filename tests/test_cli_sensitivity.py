@@ -3,13 +3,13 @@ import json
 
 import pytest
 
-from fiveaxis.cli import main
+from conftest import run_cli
 from fiveaxis.exceptions import InputError
 from fiveaxis.sensitivity.paper import PAPER_VITAL
 
 
 def run_json(capsys, argv):
-    assert main(argv + ["--json"]) == 0
+    assert run_cli(*argv, "--json", echo=True)[0] == 0
     return json.loads(capsys.readouterr().out)
 
 
@@ -42,8 +42,8 @@ def test_lsa_json(capsys, cone, k):
 
 
 def test_lsa_compensate_and_plots(capsys, tmp_path):
-    assert main(["lsa", "--convention", "printed", "--cone", "1", "--compensate", "--normal-mode", "1",
-                 "--plot", str(tmp_path), "--top", "6", "--errors", "dx_x=2e-4"]) == 0
+    assert run_cli("lsa", "--convention", "printed", "--cone", "1", "--compensate", "--normal-mode", "1",
+                 "--plot", str(tmp_path), "--top", "6", "--errors", "dx_x=2e-4", echo=True)[0] == 0
     text = capsys.readouterr().out
     assert "LSIL proportions" in text and "Fig. 11" in text and "vital halved" in text
     assert len([ln for ln in text.splitlines() if ln.strip()[:1].isdigit() and "%" in ln]) >= 6
@@ -85,7 +85,7 @@ def test_errors_file(capsys, tmp_path):
     (["sobol", "--samples", "100"], "power of 2"),
 ])
 def test_bad_input_is_one_line(capsys, argv, needle):
-    assert main(argv) == 2
+    assert run_cli(*argv, echo=True)[0] == 2
     err = capsys.readouterr().err
     assert err.startswith("fiveaxis: error:") and needle in err and len(err.strip().splitlines()) == 1
 
@@ -93,7 +93,7 @@ def test_bad_input_is_one_line(capsys, argv, needle):
 def test_bad_errors_file_names_the_line(capsys, tmp_path):
     f = tmp_path / "e.txt"
     f.write_text("ex_x=1e-4\nbogus_name=3\n")
-    assert main(["lsa", "--errors", str(f)]) == 2
+    assert run_cli("lsa", "--errors", str(f), echo=True)[0] == 2
     err = capsys.readouterr().err
     assert f"{f}: line 2: unknown error name 'bogus_name'" in err and len(err.strip().splitlines()) == 1
 
@@ -106,10 +106,10 @@ def test_sobol_command(capsys):
 
 def test_progress_bar_on_request_and_off_otherwise(capsys):
     argv = ["gsa", "--convention", "printed", "--axis", "X=0", "--axis", "B=-30:30:3", "--chunk", "500"]
-    assert main(argv + ["--progress"]) == 0
+    assert run_cli(*argv, "--progress", echo=True)[0] == 0
     err = capsys.readouterr().err
     assert "GSIL" in err and "100%" in err
-    assert main(argv) == 0                       # stderr is not a terminal under pytest: no bar
+    assert run_cli(*argv, echo=True)[0] == 0                       # stderr is not a terminal under pytest: no bar
     assert capsys.readouterr().err == ""
 
 
@@ -130,7 +130,8 @@ def odd_files(tmp_path_factory):
     (["gsa", "--axis", "X=0", "--compensate", "--rot-count", "0"], "--rot-count"),        # printed NaN
     (["lsa", "--positions", "100000000"], "ask for it with --max-poses 100000000"),       # ran for minutes
     (["gsa", "--errors", "{d}/binary.dat"], "not a UTF-8 text file"),                     # UnicodeDecodeError
-    (["gsa", "--le", "500"], "LE = 500 mm is longer than the tool length L0 = 200 mm"),   # negative L, silently
+    (["gsa", "--le", "500"],                                                        # negative L, silently
+     "--le: the effective cutting length 500 mm is longer than the tool length L0 = 200 mm"),
     (["gsa", "--top", "-3"], "--top"),                                                    # printed 38 rows
     (["gsa", "--errors", "{d}/true.json"], "value of ex_x must be a number (mm or rad), got true"),  # read as 1.0
     (["sobol", "--bound", "inf", "--samples", "32"], "--bound"),                          # Spearman nan
@@ -141,7 +142,7 @@ def odd_files(tmp_path_factory):
 ])
 def test_issue13_sensitivity_inputs_are_one_line_errors(capsys, odd_files, argv, needle):
     argv = [a.replace("{d}", str(odd_files)) for a in argv]
-    assert main(argv) == 2
+    assert run_cli(*argv, echo=True)[0] == 2
     err = capsys.readouterr().err
     assert err.startswith("fiveaxis: error:") and needle in err and len(err.strip().splitlines()) == 1, err
 
@@ -158,26 +159,24 @@ def test_size_guard_says_how_large_and_how_to_ask(capsys):
     # asked for anyway: the same run goes ahead
     argv = ["gsa", "--axis", "X=0", "--axis", "Y=-1000:1000:3", "--axis", "Z=0", "--axis", "A=-30:30:4",
             "--axis", "B=0", "--json"]
-    assert main(argv + ["--max-poses", "11"]) == 2
+    assert run_cli(*argv, "--max-poses", "11", echo=True)[0] == 2
     assert "evaluate 12 poses (Y 3 x A 4), more than the limit of 11; ask for it with --max-poses 12" in \
         capsys.readouterr().err
-    assert main(argv + ["--max-poses", "1.2e1"]) == 0
+    assert run_cli(*argv, "--max-poses", "1.2e1", echo=True)[0] == 0
     capsys.readouterr()
-    with pytest.raises(SystemExit) as exc:                   # an argparse error: one line, exit 2
-        main(argv + ["--max-poses", "0"])
-    err = capsys.readouterr().err
-    assert exc.value.code == 2 and "--max-poses: expected a positive whole number" in err and err.count("\n") == 1
+    rc, _, err = run_cli(*argv, "--max-poses", "0")          # an argparse error: one line, exit 2
+    assert rc == 2 and "--max-poses: expected a positive whole number" in err and err.count("\n") == 1
 
 
 def test_progress_in_logs_for_long_runs(capsys):
     """A run of more than 4 chunks reports progress also when stderr is not a terminal (pytest's is not)."""
     argv = ["gsa", "--convention", "printed", "--axis", "X=-2500:2500:5", "--axis", "Y=-1000:1000:41",
             "--axis", "Z=-250:250:11", "--axis", "A=-30:30:49", "--axis", "B=-30:30:45", "--no-reduce", "--top", "1"]
-    assert main(argv) == 0
+    assert run_cli(*argv, echo=True)[0] == 0
     err = capsys.readouterr().err
     lines = [ln for ln in err.splitlines() if "GSIL" in ln]
     assert lines and "100%" in lines[-1] and "\r" not in err
-    assert main(argv + ["--no-progress"]) == 0 and capsys.readouterr().err == ""
+    assert run_cli(*argv, "--no-progress", echo=True)[0] == 0 and capsys.readouterr().err == ""
 
 
 def test_json_has_no_nan_and_names_the_workspace(capsys):
@@ -212,8 +211,8 @@ def test_plots_are_world_readable_and_every_path_is_printed(capsys, tmp_path):
     import os
     old = os.umask(0o022)
     try:
-        assert main(["gsa", "--convention", "printed", "--axis", "X=0", "--axis", "Z=0", "--compensate",
-                     "--rot-count", "3", "--plot", str(tmp_path / "p"), "--top", "2"]) == 0
+        assert run_cli("gsa", "--convention", "printed", "--axis", "X=0", "--axis", "Z=0", "--compensate",
+                     "--rot-count", "3", "--plot", str(tmp_path / "p"), "--top", "2", echo=True)[0] == 0
     finally:
         os.umask(old)
     err = capsys.readouterr().err
@@ -222,5 +221,5 @@ def test_plots_are_world_readable_and_every_path_is_printed(capsys, tmp_path):
     for f in files:
         assert (f.stat().st_mode & 0o777) == 0o644 and f"fiveaxis: wrote {f}" in err
     (tmp_path / "file").write_text("x")
-    assert main(["gsa", "--axis", "X=0", "--plot", str(tmp_path / "file")]) == 2
+    assert run_cli("gsa", "--axis", "X=0", "--plot", str(tmp_path / "file"), echo=True)[0] == 2
     assert "exists and is not a directory" in capsys.readouterr().err

@@ -34,7 +34,7 @@ def test_interrupted_write_leaves_the_old_module(tmp_path, monkeypatch):
     target = tmp_path / "li2018.py"
     target.write_text("old")
 
-    def boom(src, dst):
+    def boom(src, dst, **kw):
         raise KeyboardInterrupt
 
     from fiveaxis import outputs
@@ -49,9 +49,9 @@ def test_derive_check_detects_a_stale_module(tmp_path):
     for p, _ in codegen.generate("li2018", tmp_path):
         pass
     (tmp_path / "li2018.py").write_text((tmp_path / "li2018.py").read_text() + "# hand edit\n")
-    from fiveaxis.cli import main
-    assert main(["derive", "li2018", "--check", "--out", str(tmp_path)]) == 1
-    assert main(["derive", "li2018", "--check"]) == 0
+    from conftest import run_cli
+    assert run_cli("derive", "li2018", "--check", "--out", str(tmp_path))[0] == 1
+    assert run_cli("derive", "li2018", "--check")[0] == 0
 
 
 def test_loading_a_generated_model_does_not_import_sympy():

@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fiveaxis.compensation import table as C
+from fiveaxis.compensation import folder as CF
+from fiveaxis.compensation import pipeline as CP
 from fiveaxis.estimation import fitted_model as MF
 from fiveaxis.exceptions import InputError
 from fiveaxis.model.error_model import load
@@ -30,11 +31,11 @@ SMALL = ["--nodes", "X=2,Y=2,Z=2", "--poses", "300", "--comp-points", "9"]
 @pytest.fixture(scope="module")
 def fitted(tmp_path_factory):
     """A model file of `fit -o` on li2018, and its folder."""
-    from fiveaxis.cli import main
+    from conftest import run_cli
     d = tmp_path_factory.mktemp("fit")
-    assert main(["simulate", "--n", "200", "--no-time", "--seed", "5", "--effect", "ex_x:x1", "-o",
-                 str(d / "m.csv")]) == 0
-    assert main(["fit", str(d / "m.csv"), "--add", "ex_x:x1", "-o", str(d / "model.json")]) == 0
+    assert run_cli("simulate", "--n", "200", "--no-time", "--seed", "5", "--effect", "ex_x:x1", "-o",
+                 str(d / "m.csv"))[0] == 0
+    assert run_cli("fit", str(d / "m.csv"), "--add", "ex_x:x1", "-o", str(d / "model.json"))[0] == 0
     return d / "model.json"
 
 
@@ -59,14 +60,16 @@ def test_implausible_errors_are_refused_before_anything_is_written(fitted, tmp_p
     1e6 mm or 3 rad gave tables nobody should load."""
     path = _edited(fitted, tmp_path, edit)
     out = tmp_path / "out"
-    rc, _, err = run_cli(capsys, "compensate", path, "-o", out, *SMALL)
+    rc, _, err = run_cli("compensate", path, "-o", out, *SMALL)
     assert rc == 2 and needle in err and "nothing is written for the controller" in err, err
     assert err.count("\n") == 1 and not list(out.rglob("*.*"))
 
 
 def test_tool_lengths_beyond_any_tool_are_refused(fitted, tmp_path, capsys):
-    rc, _, err = run_cli(capsys, "compensate", fitted, "-o", tmp_path / "o", "--tool-lengths", "1e9,2e9", *SMALL)
-    assert rc == 2 and "--tool-lengths: 2e+09 mm: more than 5000 mm, beyond any tool length" in err, err
+    rc, _, err = run_cli("compensate", fitted, "-o", tmp_path / "o", "--tool-lengths", "1e9,2e9", *SMALL)
+    assert rc == 2 and "--tool-lengths '1e9,2e9': 1e+09 mm: expected tool lengths from 0 to 100000 mm" in err, err
+    rc, _, err = run_cli("compensate", fitted, "-o", tmp_path / "o", "--tool-lengths", "9e3,9.5e3", *SMALL)
+    assert rc == 2 and "--tool-lengths: 9500 mm: more than 5000 mm, beyond any tool length" in err, err
 
 
 def test_a_table_worse_than_none_is_refused():
@@ -75,9 +78,9 @@ def test_a_table_worse_than_none_is_refused():
     model = load("ac_trunnion")
     sim = simulate(model, ["ex_x:x1"], n=50, noise=0.0, seed=3)
     fm = truth_model(sim, model)
-    with pytest.raises(InputError, match="damping 0 leaves the corrections unbounded near singular poses"):
-        C.compensate(fm, model, {"X": 2, "Y": 2, "Z": 2}, damping=0.0, comp_points=9, poses=300)
-    comp = C.compensate(fm, model, {"X": 2, "Y": 2, "Z": 2}, comp_points=9, poses=300)
+    with pytest.raises(InputError, match="damping=0 leaves the corrections unbounded near singular poses"):
+        CP.compensate(fm, model, {"X": 2, "Y": 2, "Z": 2}, damping=0.0, comp_points=9, poses=300)
+    comp = CP.compensate(fm, model, {"X": 2, "Y": 2, "Z": 2}, comp_points=9, poses=300)
     tip = comp.account["tip_error_mm"]
     assert tip["after_table"]["rms"] < tip["before"]["rms"]
 
@@ -85,7 +88,7 @@ def test_a_table_worse_than_none_is_refused():
 def test_every_number_written_is_finite(fitted, tmp_path, capsys):
     out = tmp_path / "o"
     out.mkdir()
-    assert run_cli(capsys, "compensate", fitted, "-o", out, *SMALL)[0] == 0
+    assert run_cli("compensate", fitted, "-o", out, *SMALL)[0] == 0
     json.loads((out / "summary.json").read_text(), parse_constant=lambda c: pytest.fail(f"{c} in summary.json"))
     for f in (p for p in (out / "linuxcnc").rglob("*") if p.is_file()):    # the module's C source too
         for line in re.sub(r"/\*.*?\*/", "", f.read_text(), flags=re.S).splitlines():
@@ -102,12 +105,12 @@ def _snapshot(folder: Path) -> dict:
 @pytest.fixture(scope="module")
 def two_sets(fitted, tmp_path_factory):
     """Two complete compensate folders of the same model that differ in every file (nodes, comp points)."""
-    from fiveaxis.cli import main
+    from conftest import run_cli
     d = tmp_path_factory.mktemp("sets")
     for name, nodes, points in (("a", "X=2,Y=2,Z=2", "9"), ("b", "X=3,Y=2,Z=2", "11")):
         (d / name).mkdir()
-        assert main(["compensate", str(fitted), "-o", str(d / name), "--nodes", nodes, "--comp-points", points,
-                     "--poses", "300"]) == 0
+        assert run_cli("compensate", str(fitted), "-o", str(d / name), "--nodes", nodes, "--comp-points", points,
+                     "--poses", "300")[0] == 0
     a, b = _snapshot(d / "a"), _snapshot(d / "b")
     assert set(a) == set(b) and all(a[k] != b[k] for k in ("table.csv", "table.parquet", "linuxcnc/joint0-X.comp"))
     return d, a, b
@@ -120,7 +123,7 @@ class Killed(BaseException):
 def _consistent_or_refused(folder: Path, a: dict, b: dict, model):
     """Readers accept the folder only when every file is of one set."""
     try:
-        C.load_table(folder, model)
+        CF.load_table(folder, model)
         from fiveaxis.report.compensation import read
         read(folder, "li2018")
     except InputError as exc:
@@ -190,7 +193,7 @@ def _writer(data: bytes):
 
 def _seal(b: dict, folder: Path, hashes: dict) -> str:
     record = json.loads(b["summary.json"])
-    record[C.MANIFEST] = {p.relative_to(folder).as_posix(): h for p, h in hashes.items()}
+    record[CF.MANIFEST] = {p.relative_to(folder).as_posix(): h for p, h in hashes.items()}
     return json.dumps(record)
 
 

@@ -1,7 +1,7 @@
 """`fiveaxis dask --scheduler`: a bad address is a one-line error before anything starts (was ValueError)."""
 import pytest
 
-from fiveaxis.cli import main
+from conftest import run_cli
 from fiveaxis.parallel import scheduler_address
 from fiveaxis.exceptions import InputError
 
@@ -27,7 +27,7 @@ from fiveaxis.exceptions import InputError
 def test_bad_scheduler_addresses(capsys, text, expect):
     with pytest.raises(InputError, match=expect):
         scheduler_address(text)
-    assert main(["dask", "--scheduler", text, "--axis", "A=0:1:2"]) == 2
+    assert run_cli("dask", "--scheduler", text, "--axis", "A=0:1:2", echo=True)[0] == 2
     err = capsys.readouterr().err
     assert err.startswith("fiveaxis: error: --scheduler: ") and err.count("\n") == 1 and expect in err
 

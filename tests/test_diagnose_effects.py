@@ -11,7 +11,7 @@ import fiveaxis
 from fiveaxis.diagnosis import diagnose as D
 from fiveaxis.diagnosis import searches as es
 from fiveaxis.estimation import fit as F
-from fiveaxis.cli import main
+from conftest import run_cli
 from fiveaxis.measurement.simulate import simulate
 from fiveaxis.estimation import result as R
 from fiveaxis.report import text
@@ -116,8 +116,10 @@ def test_hidden_exponential_drift_found_with_its_time_constant(model, spec, tau)
 
 def test_search_gains_are_the_drop_of_an_actual_refit(model, periodic_set):
     """The exact gain of a searched candidate is the fall of the weighted RSS when the model is refitted with it
-    (first order), for a periodic and a thermal candidate."""
-    res = F.fit(model, periodic_set.meas, refine=False, robust=False)
+    (first order, least squares: the diagnosis decides on the data alone), for a periodic and a thermal
+    candidate."""
+    from fiveaxis.estimation.priors import PriorSpec
+    res = F.fit(model, periodic_set.meas, refine=False, robust=False, prior=PriorSpec(off=True))
     prob = res.problem
     rw = res.residual * prob.w
     block = res.design.block
@@ -128,7 +130,7 @@ def test_search_gains_are_the_drop_of_an_actual_refit(model, periodic_set):
     found = es.periodic(sums, [band], {"x": [params.index("dx_x")]})
     th = es.thermal(sums, es.tau_grid(prob.meas.t, sums.live), [params.index("ey_x")])
     for f in found + th:
-        again = F.fit(model, periodic_set.meas, [f.effect], refine=False, robust=False)
+        again = F.fit(model, periodic_set.meas, [f.effect], refine=False, robust=False, prior=PriorSpec(off=True))
         drop = float(rw @ rw) - float(np.sum((again.residual * again.problem.w) ** 2))
         assert f.gain == pytest.approx(drop, rel=1e-6)
 
@@ -182,7 +184,7 @@ def test_the_tails_of_a_missing_effect_are_not_outliers(model):
 def test_outliers_by_data_row_of_the_file(capsys, model, tmp_path):
     """The rows listed are the file's data rows (1 = first row under the header), in fit and diagnose JSON."""
     path = tmp_path / "m.csv"
-    assert main(["simulate", "--n", "400", "--seed", "5", "-o", str(path)]) == 0
+    assert run_cli("simulate", "--n", "400", "--seed", "5", "-o", str(path), echo=True)[0] == 0
     lines = path.read_text().splitlines()
     header = lines[0].split(",")
     dz = header.index("dz")
@@ -193,14 +195,14 @@ def test_outliers_by_data_row_of_the_file(capsys, model, tmp_path):
         lines[r] = ",".join(cells)
     path.write_text("\n".join(lines) + "\n")
     capsys.readouterr()
-    assert main(["fit", str(path), "--json"]) == 0
+    assert run_cli("fit", str(path), "--json", echo=True)[0] == 0
     j = json.loads(capsys.readouterr().out)
     assert j["outliers"] == rows and j["rms_mm"] > j["rms_mm_without_outliers"]
     assert [o["reading"] for o in j["outlier_readings"]] == ["dz"] * 3
-    assert main(["diagnose", str(path), "--json", "--top", "1"]) == 0
+    assert run_cli("diagnose", str(path), "--json", "--top", "1", echo=True)[0] == 0
     j = json.loads(capsys.readouterr().out)
     assert j["outliers"] == rows and j["verdict"] == "no missing effect"
-    assert main(["fit", str(path)]) == 0
+    assert run_cli("fit", str(path), echo=True)[0] == 0
     assert "row 17 dz" in capsys.readouterr().out
 
 

@@ -4,7 +4,7 @@ import json
 import pytest
 
 import fiveaxis
-from fiveaxis.cli import main
+from conftest import run_cli
 from fiveaxis.model.error_values import read
 from fiveaxis.exceptions import InputError
 
@@ -44,11 +44,11 @@ def test_model_file_through_the_command(tmp_path, capsys, li):
                    parameters={"ex_x": {"value": 0.0, "std": 1e-6}, "Syz": {"value": 0.0, "std": 1e-6},
                                "Sxy": {"value": None, "std": None}})
     argv = ["gsa", "--convention", "printed", "--axis", "X=0", "--axis", "Z=0", "--errors", str(f)]
-    assert main(argv + ["--json"]) == 0
+    assert run_cli(*argv, "--json", echo=True)[0] == 0
     out = json.loads(capsys.readouterr().out)
     assert out["indices"]["ex_x"] == 0 and out["indices"]["Syz"] == 0
     assert out["settings"]["errors"] == [str(f)] and out["settings"]["errors_undetermined_kept"] == ["Sxy"]
-    assert main(argv) == 0
+    assert run_cli(*argv, echo=True)[0] == 0
     assert "errors: 1 undetermined in the fitted model keep the machine file's values: Sxy" in capsys.readouterr().out
 
 

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from fiveaxis.cli import main
+from conftest import run_cli
 from fiveaxis.exceptions import InputError
 from fiveaxis.model.expressions import MAX_LENGTH, check
 from fiveaxis.model.machine import MACHINES_DIR, load_machine
@@ -25,10 +25,10 @@ def test_effect_expression_cannot_run_code(tmp_path, monkeypatch, capsys):
     """The example of issue 13: `fit --add ls` on it used to create the folder PWNED and exit 0."""
     monkeypatch.chdir(tmp_path)
     monkeypatch.setenv("FIVEAXIS_CACHE", str(tmp_path / "cache"))
-    assert main(["simulate", "--n", "200", "--no-time", "-o", "d.csv"]) == 0
+    assert run_cli("simulate", "--n", "200", "--no-time", "-o", "d.csv", echo=True)[0] == 0
     path = machine_with(tmp_path, PWNED)
     capsys.readouterr()
-    assert main(["fit", "d.csv", "--machine", str(path), "--add", "ls"]) == 2
+    assert run_cli("fit", "d.csv", "--machine", str(path), "--add", "ls", echo=True)[0] == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("fiveaxis: error: ")
     assert str(path) in err and "effects.ls.expr" in err and "__import__" in err

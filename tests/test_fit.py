@@ -1,4 +1,6 @@
 """The fit on simulated data: what it determines is right, what it cannot determine gets no number."""
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -7,7 +9,7 @@ from fiveaxis.estimation import fit as F
 from fiveaxis.measurement.simulate import simulate
 from fiveaxis.estimation import result as R
 from fiveaxis.report import text
-from fiveaxis.estimation.problem import resolve_effects
+from fiveaxis.estimation.problem import machine_effects, resolve_effects
 
 
 @pytest.fixture(scope="module")
@@ -50,10 +52,10 @@ def test_undetermined_parameters_get_no_number(clean):
     # L fixed at 200 mm: ey_A cannot be told from the translations of the rotary axes.
     assert any(set(c["terms"]) == {"dx_B", "ey_A", "dx_A"} for c in j["combinations"])
     out = text.fit(R.to_json(res))
-    alone, relative = out.split("[[Determined relative to")[0], out.split("[[Determined relative to")[1]
+    alone, combined = out.split("[[Determined by this data only as combinations")[:2]
     assert "Syz " not in alone                          # never printed as if determined alone
-    line = next(x for x in relative.splitlines() if x.lstrip().startswith("Syz "))
-    assert "relative to E_AY" in line                  # the squareness, relative to the roll of Y it is seen with
+    line = next(x for x in combined.splitlines() if x.lstrip().startswith("E_A(0Y)Z + E_AY = "))
+    assert "(Syz: " in line                            # the squareness, as the combination it is seen in
 
 
 def test_another_tool_length_separates_ey_A(model):
@@ -103,7 +105,8 @@ def test_identifiable_count_and_bad_effects(model):
     ('[effects.s]\nerror = "dx_x"\nexpr = "x**2"\n', "no parameters"),
     ('[effects.s]\nerror = "dx_x"\nexpr = "p1*(x"\n', "not a valid expression"),
     ('[effects.s]\nerror = "dx_q"\nexpr = "p1*x"\n', "effects.s.error: expected an error name"),
-    ('[model]\neffects = ["ex_x:x7"]\n', "model.effects[0]: expected an effect id"),
+    ('[model]\neffects = ["ex_x:x7"]\n', "model.effects[0]: 'ex_x:x7' is not an effect id"),
+    ('[model]\neffects = ["ex_x:q1"]\n', "model.effects[0]: expected an effect id"),
     ('[model]\neffects = "ex_x:x1"\n', "model.effects: expected a list"),
 ])
 def test_custom_effect_definitions_are_checked(tmp_path, table, expect):
@@ -113,5 +116,6 @@ def test_custom_effect_definitions_are_checked(tmp_path, table, expect):
     path.write_text((MACHINES_DIR / "li2018.toml").read_text() + "\n" + table)
     with pytest.raises(fiveaxis.InputError) as exc:
         machine = load_machine(path)
-        load_custom(machine, "s")
+        machine_effects(SimpleNamespace(machine=machine, errors=machine.error_names))   # ids: by their families
+        load_custom(machine, "s")                      # a custom effect: checked when loaded
     assert expect in str(exc.value) and "\n" not in str(exc.value) and str(path) in str(exc.value)

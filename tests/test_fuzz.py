@@ -24,7 +24,7 @@ from pathlib import Path
 
 import pytest
 
-from fiveaxis.cli import main
+from conftest import run_cli
 from fiveaxis.model.machine import MACHINES_DIR
 
 from conftest import DATA
@@ -290,7 +290,7 @@ def _base_measurements(work: Workspace) -> Path:
     """A small simulated li2018 set with every kind of optional column the reader knows."""
     p = work.root / "base.csv"
     if not p.exists():
-        assert main(["simulate", "--n", "60", "--with-sigma", "--seed", "3", "-o", str(p)]) == 0
+        assert run_cli("simulate", "--n", "60", "--with-sigma", "--seed", "3", "-o", str(p))[0] == 0
     return p
 
 
@@ -429,7 +429,7 @@ def run_case(case: Case, capsys) -> list[str]:
     """Run one case in-process; the list of broken promises (empty when the case passes)."""
     problems = []
     try:
-        rc = main([str(a) for a in case.argv])
+        rc = run_cli(*case.argv, echo=True)[0]
     except SystemExit as exc:              # argparse: usage errors (2) and --help (0)
         rc = exc.code if isinstance(exc.code, int) else 1
     except BaseException:                  # noqa: BLE001 - exactly what must never happen

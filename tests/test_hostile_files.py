@@ -23,10 +23,10 @@ NOBODY = 65534
 @pytest.fixture(scope="module")
 def fitted(tmp_path_factory):
     """A real model file of `fit -o` (li2018, simulated measurements) and its folder."""
-    from fiveaxis.cli import main
+    from conftest import run_cli
     d = tmp_path_factory.mktemp("fitted")
-    assert main(["simulate", "--n", "200", "--no-time", "--seed", "3", "-o", str(d / "m.csv")]) == 0
-    assert main(["fit", str(d / "m.csv"), "-o", str(d / "model.json")]) == 0
+    assert run_cli("simulate", "--n", "200", "--no-time", "--seed", "3", "-o", str(d / "m.csv"))[0] == 0
+    assert run_cli("fit", str(d / "m.csv"), "-o", str(d / "model.json"))[0] == 0
     return d / "model.json"
 
 
@@ -78,8 +78,8 @@ def test_machine_file_of_a_model_file_is_checked_before_it_is_read(fitted, tmp_p
         MF.load_model(fm, str(path))
     msg = str(exc.value)
     assert msg.startswith(f"{path}: machine.file: ") and why in msg and "\n" not in msg, msg
-    rc, out, err = run_cli(capsys, "compensate", path, "-o", tmp_path / "out")
-    assert rc == 2 and why in err and err.count("\n") == 1 and "give it with --machine" in err, err
+    rc, out, err = run_cli("compensate", path, "-o", tmp_path / "out")
+    assert rc == 2 and why in err and err.count("\n") == 1 and "give it with --machine FILE" in err, err
 
 
 def test_an_absolute_or_moved_machine_file_falls_back_to_the_shipped_one(fitted, tmp_path):
@@ -94,23 +94,23 @@ def test_an_absolute_or_moved_machine_file_falls_back_to_the_shipped_one(fitted,
 def test_gsa_and_lsa_read_a_model_file_written_by_fit(fitted, capsys):
     """The documented `gsa --errors model.json` always failed on a `fit -o` file ("a model of {'name': ...")."""
     values = json.loads(fitted.read_text())["errors_mm_rad"]
-    rc, out, err = run_cli(capsys, "gsa", "--axis", "X=0", "--axis", "Y=0", "--errors", fitted, "--json")
+    rc, out, err = run_cli("gsa", "--axis", "X=0", "--axis", "Y=0", "--errors", fitted, "--json")
     assert rc == 0, err
     got = json.loads(out)
     assert got["settings"]["errors"] == [str(fitted)]
     from fiveaxis.model.error_values import read
     from fiveaxis.model.error_model import load
     assert read(load("li2018"), [str(fitted)]).values == values
-    rc, out, err = run_cli(capsys, "lsa", "--errors", fitted, "--json")
+    rc, out, err = run_cli("lsa", "--errors", fitted, "--json")
     assert rc == 0, err
-    rc, out, err = run_cli(capsys, "gsa", "--machine", "ac_trunnion", "--errors", fitted)
-    assert rc == 2 and "key machine.name: a model of 'li2018', not of ac_trunnion" in err
+    rc, out, err = run_cli("gsa", "--machine", "ac_trunnion", "--errors", fitted)
+    assert rc == 2 and "key machine.name: fitted for machine 'li2018', not for 'ac_trunnion'" in err
 
 
 def test_errors_of_a_model_file_for_another_version_of_the_machine_file(fitted, tmp_path, capsys):
     edited = tmp_path / "li2018.toml"
     edited.write_text((MACHINES_DIR / "li2018.toml").read_text() + "\n# edited\n")
-    rc, out, err = run_cli(capsys, "gsa", "--machine", edited, "--axis", "X=0", "--errors", fitted)
+    rc, out, err = run_cli("gsa", "--machine", edited, "--axis", "X=0", "--errors", fitted)
     assert rc == 2 and "key machine.sha256: fitted for another version of the machine file" in err, err
 
 
@@ -175,7 +175,7 @@ def test_a_shared_model_cache_is_refused(tmp_path, monkeypatch, capsys):
     cache.chmod(0o777)
     monkeypatch.setenv("FIVEAXIS_CACHE", str(cache))
     shutil.copy(DATA / "planar.toml", tmp_path / "planar.toml")
-    rc, out, err = run_cli(capsys, "gsa", "--machine", tmp_path / "planar.toml")
+    rc, out, err = run_cli("gsa", "--machine", tmp_path / "planar.toml")
     assert rc == 2 and f"{cache}: has mode 0777" in err and err.count("\n") == 1, err
 
 
@@ -206,7 +206,7 @@ def test_no_writer_follows_a_dangling_link(tmp_path, capsys, argv):
     victims.mkdir()
     for name in ("s.csv", "p.csv", "p.ngc", "s.csv.truth.json", "m.toml", "gsa_pie.png"):
         (out / name).symlink_to(victims / name)
-    rc, _, err = run_cli(capsys, *[a.format(out=out) for a in argv])
+    rc, _, err = run_cli(*[a.format(out=out) for a in argv])
     assert not list(victims.iterdir()), argv
     refused = "not following it" in err or "not writing through it" in err     # a writer of its own files: any link
     assert rc == 2 and refused and err.count("\n") == 1, err
@@ -220,9 +220,9 @@ def test_a_checkout_copy_with_an_edited_machine_file_is_not_served_the_installed
     local = tmp_path / "machines" / "li2018.toml"
     local.write_text((MACHINES_DIR / "li2018.toml").read_text())
     monkeypatch.chdir(tmp_path)
-    assert run_cli(capsys, "gsa", "--axis", "X=0", "--axis", "Y=0")[0] == 0            # the same file: fine
+    assert run_cli("gsa", "--axis", "X=0", "--axis", "Y=0")[0] == 0            # the same file: fine
     local.write_text((MACHINES_DIR / "li2018.toml").read_text().replace("length = 200.0", "length = 150.0"))
-    rc, out, err = run_cli(capsys, "gsa", "--axis", "X=0", "--axis", "Y=0")
+    rc, out, err = run_cli("gsa", "--axis", "X=0", "--axis", "Y=0")
     assert rc == 2 and "./machines/li2018.toml, which differs" in err and err.count("\n") == 1, err
     from fiveaxis.model.machine import load_machine
     assert load_machine(local).tool_length == 150.0           # given as a path, the copy's file is the one read
@@ -262,7 +262,7 @@ def test_error_values_beyond_a_machine_tool_or_an_empty_file(tmp_path, capsys, c
     machine file's values without a word."""
     f = tmp_path / "e.json"
     f.write_text(content)
-    rc, out, err = run_cli(capsys, "gsa", "--axis", "X=0", "--axis", "Y=0", "--errors", f)
+    rc, out, err = run_cli("gsa", "--axis", "X=0", "--axis", "Y=0", "--errors", f)
     if needle is None:
         assert rc == 0, err
         return

@@ -186,17 +186,17 @@ def test_observation_rows_of_partial_and_1d_readings(models):
 
 def test_cli_rtest_on_ac_trunnion_end_to_end(capsys, tmp_path):
     out = tmp_path / "rtest.csv"
-    rc, _, err = run_cli(capsys, "simulate", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "300",
+    rc, _, err = run_cli("simulate", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "300",
                       "--effect", "dx_C:C1=0.01", "--seed", "4", "-o", out)
     assert rc == 0, err
     truth = json.loads((tmp_path / "rtest.csv.truth.json").read_text())
     assert truth["instrument"] == "rtest" and len(truth["setups"]) == 3 and "dx_C:C1" in truth["effects"]
-    rc, text, _ = run_cli(capsys, "fit", out, "--machine", "ac_trunnion")
+    rc, text, _ = run_cli("fit", out, "--machine", "ac_trunnion")
     assert rc == 0 and "[[Setups: placement of the artefacts" in text and "sphere1 (point" in text
-    rc, text, _ = run_cli(capsys, "diagnose", out, "--machine", "ac_trunnion", "--json")
+    rc, text, _ = run_cli("diagnose", out, "--machine", "ac_trunnion", "--json")
     j = json.loads(text)
     assert rc == 0 and j["missing_effect"]
-    rc, text, err = run_cli(capsys, "simulate", "--machine", "ac_trunnion", "--poses", out, "-o", tmp_path / "again.csv")
+    rc, text, err = run_cli("simulate", "--machine", "ac_trunnion", "--poses", out, "-o", tmp_path / "again.csv")
     assert rc == 0, err
 
 
@@ -229,9 +229,9 @@ def test_direction_within_tolerance_is_normalised_with_a_warning(tmp_path, model
 def test_setup_with_too_few_readings_and_unknown_frame(tmp_path, capsys, models):
     p = tmp_path / "s.csv"
     p.write_text("X,Y,Z,A,B,dx,dy,dz,setup\n" + "0,0,0,0,0,0.001,0,0,a\n" * 40 + "10,0,0,0,0,0.001,0,0,b\n")
-    rc, _, err = run_cli(capsys, "fit", p)
+    rc, _, err = run_cli("fit", p)
     assert rc == 2 and err.count("\n") == 1 and "setup 'b' (data rows 41-41)" in err and "at least 4" in err
-    rc, _, err = run_cli(capsys, "fit", p, "--frame", "table")
+    rc, _, err = run_cli("fit", p, "--frame", "table")
     assert rc == 2 and err.count("\n") == 1 and "invalid choice: 'table'" in err
     with pytest.raises(fiveaxis.InputError, match="unknown frame 'table'"):
         read(p, models["li2018"].machine, frame="table")

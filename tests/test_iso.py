@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fiveaxis.model import htm, iso_names as iso
-from fiveaxis.cli import main
+from conftest import run_cli
 from fiveaxis.exceptions import InputError
 from fiveaxis.model.machine import load_machine
 from fiveaxis.estimation.problem import resolve_effects
@@ -168,7 +168,7 @@ def test_model_error_values_by_iso_name():
 
 
 def run(capsys, *argv):
-    rc = main([str(a) for a in argv])
+    rc = run_cli(*argv, echo=True)[0]
     out, err = capsys.readouterr()
     return rc, out, err
 
@@ -197,8 +197,8 @@ def test_sensitivity_errors_by_iso_name(capsys):
 @pytest.fixture(scope="module")
 def measured(tmp_path_factory):
     path = tmp_path_factory.mktemp("iso") / "m.csv"
-    assert main(["simulate", "--effect", "E_AX:x1=2e-5", "--n", "300", "--noise", "0.001", "--seed", "4",
-                 "-o", str(path)]) == 0
+    assert run_cli("simulate", "--effect", "E_AX:x1=2e-5", "--n", "300", "--noise", "0.001", "--seed", "4",
+                 "-o", str(path))[0] == 0
     return path
 
 

@@ -15,6 +15,7 @@ from fiveaxis.iso230 import positioning as P
 from fiveaxis.iso230 import uncertainty as U
 from fiveaxis.measurement.files import read
 from fiveaxis.measurement.simulate import simulate, to_frame
+from fiveaxis.report import iso230_text
 
 from conftest import one_line_error, run_cli
 
@@ -94,7 +95,7 @@ def test_figures_against_the_standards_formulas(model, tmp_path, jitter):
 def test_report_is_the_standards_table(model, tmp_path):
     path, _ = laser_log(model, tmp_path)
     (ev,) = P.evaluate(read(path, model.machine), model)
-    text = P.report(ev, U.none_statement())
+    text = iso230_text.positioning(P.to_json(ev, U.none_statement()))
     for line in ("P_i (mm)", "x_i5 (cycle 5)", "mean x_i + 2 s_i", "R_i = 4 s_i", "B_i", "R_i bidirectional",
                  "bidirectional accuracy", "no uncertainty statement"):
         assert line in text, line
@@ -120,7 +121,7 @@ def test_uncertainty_budget_closed_form():
 
 def test_cli_json_keys_uncertainty_and_plot(model, tmp_path, capsys):
     path, _ = laser_log(model, tmp_path)
-    rc, out, err = run_cli(capsys, "iso230-2", path, "--machine", "ac_trunnion", "--json", "--u-device", "0.3",
+    rc, out, err = run_cli("iso230-2", path, "--machine", "ac_trunnion", "--json", "--u-device", "0.3",
                            "--drift", "0.5", "--plot", tmp_path / "plots")
     assert rc == 0, err
     rec = json.loads(out)["axes"][0]
@@ -129,9 +130,9 @@ def test_cli_json_keys_uncertainty_and_plot(model, tmp_path, capsys):
         assert key in rec, key
     assert rec["uncertainty"]["U_um"]["B"] == pytest.approx(2 * 0.5 / (2 * math.sqrt(3)))
     assert (tmp_path / "plots" / "iso230-2_X_laser-X.png").stat().st_size > 10_000
-    rc, out, _ = run_cli(capsys, "iso230-2", path, "--machine", "ac_trunnion")
+    rc, out, _ = run_cli("iso230-2", path, "--machine", "ac_trunnion")
     assert rc == 0 and "no uncertainty statement" in out and "bidirectional systematic positional deviation" in out
-    rc, _, err = run_cli(capsys, "iso230-2", path, "--machine", "ac_trunnion", "--temperature-deviation", "1")
+    rc, _, err = run_cli("iso230-2", path, "--machine", "ac_trunnion", "--temperature-deviation", "1")
     assert rc == 2 and "--temperature-deviation and --expansion-ppm-per-K: state both" in err
 
 
@@ -188,6 +189,6 @@ def test_cli_bad_input_is_one_line(model, tmp_path, capsys):
     path, df = laser_log(model, tmp_path, cycles=2)
     bad = tmp_path / "up.csv"
     df[df["dir_X"] > 0].to_csv(bad, index=False)
-    rc, out, err = run_cli(capsys, "iso230-2", bad, "--machine", "ac_trunnion")
+    rc, out, err = run_cli("iso230-2", bad, "--machine", "ac_trunnion")
     assert rc == 2 and not out and err.count("\n") == 1 and err.startswith("fiveaxis: error: ")
     assert str(bad) in err and "one direction only" in err

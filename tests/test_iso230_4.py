@@ -14,6 +14,7 @@ import fiveaxis
 from fiveaxis.iso230 import circular as C
 from fiveaxis.measurement.files import read
 from fiveaxis.measurement.simulate import simulate, to_frame
+from fiveaxis.report import iso230_text
 
 from conftest import one_line_error, run_cli
 from test_fuzz import _bad_json_numbers
@@ -146,12 +147,12 @@ def test_ballbar_diagnostics_warn_when_the_fit_is_ill_conditioned(model, circles
     meas = read(path, model.machine)
     diag = C.diagnostics(model, meas, C.evaluate(meas, model), max_rounds=1)
     assert diag["fit"]["condition"] > C.ILL_CONDITIONED and "ill-conditioned" in diag["warnings"][0]
-    assert "warning: the fit behind these sizes is ill-conditioned" in C.report(C.to_json([], diag))
+    assert "warning: the fit behind these sizes is ill-conditioned" in iso230_text.circles(C.to_json([], diag))
 
 
 def test_cli_json_and_polar_plots(model, circles_file, tmp_path, capsys):
     path, _, _ = circles_file
-    rc, out, err = run_cli(capsys, "iso230-4", path, "--json", "--no-diagnosis", "--feed", "1000", "--plot",
+    rc, out, err = run_cli("iso230-4", path, "--json", "--no-diagnosis", "--feed", "1000", "--plot",
                            tmp_path / "plots")
     assert rc == 0, err
     rec = json.loads(out)
@@ -161,7 +162,7 @@ def test_cli_json_and_polar_plots(model, circles_file, tmp_path, capsys):
     assert {"G_um", "G_mz_um", "F_max_um", "F_min_um", "direction"} <= set(c["runs"][0])
     for plane in ("XY", "YZ", "ZX"):
         assert (tmp_path / "plots" / f"iso230-4_{plane}.png").stat().st_size > 10_000
-    rc, out, _ = run_cli(capsys, "iso230-4", path, "--no-diagnosis")
+    rc, out, _ = run_cli("iso230-4", path, "--no-diagnosis")
     assert rc == 0 and "circular hysteresis H (ccw / cw)" in out and "G (MZ)" in out
 
 

@@ -4,6 +4,7 @@ against the NumPy reference and its forward/inverse round trip; the committed so
 refuses; the folder compensate writes appears whole."""
 import math
 import os
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -11,7 +12,8 @@ import pytest
 from kins_library import EFFECTS, Library, fitted_like, gcc_missing
 from conftest import ROOT, SHIPPED
 from fiveaxis.compensation import kinematics as CK
-from fiveaxis.compensation.table import actual_tool
+from fiveaxis.compensation.chain import actual_tool
+from fiveaxis.effects import families as fx
 from fiveaxis.estimation import fitted_model as MF
 from fiveaxis.exceptions import InputError
 from fiveaxis.linuxcnc import kinematics as K
@@ -169,20 +171,76 @@ def test_configuration_files(tmp_path):
         values = CK.module_values(fm, model)
         files = VOL.files(model, values, "// source\n", "fitted model m.json")
         ini, hal, readme = files["fiveaxis.ini"], files["fiveaxis.hal"], files["README.txt"]
-        assert "KINEMATICS = fiveaxis_kins\n" in ini and "JOINTS = 5\n" in ini and "HALFILE = fiveaxis.hal" in ini
+        kins = f"{name}_kins"
+        assert f"KINEMATICS = {kins}\n" in ini and "JOINTS = 5\n" in ini and "HALFILE = fiveaxis.hal" in ini
         rot = [v for v in model.variables if model.machine.axis(v).type == "rotary"]
         assert f"COORDINATES = X Y Z {' '.join(rot)}\n" in ini
         for j, v in enumerate(model.variables):
             assert f"[JOINT_{j}]\n# axis {v} of the machine file" in ini
         for pin, value, _ in values.pins():
             assert f"setp {pin} " in hal
-        assert "net fiveaxis-tool-offset motion.tooloffset.z => fiveaxis_kins.tool-offset" in hal
+        assert f"net fiveaxis-tool-offset motion.tooloffset.z => {kins}.tool-offset" in hal
         (lo, hi) = VOL.world_limits(model)[0]
         P, _ = model.ideal_tool(model.machine.random_poses(2000, np.random.default_rng(1)))
         assert lo < P[:, 0].min() and hi > P[:, 0].max()
         commands = [line for line in readme.splitlines() if line.startswith("$ ")]
         assert commands == ["$ sudo apt-get install linuxcnc-uspace-dev",
-                            "$ sudo halcompile --install fiveaxis_kins.comp", "$ linuxcnc fiveaxis.ini",
-                            "$ halcmd show pin fiveaxis_kins"]
+                            f"$ sudo halcompile --install {kins}.comp", "$ linuxcnc fiveaxis.ini",
+                            f"$ halcmd show pin {kins}"]
     assert "(-650, 650)" in str(VOL.world_limits(load("ac_trunnion"))[0]).replace(".0", "")
 
+
+
+def thermal_model(model, seed=0):
+    """fitted_like with temperature effects: the tool length through a lag, X's scale, an angular error (references
+    20 and 21 degC)."""
+    fm = fitted_like(model, seed)
+    extra = [fx.parse(i, model.machine, model.errors).record((v,)) for i, v in
+             (("L:temp_spindle~600", 1.5e-3), ("dx_x:x.temp_xscale", 0.02), ("ey_z:temp_xscale", 2e-6))]
+    fm.effects = fm.effects + tuple(extra)
+    fm.scales = dict(fm.scales, temp_spindle=fx.Scale("temp_spindle", "temp_spindle", 20.0, 1.0, "degC", 1.0),
+                     temp_xscale=fx.Scale("temp_xscale", "temp_xscale", 21.0, 1.0, "degC", 1.0))
+    return fm
+
+
+@pytest.mark.parametrize("name", ["ac_trunnion", "li2018"])
+def test_c_temperature_slots_are_the_reference(name, tmp_path):
+    """Temperature slots in C against the runtime (errors_at with the temperatures, a steady state) at a warm state
+    (1e-9 mm); at the references the module is the geometric one; a lag's step response is the exact exponential
+    (1e-12 degC); an implausible reading (2000 degC, NaN) is a fault and the slot takes its reference."""
+    reason = gcc_missing()
+    if reason:
+        pytest.skip(reason)
+    model = load(name)
+    fm = thermal_model(model)
+    values = CK.module_values(fm, model)
+    assert values.channels == ("temp_spindle", "temp_xscale") and values.references == (20.0, 21.0)
+    assert [s.channel for s in values.slots[-3:]] == [0, 1, 1] and not values.left_out
+    lib = Library(K.source(model), tmp_path)
+    lib.set(values)
+    q = poses_beyond(model.machine, 300, 7)
+    L = np.full(len(q), model.machine.tool_length)
+    geometric = CK.tool_function(replace(fm, effects=fm.effects[:-3]), model)(q, L)
+    P, V = lib.tool(q, L)
+    assert np.max(np.abs(P - geometric[0])) < 1e-9 and np.max(np.abs(V - geometric[1])) < 1e-12
+    warm = {"temp_spindle": 35.0, "temp_xscale": 24.0}
+    lib.lib.fa_lags_reset(lib.lags)
+    lib.temperatures([35.0, 24.0], 0.0)                  # at rest at the warm state: a steady state
+    P, V = lib.tool(q, L)
+    Pr, Vr = CK.tool_function(fm, model, warm)(q, L)
+    print(f"{name}: C - reference at a warm state: tip {np.max(np.abs(P - Pr)):.1e} mm; thermal part "
+          f"{np.max(np.linalg.norm(Pr - geometric[0], axis=1)) * 1000:.1f} um")
+    assert np.max(np.abs(P - Pr)) < 1e-9 and np.max(np.abs(V - Vr)) < 1e-12
+    assert np.max(np.linalg.norm(Pr - geometric[0], axis=1)) > 0.02
+    # the lag: a step from 20 to 35 degC, 1 s steps
+    lib.lib.fa_lags_reset(lib.lags)
+    lib.temperatures([20.0, 21.0], 0.0)
+    k = len(values.slots) - 3
+    for step in range(1, 601):
+        assert lib.temperatures([35.0, 21.0], 1.0) == 0
+        if step in (1, 60, 600):
+            assert lib.slot_temperature(k) == pytest.approx(35.0 - 15.0 * math.exp(-step / 600.0), abs=1e-12)
+    # implausible readings: the reference, and a fault
+    for bad in (2000.0, float("nan")):
+        assert lib.temperatures([35.0, bad], 1.0) == 1
+        assert lib.slot_temperature(k + 1) == 21.0

@@ -13,7 +13,10 @@ import pytest
 
 import linuxcnc_harness as H
 from truth import truth_model
-from fiveaxis.compensation import table as C
+from fiveaxis.compensation import folder as CF
+from fiveaxis.compensation import pipeline as CP
+from fiveaxis.compensation.chain import actual_tool
+from fiveaxis.compensation.record import summary
 from fiveaxis.estimation import fit as F
 from fiveaxis.linuxcnc import configuration as LX
 from fiveaxis.estimation import fitted_model as MF
@@ -44,8 +47,8 @@ def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("compensate")
     path = tmp_path_factory.mktemp("model") / "model.json"
     MF.save(fm, path)
-    comp = C.compensate(MF.load(path), model, {"X": 2, "Y": 2, "Z": 2}, poses=500)
-    C.write(comp, out, model_path=str(path))
+    comp = CP.compensate(MF.load(path), model, {"X": 2, "Y": 2, "Z": 2}, poses=500)
+    CF.write(comp, out, summary(comp, str(path)), model_path=str(path))
     lc = comp.lc
     # the simulated LinuxCNC configuration: its own base, the snippets compensate wrote, the comp files
     folder = H.new_folder()
@@ -152,7 +155,7 @@ def test_tip_error_falls_as_predicted(run):
 
     def tip(fm, positions):
         E, dL = MF.errors_at(fm, model, positions, dirs=dirs)
-        return C.actual_tool(model, positions, E, dL)[0] - P0
+        return actual_tool(model, positions, E, dL)[0] - P0
 
     measured_after = tip(run["truth"], motor)
     measured_before = tip(run["truth"], q)

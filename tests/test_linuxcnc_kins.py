@@ -21,7 +21,10 @@ from kins_library import fitted_like
 from truth import truth_model
 from fiveaxis.estimation.problem import resolve_effects
 from fiveaxis.compensation import kinematics as CK
-from fiveaxis.compensation import table as C
+from fiveaxis.compensation import folder as CF
+from fiveaxis.compensation import pipeline as CP
+from fiveaxis.compensation.record import summary
+from fiveaxis.compensation.table import compensated_commands
 from fiveaxis.estimation import fit as F
 from fiveaxis.estimation import fitted_model as MF
 from fiveaxis.linuxcnc import configuration as LX
@@ -30,6 +33,7 @@ from fiveaxis.linuxcnc import volumetric as VOL
 from fiveaxis.measurement.simulate import simulate
 from fiveaxis.model import htm
 from fiveaxis.model.error_model import load
+from fiveaxis.model.machine import kins_component
 
 pytestmark = pytest.mark.linuxcnc
 
@@ -83,14 +87,15 @@ def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("compensate")
     path = tmp_path_factory.mktemp("model") / "model.json"
     MF.save(fm, path)
-    comp = C.compensate(MF.load(path), model, {"X": 3, "Y": 3, "Z": 3}, poses=1000)
-    C.write(comp, out, model_path=str(path))
-    vol = C.volumetric_folder(out)
+    comp = CP.compensate(MF.load(path), model, {"X": 3, "Y": 3, "Z": 3}, poses=1000)
+    CF.write(comp, out, summary(comp, str(path)), model_path=str(path))
+    vol = CF.volumetric_folder(out)
     folder = H.new_folder()
     try:
         for f in vol.iterdir():
             (folder / f.name).write_text(f.read_text())
-        build = H.install_module(folder / "fiveaxis_kins.comp")
+        kins = kins_component(model.machine.name, model.convention)       # the module is named after its machine
+        build = H.install_module(folder / f"{kins}.comp")
         L0 = machine.tool_length
         (folder / "fiveaxis.tbl").write_text((vol / "fiveaxis.tbl").read_text() + f"T2 P2 Z{TOOL2_MM:g} D10\n")
         (folder / "sim.ini").write_text(H.merge_ini((vol / "fiveaxis.ini").read_text(),
@@ -101,7 +106,7 @@ def run(tmp_path_factory):
         fmt = "G0 X{:.9f} Y{:.9f} Z{:.9f} A{:.9f} C{:.9f}"
         moves = [[fmt.format(*P0[k], *np.degrees(q[k, 3:]))] for k in range(len(q))]
         moves[N_POSES].insert(0, "G43 H2")
-        pins = ["fiveaxis_kins.iterations", "fiveaxis_kins.failures", "fiveaxis_kins.tool-offset"]
+        pins = [f"{kins}.{p}" for p in ("iterations", "failures", "tool-offset")]
         result = H.run(folder, {"joints": 5, "setup": [], "moves": moves, "pins": pins})
     finally:
         shutil.rmtree(folder, ignore_errors=True)
@@ -123,14 +128,15 @@ def test_module_built_loaded_and_ran_cleanly(run):
     values = run["comp"].module
     for pin, value, _ in values.pins():
         assert pins[pin] == pytest.approx(float(value), abs=1e-12), pin
-    assert all(m["pins"]["fiveaxis_kins.failures"] == 0 for m in res["moves"])
+    kins = run["comp"].module.component
+    assert all(m["pins"][f"{kins}.failures"] == 0 for m in res["moves"])
     span = res["moves"][-1]["t"] - res["moves"][0]["t"]
     print(f"LinuxCNC moved through the {len(res['moves'])} poses in {span:.1f} s")
     assert span < 60.0                           # the configuration's speeds: a 40-pose test in a minute
-    its = [m["pins"]["fiveaxis_kins.iterations"] for m in res["moves"]]
+    its = [m["pins"][f"{kins}.iterations"] for m in res["moves"]]
     print(f"Newton iterations of the module's inverse at the targets: {min(its)} to {max(its)}")
     assert 1 <= max(its) <= K.MAX_ITER
-    offsets = [m["pins"]["fiveaxis_kins.tool-offset"] for m in res["moves"]]
+    offsets = [m["pins"][f"{kins}.tool-offset"] for m in res["moves"]]
     assert offsets[:N_POSES] == [0.0] * N_POSES and offsets[N_POSES:] == [TOOL2_MM] * N_TOOL2
 
 
@@ -168,7 +174,7 @@ def test_true_tip_error_falls_to_the_tables_level(run):
     got = _joints(run["result"]["moves"])[:n]
     module = true_tip(truth, model, got, L0) - P0[:n]
     before = true_tip(truth, model, q[:n], L0) - P0[:n]
-    table = true_tip(truth, model, C.compensated_commands(comp.table, q[:n]), L0) - P0[:n]
+    table = true_tip(truth, model, compensated_commands(comp.table, q[:n]), L0) - P0[:n]
     stock = true_tip(truth, model, LX.linuxcnc_commands(comp.lc, model, q[:n]), L0) - P0[:n]
     tip = comp.account["tip_error_mm"]
     print(f"true tool-tip error RMS over {n} poses (um): uncompensated {1e3 * rms(before):.2f}, stock trt-kins + "
@@ -216,7 +222,7 @@ def other(request):
     try:
         for name, text in VOL.files(model, values, K.source(model)).items():
             (folder / name).write_text(text)
-        H.install_module(folder / "fiveaxis_kins.comp")
+        H.install_module(folder / f"{values.component}.comp")
         (folder / "sim.ini").write_text(H.merge_ini((folder / "fiveaxis.ini").read_text(),
                                                     "[DISPLAY]\nDISPLAY = ./ui.py\n"))
         q = model.machine.random_poses(N_OTHER, np.random.default_rng(8))

@@ -3,7 +3,7 @@ import re
 
 import pytest
 
-from fiveaxis.cli import main
+from conftest import run_cli
 from fiveaxis.exceptions import InputError
 from fiveaxis.model.machine import load_machine
 
@@ -111,11 +111,11 @@ def test_bad_machine_file_one_line_error(tmp_path, capsys, edit, key):
         load_machine(path)
     msg = str(exc.value)
     assert "\n" not in msg and str(path) in msg and key in msg
-    assert main(["table2", "--machine", str(path)]) == 2
+    assert run_cli("table2", "--machine", str(path), echo=True)[0] == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("fiveaxis: error: ") and str(path) in err
 
 
 def test_unknown_machine_name_lists_known(capsys):
-    assert main(["table2", "--machine", "nosuch"]) == 2
+    assert run_cli("table2", "--machine", "nosuch", echo=True)[0] == 2
     assert re.search(r"unknown machine 'nosuch' .*li2018", capsys.readouterr().err)

@@ -15,7 +15,7 @@ HEADER = "X,Y,Z,A,B,dx,dy,dz"
 
 
 def one_line_error(capsys, *argv, expect=()):
-    rc, out, err = run_cli(capsys, *argv)
+    rc, out, err = run_cli(*argv)
     # lines before the error may say that a model is being derived (first use of a machine file)
     err = "".join(line + "\n" for line in err.splitlines() if not line.startswith("fiveaxis: deriving"))
     assert rc == 2 and err.startswith("fiveaxis: error: ") and err.count("\n") == 1, err
@@ -42,7 +42,7 @@ def write_csv(path, table, header=HEADER):
 def test_diagnose_on_exact_zeros_without_sigma(capsys, tmp_path):
     """dx = dy = dz = 0 everywhere, no sigma: was ZeroDivisionError; now an answer: nothing left to explain."""
     p = write_csv(tmp_path / "zeros.csv", rows())
-    rc, out, err = run_cli(capsys, "diagnose", p, "--json")
+    rc, out, err = run_cli("diagnose", p, "--json")
     assert rc == 0, err
     j = json.loads(out)
     assert j["rms_mm"] == 0 and not j["missing_effect"]

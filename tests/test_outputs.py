@@ -10,7 +10,7 @@ import pytest
 
 from fiveaxis import outputs
 from fiveaxis.model import provenance
-from fiveaxis.cli import main
+from conftest import run_cli
 from fiveaxis.exceptions import InputError
 from fiveaxis.model.machine import MACHINES_DIR, load_machine
 
@@ -65,9 +65,9 @@ def test_written_files_follow_the_umask_and_keep_their_mode(tmp_path):
 
 
 def test_measurements_and_machine_copies_are_0644(capsys, tmp_path, umask022):
-    assert run_cli(capsys, "simulate", "--n", "30", "--no-time", "-o", tmp_path / "s.csv")[0] == 0
+    assert run_cli("simulate", "--n", "30", "--no-time", "-o", tmp_path / "s.csv")[0] == 0
     assert mode(tmp_path / "s.csv") == 0o644
-    assert run_cli(capsys, "model", "add", "ex_x:x1", "-o", tmp_path / "m.toml")[0] == 0
+    assert run_cli("model", "add", "ex_x:x1", "-o", tmp_path / "m.toml")[0] == 0
     assert mode(tmp_path / "m.toml") == 0o644
 
 
@@ -120,7 +120,7 @@ def test_model_add_in_place_follows_a_symbolic_link(capsys, tmp_path):
     real.write_text(LI)
     link = tmp_path / "link.toml"
     link.symlink_to(real)
-    rc, _, err = run_cli(capsys, "model", "add", "ex_x:x1", "--machine", link, "--in-place")
+    rc, _, err = run_cli("model", "add", "ex_x:x1", "--machine", link, "--in-place")
     assert rc == 0, err
     assert link.is_symlink() and os.readlink(link) == str(real)
     assert tomllib.loads(real.read_text())["model"]["effects"] == ["ex_x:x1"]
@@ -175,7 +175,7 @@ def test_atomic_writes_have_one_owner():
 @pytest.fixture(scope="module")
 def measured(tmp_path_factory):
     d = tmp_path_factory.mktemp("meas")
-    assert main(["simulate", "--n", "300", "--seed", "2", "-o", str(d / "m.csv")]) == 0
+    assert run_cli("simulate", "--n", "300", "--seed", "2", "-o", str(d / "m.csv"))[0] == 0
     return d / "m.csv"
 
 
@@ -194,7 +194,7 @@ def test_output_under_an_existing_file_is_one_line(capsys, tmp_path, measured, a
     file = tmp_path / "FILE"
     file.write_text("keep me\n")
     argv = [a.format(file=file, tmp=tmp_path, data=measured) for a in argv]
-    rc, _, err = run_cli(capsys, *argv)
+    rc, _, err = run_cli(*argv)
     assert rc == 2 and err.startswith("fiveaxis: error: ") and err.count("\n") == 1, err
     assert str(file) in err and "Traceback" not in err
     assert file.read_text() == "keep me\n"
@@ -224,7 +224,7 @@ def test_model_add_edits_the_toml_structurally(capsys, tmp_path, before, layout)
     text = before + LI if layout != "table" else LI + "\n" + before
     src.write_text(text)
     prior = tomllib.loads(text).get("model", {}).get("effects", [])
-    rc, _, err = run_cli(capsys, "model", "add", "ex_x:x1", "--machine", src, "-o", tmp_path / "out.toml")
+    rc, _, err = run_cli("model", "add", "ex_x:x1", "--machine", src, "-o", tmp_path / "out.toml")
     assert rc == 0, err
     new = (tmp_path / "out.toml").read_text()
     assert tomllib.loads(new)["model"]["effects"] == prior + ["ex_x:x1"]
@@ -242,7 +242,7 @@ def test_a_refused_rename_names_the_file_not_the_temporary(tmp_path, monkeypatch
     target = tmp_path / "m.toml"
     target.write_text("old")
 
-    def refuse(src, dst):
+    def refuse(src, dst, **kw):
         raise PermissionError(1, "Operation not permitted", src, dst)
 
     monkeypatch.setattr(outputs.os, "replace", refuse)

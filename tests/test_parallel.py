@@ -60,3 +60,14 @@ def test_row_blocks_on_two_threads_give_the_numbers_of_one(monkeypatch):
     assert np.array_equal(out["1"][0], out["2"][0]) and np.array_equal(out["1"][1], out["2"][1])
     assert out["1"][2]["decision"] == out["2"][2]["decision"]
     assert out["1"][2]["candidates"] == out["2"][2]["candidates"]
+
+
+def test_one_thread_where_parallel_kernels_cannot_be_entered_from_several(monkeypatch):
+    """numba's workqueue layer (the command line's) aborts the process when two threads enter a parallel kernel:
+    the blocks of a pass then run one after the other, in the calling thread."""
+    monkeypatch.setenv(parallel.THREADS_ENV, "2")
+    monkeypatch.setattr(parallel.numba.config, "THREADING_LAYER", "workqueue")
+    assert not parallel.kernels_threadsafe()
+    assert set(parallel.Local().map(threading.get_ident, [()] * 4)) == {threading.get_ident()}
+    monkeypatch.setattr(parallel.numba.config, "THREADING_LAYER", "tbb")
+    assert parallel.kernels_threadsafe()

@@ -9,8 +9,9 @@ import pytest
 
 import fiveaxis
 from fiveaxis.estimation import fit as F
+from fiveaxis.planning import criterion, exchange, files, pool
 from fiveaxis.planning import plan as P
-from fiveaxis.cli import main
+from conftest import run_cli
 from fiveaxis.diagnosis.diagnose import diagnose
 from fiveaxis.exceptions import InputError
 from fiveaxis.linuxcnc.rs274 import run as run_rs274
@@ -65,7 +66,7 @@ def test_plan_file_round_trip_gives_the_same_poses_and_criterion(models, plans, 
     criterion computed afresh from its design (setups built by fiveaxis.measurement.setups on the plan alone) equals the one
     the optimiser computed from the pool's rows."""
     res = plans[name]
-    path = write(P.to_frame(res), tmp_path / "plan.csv")
+    path = write(files.to_frame(res), tmp_path / "plan.csv")
     back = plan_of_file(path, res.model)
     np.testing.assert_allclose(back.poses, res.plan.poses, rtol=0, atol=1e-6)
     np.testing.assert_allclose(back.L, res.plan.L)
@@ -76,8 +77,8 @@ def test_plan_file_round_trip_gives_the_same_poses_and_criterion(models, plans, 
     if res.plan.u is not None:
         np.testing.assert_allclose(back.u, res.plan.u, atol=1e-9)
     assert set(back.dirs) == set(res.plan.dirs)
-    prob = build(res.model, P.measurements(back, res.model), res.effects, res.model.machine.fixed)
-    D, rank = P.criterion(res.design.ref, prob)
+    prob = build(res.model, pool.measurements(back, res.model), res.effects, res.model.machine.fixed)
+    D, rank = criterion.criterion(res.design.ref, prob)
     assert rank == res.r
     assert D == pytest.approx(res.D, rel=1e-6, abs=1e-6)
 
@@ -95,7 +96,7 @@ def test_tip_plan_is_close_to_the_d_optimal_bound(plans):
     res = plans["tip"]
     dsg = res.design
     X = dsg.X[:, :, dsg.cols("base")]
-    logdet_w, dmax, _ = P.bound(X, tol=1e-4)
+    logdet_w, dmax, _ = exchange.bound(X, tol=1e-4)
     assert dmax < res.r * 1.001                        # the bound is at its optimum (equivalence theorem)
     bound = logdet_w + res.r * math.log(len(res.units))
     assert res.D <= bound + 1e-9
@@ -105,7 +106,7 @@ def test_tip_plan_is_close_to_the_d_optimal_bound(plans):
 def test_rank_k_updates_match_the_information_recomputed(plans):
     """The objective's rank-k updates (Woodbury, matrix determinant lemma) against log dets computed afresh."""
     dsg = plans["rtest"].design
-    obj = P._Objective(dsg, P.objective_terms(dsg))
+    obj = exchange._Objective(dsg, exchange.objective_terms(dsg))
     rng = np.random.default_rng(0)
     chosen = []
     for step in range(40):
@@ -170,7 +171,7 @@ def test_named_effect_found_at_the_planned_poses_where_random_plans_miss_it(mode
     res = P.make(model, instrument, n, effects=[spec.split("=")[0]], seed=0, random_plans=1)
     assert all(_found(model, res.plan, spec, 100 + s) for s in range(3))
     rr = np.random.default_rng(1000)
-    hits = sum(_found(model, P.subplan(res.design.pool, P.random_units(res.design, len(res.units), rr)), spec,
+    hits = sum(_found(model, pool.subplan(res.design.pool, exchange.random_units(res.design, len(res.units), rr)), spec,
                       200 + s) for s in range(6))
     assert hits <= 2, hits
 
@@ -178,30 +179,30 @@ def test_named_effect_found_at_the_planned_poses_where_random_plans_miss_it(mode
 # -- the command and bad input ----------------------------------------------------------------------------------
 def test_cli_writes_csv_and_gcode_and_simulate_reads_the_plan(tmp_path, capsys):
     out = tmp_path / "plan.csv"
-    assert main(["plan", "--machine", "ac_trunnion", "--instrument", "probe-sphere", "--n", "10", "-o", str(out),
-                 "--json"]) == 0
+    assert run_cli("plan", "--machine", "ac_trunnion", "--instrument", "probe-sphere", "--n", "10", "-o", str(out),
+                 "--json", echo=True)[0] == 0
     j = json.loads(capsys.readouterr().out, parse_constant=lambda c: pytest.fail(f"{c} in the JSON"))
     assert j["n"] == 10 and j["criterion"]["rank"] == j["criterion"]["identifiable_directions"]
     assert (tmp_path / "plan.ngc").read_text().rstrip().endswith("%")
     sim = tmp_path / "sim.csv"
-    assert main(["simulate", "--machine", "ac_trunnion", "--poses", str(out), "-o", str(sim), "--seed", "3"]) == 0
+    assert run_cli("simulate", "--machine", "ac_trunnion", "--poses", str(out), "-o", str(sim), "--seed", "3")[0] == 0
     model = fiveaxis.load("ac_trunnion")
     meas = read(sim, model.machine)
     assert meas.frame == "machine" and meas.n == 10
-    assert main(["fit", str(sim), "--machine", "ac_trunnion"]) == 0
+    assert run_cli("fit", str(sim), "--machine", "ac_trunnion")[0] == 0
 
 
 def test_json_has_no_infinity_when_random_plans_are_rank_deficient(tmp_path, capsys):
     """Random ballbar plans of four circles on li2018 often miss a plane: their D is -inf, printed as null."""
-    assert main(["plan", "--machine", "li2018", "--instrument", "ballbar", "--n", "96", "-o",
-                 str(tmp_path / "b.csv"), "--json"]) == 0
+    assert run_cli("plan", "--machine", "li2018", "--instrument", "ballbar", "--n", "96", "-o",
+                 str(tmp_path / "b.csv"), "--json", echo=True)[0] == 0
     j = json.loads(capsys.readouterr().out, parse_constant=lambda c: pytest.fail(f"{c} in the JSON"))
     assert j["criterion"]["D"] is not None
     assert j["random"]["D_median"] is None and None in j["random"]["D"] and j["worth_random_poses"] is None
 
 
 def _error(capsys, argv):
-    assert main(argv) == 2
+    assert run_cli(*argv, echo=True)[0] == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("fiveaxis: error:") and "\n" not in err and "Traceback" not in err, err
     return err
@@ -237,5 +238,5 @@ def test_bad_input(tmp_path, capsys):
     err = _error(capsys, ["plan", "--machine", "li2018", "--n", "20", "-o", out])
     assert "exists" in err and "--force" in err
     assert (tmp_path / "p.csv").read_text() == "keep me\n"
-    assert main(["plan", "--machine", "li2018", "--n", "20", "-o", out, "--force"]) == 0
+    assert run_cli("plan", "--machine", "li2018", "--n", "20", "-o", out, "--force")[0] == 0
     assert read(tmp_path / "p.csv", fiveaxis.load("li2018").machine, readings_required=False).n == 20

@@ -17,9 +17,11 @@ import fiveaxis
 from fiveaxis.exceptions import InputError
 from fiveaxis.linuxcnc.rs274 import run as run_rs274
 from fiveaxis.measurement import instruments as ins
+from fiveaxis.measurement.instruments import paths
 from fiveaxis.measurement.files import read, write
-from fiveaxis.planning import motion, safety
+from fiveaxis.planning import files, motion, safety
 from fiveaxis.planning import plan as P
+from fiveaxis.report import plan_text
 
 from conftest import run_cli
 
@@ -155,9 +157,24 @@ def to_poses(machine, model, pts, tool, mode):
     return np.column_stack([lin, rot])
 
 
+def given_words(path) -> dict:
+    """line -> the axis letters its words give (comments dropped), read from the program's text here."""
+    out = {}
+    for k, line in enumerate(path.read_text().splitlines(), 1):
+        code = re.sub(r"\([^)]*\)", "", line).upper()
+        out[k] = set(re.findall(r"([XYZABC])\s*[-+]?[\d.]", code))
+    return out
+
+
 def reference(machine, model, path, mode, L):
-    """The independent sampling of a program: per move (line, kind, poses (k, 5), mounted state, tool length)."""
+    """The independent sampling of a program: per move (line, kind, poses (k, 5), mounted state, tool length).
+    Moves before every axis word has been given start from wherever the machine is: left out (their lines in the
+    first step's "start")."""
     steps = canonical(path)
+    words = given_words(path)
+    letters = set(v.upper() for v in model.variables) if mode == "joint" else \
+        {"X", "Y", "Z"} | {v.upper() for v in model.variables if model.machine.axis(v).type == "rotary"}
+    known, start = set(), []
     out, prev, mounted, probing_next = [], None, None, False
     for st in steps:
         if st[0] == "comment":
@@ -171,6 +188,11 @@ def reference(machine, model, path, mode, L):
                 L = float(text.split("length=")[1])
             continue
         _, kind, line, end, arc, tool = st
+        if known != letters:
+            known |= words.get(line, set()) & letters
+            if known != letters:
+                start.append(line)
+                continue
         if prev is None:
             pts = end[None, :]
         else:
@@ -179,7 +201,8 @@ def reference(machine, model, path, mode, L):
         q = to_poses(machine, model, pts, tool, mode)
         if mounted is not None and mounted["q"] is None:
             mounted["q"] = q[-1]
-        out.append({"line": line, "kind": kind, "q": q, "mounted": mounted, "L": Lm, "after_probe": probing_next})
+        out.append({"line": line, "kind": kind, "q": q, "mounted": mounted, "L": Lm, "after_probe": probing_next,
+                    "start": start})
         probing_next = kind == "STRAIGHT_PROBE"
         prev = end
     return out
@@ -199,7 +222,7 @@ def _to_segment(p, a, b):
 def stylus_points_clearance(tip, axis, centre):
     """The probe's stylus (its ball, and 81 points along its shank) against the sphere and its stem (a segment
     below the centre): the smallest gap (mm)."""
-    g = ins.PROBE
+    g = ins.REGISTRY["probe-sphere"].geometry
     s = np.linspace(0, g.shank_length_mm, 81)
     shank = tip[:, None, :] - s[None, :, None] * axis[:, None, :]
     stem_end = centre - np.array([0.0, 0.0, g.stem_length_mm])
@@ -236,11 +259,13 @@ def independent_worst(machine, model, steps, instrument):
     hi = np.array([model.machine.axis(v).model_stroke[1] for v in model.variables])
     rot = np.array([model.machine.axis(v).type == "rotary" for v in model.variables])
     how = "min" if instrument == "probe-sphere" else "max"
-    out = {"stroke": -np.inf, "by_line": {}, "rapids": 0}
+    out = {"stroke": -np.inf, "by_line": {}, "rapids": 0, "margin_mm": np.inf, "margin_deg": np.inf}
     for st in steps:
         ex = np.maximum(lo - st["q"], st["q"] - hi)
         ex[:, rot] = np.degrees(ex[:, rot])
         out["stroke"] = max(out["stroke"], float(ex.max()))
+        out["margin_mm"] = min(out["margin_mm"], float(-ex[:, ~rot].max()))
+        out["margin_deg"] = min(out["margin_deg"], float(-ex[:, rot].max()))
         ref = st["mounted"]
         if ref is None:
             continue
@@ -300,7 +325,7 @@ def made(models, machine, instrument, tmp_path_factory, mode=None):
         d = tmp_path_factory.mktemp(f"{machine}-{instrument}-{mode}")
         prog = d / "plan.ngc"
         prog.write_text(motion.program(model, res.plan, res.setup_notes, "test", mode=res.kinematics))
-        csv = write(P.to_frame(res), d / "plan.csv")
+        csv = write(files.to_frame(res), d / "plan.csv")
         _MADE[key] = (res, prog, csv)
     return _MADE[key]
 
@@ -323,8 +348,10 @@ CASES = [(m, i) for m in MACHINES for i in PLANS] + [("li2018", "rtest", "tcp"),
                                                      ("ac_trunnion", "rtest", "joint"), ("ac_trunnion", "ballbar",
                                                                                           "joint")]
 CASES = [c if len(c) == 3 else (*c, None) for c in CASES]
-LIMIT_OF = {"rtest": ins.RTEST.limit_mm, "ballbar": ins.BALLBAR.limit_mm, "probe-sphere": ins.PROBE.clearance_limit_mm,
-            "interferometer": ins.INTERFEROMETER.limit_mm, "tracker": ins.TRACKER.limit_deg}
+GEOMETRY = {name: r.geometry for name, r in ins.REGISTRY.items()}
+LIMIT_OF = {"rtest": GEOMETRY["rtest"].limit_mm, "ballbar": GEOMETRY["ballbar"].limit_mm,
+            "probe-sphere": GEOMETRY["probe-sphere"].clearance_limit_mm,
+            "interferometer": GEOMETRY["interferometer"].limit_mm, "tracker": GEOMETRY["tracker"].limit_deg}
 
 
 @pytest.mark.parametrize("machine, instrument, mode", CASES)
@@ -339,12 +366,15 @@ def test_every_move_keeps_the_instrument_within_its_limits(rs274, models, tmp_pa
     assert f"kinematics={mode}" in prog.read_text()
     back = read(csv, model.machine, readings_required=False)
     chk = safety.check(prog, model, instrument, plan_poses=back.poses, plan_L=back.L)
-    assert chk.ok, safety.report(chk)
+    assert chk.ok, plan_text.check(chk)
     assert chk.kinematics == mode and chk.kinematics_source == "the program's header"
     steps = reference(machine, model, prog, mode, model.machine.tool_length)
     ind = independent_worst(machine, model, steps, instrument)
     assert ind["stroke"] <= 1e-6, ind["stroke"]                            # no sample outside the strokes
     assert chk.stroke_excess <= 1e-6 and chk.stroke_violations == 0
+    # every sample keeps the default margins from the stroke ends (the words' rounding: 1e-3)
+    assert ind["margin_mm"] >= ins.MARGIN_MM - 1e-3 and ind["margin_deg"] >= ins.MARGIN_DEG - 1e-3, ind
+    assert chk.margin_violations == 0
     if instrument in LIMIT_OF:
         mine = chk.worst[0].value
         theirs = ind["value"][0]
@@ -352,7 +382,7 @@ def test_every_move_keeps_the_instrument_within_its_limits(rs274, models, tmp_pa
             assert ind["rapids"] == 0                                      # no G0 with the sphere on the table
             assert theirs >= LIMIT_OF[instrument] and mine >= LIMIT_OF[instrument]
             assert abs(mine - theirs) <= 0.05, (mine, theirs)              # the reference's shank is 81 points
-            assert ind["clearance_rotary"][0] >= ins.PROBE.near_mm
+            assert ind["clearance_rotary"][0] >= GEOMETRY["probe-sphere"].near_mm
             assert abs(chk.worst[1].value - ind["clearance_rotary"][0]) <= 0.05
         else:
             if instrument == "interferometer":
@@ -371,6 +401,68 @@ def test_every_move_keeps_the_instrument_within_its_limits(rs274, models, tmp_pa
         assert np.degrees(np.max(np.abs(got[:, ~lin] - back.poses[:, ~lin]))) <= 1e-6
     else:
         assert pc["max_rotary_deg"] <= 1e-6 and pc["max_line_offset_mm"] <= 5e-4
+
+
+def _travel(machine):
+    """The Z joint at the travel height (mm): the end of its stroke that takes the spindle up (the chain here: Z
+    up on li2018 and ac_trunnion, down on tilting_head), less the margin and the clearance."""
+    lo, hi = {"li2018": (-250, 250), "ac_trunnion": (-250, 250), "tilting_head": (0, 700)}[machine]
+    clear = ins.MARGIN_MM + paths.TRAVEL_CLEAR_MM
+    return lo + clear if machine == "tilting_head" else hi - clear
+
+
+@pytest.mark.parametrize("machine, instrument, mode", CASES)
+def test_a_program_starts_up_and_leaves_as_it_states(rs274, models, tmp_path_factory, machine, instrument, mode):
+    """Issue 32's done criterion, read from the program and rs274's output here: the first move is a G53 G0 of Z
+    alone to the travel height (joint mode: the Z joint; tcp: the gauge point's table Z with the table level,
+    which the chain here makes the Z joint); before the instrument is first mounted (or the first pose reached)
+    the rotary axes turn only with the spindle at that height; each exit retract moves the tool tip along its
+    axis, the rotary axes still, by the length its comment states, which is the instrument's retract_mm unless
+    the program says where the tool stops and why; the program ends with the spindle at the travel height."""
+    model = models[machine]
+    res, prog, _ = made(models, machine, instrument, tmp_path_factory, mode)
+    mode = res.kinematics
+    text = prog.read_text()
+    lines = text.splitlines()
+    first = next(ln for ln in lines if re.sub(r"\([^)]*\)", "", ln).strip()[:2] in ("G0", "G1", "G2", "G3", "G5")
+                 and re.search(r"[XYZABC]-?[\d.]", ln))
+    m = re.fullmatch(r"G53 G0 Z(-?[\d.]+)", first)
+    q = np.zeros((1, 5))
+    q[0, model.variables.index("Z")] = _travel(machine)
+    want = _travel(machine) if mode == "joint" else chain(machine, q, 0.0)[0][0, 2]     # tcp: the gauge point's Z
+    assert m and float(m.group(1)) == pytest.approx(want, abs=1e-4), first
+    steps = reference(machine, model, prog, mode, model.machine.tool_length)
+    rot = np.array([model.machine.axis(v).type == "rotary" for v in model.variables])
+    iz = model.variables.index("Z")
+    # the rotary axes turn only at the travel height until the instrument is mounted or the first pose reached
+    marks = [k for k, ln in enumerate(lines, 1) if ln.startswith(("(fiveaxis: mount", "(fiveaxis: pose"))]
+    before = [st for st in steps if st["line"] < marks[0]]
+    final = before[-1]["q"][-1]
+    for st in before:
+        turned = np.max(np.abs(st["q"][:, rot] - final[rot]), axis=1) > 1e-9
+        assert np.all(np.abs(st["q"][turned, iz] - _travel(machine)) <= 0.02), (st["line"], machine, instrument)
+    # the exit retracts
+    g = ins.REGISTRY[instrument].geometry
+    stated = [(k, float(re.search(r"length=([\d.]+)", ln).group(1))) for k, ln in enumerate(lines, 1)
+              if ln.startswith("(fiveaxis: retract")]
+    assert bool(stated) == (instrument in ("rtest", "ballbar"))
+    by_line = {st["line"]: st for st in steps}
+    for k, length in stated:
+        after, j = [], k + 1
+        while j in by_line and by_line[j]["kind"] == "STRAIGHT_FEED":      # the feed moves right after it
+            after.append(by_line[j])
+            j += 1
+        a = next(st for st in reversed(steps) if st["line"] < k)["q"][-1]
+        b = after[-1]["q"][-1] if after else a
+        L = after[0]["L"] if after else steps[0]["L"]
+        (t0, t1), (ax, _) = chain(machine, np.vstack([a, b]), L)
+        d = t1 - t0
+        assert np.linalg.norm(d) == pytest.approx(length, abs=1e-3), (k, length)
+        assert d @ -ax == pytest.approx(np.linalg.norm(d), abs=1e-6) and np.allclose(a[rot], b[rot], atol=1e-12)
+        if length < g.retract_mm:
+            assert f"the exit retract stops after {length:g} of {g.retract_mm:g} mm" in text
+    # the end: the spindle at the travel height
+    assert steps[-1]["q"][-1, iz] == pytest.approx(_travel(machine), abs=1e-3)
 
 
 def _marked_poses(machine, model, prog, mode):
@@ -461,7 +553,7 @@ def test_an_edited_program_that_breaks_a_limit_is_refused_with_line_and_deviatio
     lines, edited = _edit(kind, prog.read_text().splitlines(), model, res.kinematics)
     bad = tmp_path / "edited.ngc"
     bad.write_text("\n".join(lines) + "\n")
-    rc, out, err = run_cli(capsys, "plan", "--check", bad, "--machine", machine, "--instrument", instrument)
+    rc, out, err = run_cli("plan", "--check", bad, "--machine", machine, "--instrument", instrument)
     assert rc == 2 and "REFUSED" in out, (what, out)
     assert err.startswith("fiveaxis: error: refused:") and "\n" not in err.strip(), err
     assert f"line {edited}:" in err, (what, err)
@@ -471,7 +563,7 @@ def test_an_edited_program_that_breaks_a_limit_is_refused_with_line_and_deviatio
     if kind == "stroke":
         assert value == pytest.approx(1.5, abs=1e-3) and ind["stroke"] == pytest.approx(1.5, abs=1e-3)
     elif kind == "probe_rapid":
-        assert value < ins.PROBE.near_mm and ind["rapids"] == 1
+        assert value < GEOMETRY["probe-sphere"].near_mm and ind["rapids"] == 1
         assert ind["by_line"][edited] == pytest.approx(value, abs=0.05)
     else:
         assert ind["by_line"][edited] == pytest.approx(value, rel=0.02, abs=2e-3), (value, ind["by_line"][edited])
@@ -506,23 +598,61 @@ def test_rules_without_a_limit_are_refused(rs274, models, tmp_path_factory, tmp_
 # -- the command --------------------------------------------------------------------------------------------------
 def test_plan_writes_a_checked_program_and_check_reports_it(rs274, tmp_path, capsys):
     out = tmp_path / "rt.csv"
-    rc, stdout, err = run_cli(capsys, "plan", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "12",
+    rc, stdout, err = run_cli("plan", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "12",
                               "-o", out)
     assert rc == 0, err
     assert "[[Check]]" in stdout and "tcp kinematics" in stdout and "verdict: every move keeps" in stdout
-    rc, stdout, err = run_cli(capsys, "plan", "--check", tmp_path / "rt.ngc", "--machine", "ac_trunnion",
+    rc, stdout, err = run_cli("plan", "--check", tmp_path / "rt.ngc", "--machine", "ac_trunnion",
                               "--poses", out, "--json")
     assert rc == 0, err
     import json
     j = json.loads(stdout)
     assert j["ok"] and j["kinematics"] == "tcp" and j["instrument"] == "rtest"
-    assert j["limits"][0]["worst"] <= ins.RTEST.limit_mm and j["strokes"]["moves_outside"] == 0
+    assert j["limits"][0]["worst"] <= GEOMETRY["rtest"].limit_mm and j["strokes"]["moves_outside"] == 0
     assert j["poses"]["marked"] == 12 and j["poses"]["max_linear_mm"] <= 1e-6
-    rc, _, err = run_cli(capsys, "plan", "--check", tmp_path / "rt.ngc", "--machine", "ac_trunnion",
+    rc, _, err = run_cli("plan", "--check", tmp_path / "rt.ngc", "--machine", "ac_trunnion",
                          "--instrument", "ballbar")
     assert rc == 2 and "for instrument rtest, not ballbar" in err
-    rc, _, err = run_cli(capsys, "plan", "--check", tmp_path / "rt.ngc", "--machine", "li2018")
+    rc, _, err = run_cli("plan", "--check", tmp_path / "rt.ngc", "--machine", "li2018")
     assert rc == 2 and "for machine ac_trunnion, not li2018" in err
+
+
+def test_the_documented_two_tool_length_rtest_is_made_and_passes_its_check(rs274, tmp_path, capsys):
+    """docs/plan.md's R-test with two tool lengths (issue 32: "no path within the strokes", then its own checker
+    refused the program): written, with a tool change at the travel height, and `plan --check` passes it."""
+    out = tmp_path / "rt2.csv"
+    rc, stdout, err = run_cli("plan", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "30",
+                              "--tool-lengths", "100,200", "-o", out)
+    assert rc == 0, err
+    assert "the second tool length adds" in stdout and "verdict: every move keeps" in stdout
+    text = (tmp_path / "rt2.ngc").read_text()
+    assert text.count("(fiveaxis: tool length=") == 2
+    rc, stdout, err = run_cli("plan", "--check", tmp_path / "rt2.ngc", "--machine", "ac_trunnion",
+                              "--poses", out)
+    assert rc == 0 and "verdict: every move keeps" in stdout, err
+    assert "margins (1 mm, 0.5 deg)" in stdout and "the first `G53 G0 Z" in stdout
+
+
+def test_when_a_plan_cannot_be_made_it_says_what_to_change(rs274, tmp_path, capsys):
+    """Too few candidates (a tool so long the tip cannot reach the spheres): the one-line error names what to
+    change; margins that leave an axis no room are refused; a tighter margin than the program keeps is refused by
+    the checker with the line."""
+    rc, _, err = run_cli("plan", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "12",
+                         "--tool-lengths", "450", "-o", tmp_path / "a.csv")
+    assert rc == 2 and "what to change: a shorter tool (--tool-lengths) or smaller margins (--margin)" in err, err
+    assert not (tmp_path / "a.csv").exists() and not (tmp_path / "a.ngc").exists()
+    rc, _, err = run_cli("plan", "--machine", "li2018", "--n", "12", "--margin", "30,40",
+                         "-o", tmp_path / "b.csv")
+    assert rc == 2 and "no room within its stroke" in err and "A" in err, err
+    rc, _, err = run_cli("plan", "--machine", "li2018", "--n", "12", "--margin", "x", "-o", tmp_path / "b.csv")
+    assert rc == 2 and "--margin: expected MM or MM,DEG" in err
+    out = tmp_path / "c.csv"
+    rc, _, err = run_cli("plan", "--machine", "li2018", "--n", "12", "--margin", "5,2", "-o", out)
+    assert rc == 0, err
+    rc, stdout, _ = run_cli("plan", "--check", tmp_path / "c.ngc", "--machine", "li2018", "--margin", "5,2")
+    assert rc == 0 and "margins (5 mm, 2 deg)" in stdout
+    rc, stdout, err = run_cli("plan", "--check", tmp_path / "c.ngc", "--machine", "li2018", "--margin", "20")
+    assert rc == 2 and "from the end of its stroke (margin 20 mm)" in err, err
 
 
 def test_a_program_without_a_header_needs_the_kinematics(rs274, models, tmp_path):

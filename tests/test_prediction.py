@@ -12,7 +12,10 @@ from truth import truth_model
 from fiveaxis.estimation.problem import resolve_effects
 from fiveaxis.compensation import kinematics as CK
 from fiveaxis.compensation import prediction as PR
-from fiveaxis.compensation import table as C
+from fiveaxis.compensation import pipeline as CP
+from fiveaxis.compensation.account import account
+from fiveaxis.compensation.correction import fitted_errors
+from fiveaxis.compensation.record import summary
 from fiveaxis.estimation import fit as F
 from fiveaxis.estimation import fitted_model as MF
 from fiveaxis.report import text as T
@@ -32,10 +35,10 @@ def case(request):
     sim = simulate(model, EFFECTS, n=1000, noise=1e-3, seed=4, instrument=request.param)
     res = F.fit(model, sim.meas, resolve_effects(model, EFFECTS))
     fm = MF.from_fit(res)
-    comp = C.compensate(fm, model, {"X": 3, "Y": 3, "Z": 3}, poses=1000)
+    comp = CP.compensate(fm, model, {"X": 3, "Y": 3, "Z": 3}, poses=1000)
     truth = truth_model(sim, model)
     module = (lambda q, dirs, fn: CK.predicted(fm, model, comp.module, fn, q, dirs))
-    true = C.account(model, C.fitted_errors(truth, model), comp.table, comp.lc, 1000, 0, module=module)
+    true = account(model, fitted_errors(truth, model), comp.table, comp.lc, 1000, 0, module=module)
     return request.param, model, sim, fm, comp, true
 
 
@@ -89,13 +92,13 @@ def test_rtest_campaign_is_flagged_and_the_measurement_named(case):
     assert any("not what the machine will show" in w for w in warns)
     best = unc["determining"]["best"]
     assert best["determines_share"] > 0.99 and "tip readings over the whole workspace" in best["measurement"]
-    text = "\n".join(T.compensation(C.summary(comp)).splitlines())
+    text = "\n".join(T.compensation(summary(comp)).splitlines())
     assert "WARNING" in text and best["command"] in text
 
 
 def test_summary_carries_the_prediction(case, tmp_path):
     instrument, model, sim, fm, comp, true = case
-    s = C.summary(comp)
+    s = summary(comp)
     json.dumps(s)                                   # finite numbers only
     assert s["prediction_uncertainty"]["tip_error_mm"]["after_table"]["range_k2"]
     assert "model estimates" in s["predicted_axis_error_note"]
@@ -114,9 +117,190 @@ def test_model_files_without_covariance_say_so(case, tmp_path):
     path.write_text(json.dumps(data))
     old = MF.load(path)
     assert old.covariance is None and PR.band(old, model, sim.meas.poses, None, 150.0, {}, {}) == {}
-    assert "unknown" in PR.text_lines({})[0]
+    assert "unknown" in T.prediction_lines({}, [])[0]
     data = json.loads(MF.load.__globals__["json"].dumps(MF.to_json(fm)))
     data["covariance_mm_rad"]["matrix"][0] = [1.0]
     path.write_text(json.dumps(data))
     with pytest.raises(InputError, match="covariance_mm_rad: key 'matrix'"):
         MF.load(path)
+
+
+# -- the part's set-up and the k = 2 ranges -------------------------------------------------------------------------
+def _setup_removed(e, tip, axis):
+    """Plain least squares: e (n, 3) minus its best translation + rotation about axis through the origin."""
+    A = np.zeros((len(tip), 3, 4))
+    A[:, :, :3] = np.eye(3)
+    A[:, :, 3] = np.cross(axis, tip)
+    x, *_ = np.linalg.lstsq(A.reshape(-1, 4), e.reshape(-1), rcond=None)
+    return e - (A.reshape(-1, 4) @ x).reshape(e.shape)
+
+
+def _rms(e) -> float:
+    return float(np.sqrt(np.mean(np.sum(np.asarray(e) ** 2, axis=1))))
+
+
+@pytest.mark.parametrize("machine, axis", [("ac_trunnion", "C"), ("tilting_head", "C"),
+                                           ("li2018", "the tool axis at the zero pose")])
+def test_the_part_setup_is_a_work_offset_and_a_rotation_about_the_table(machine, axis):
+    """What probing the part sets: a translation and a rotation about the table's axis (the rotary axis the part
+    sits on; the vertical on a machine without one) leave nothing; anything else is left as plain least squares
+    leaves it."""
+    model = load(machine)
+    rng = np.random.default_rng(1)
+    q = model.machine.random_poses(300, rng)
+    tip = model.ideal_tool(q, model.tool_lengths(None, len(q)))[0]
+    sr = PR.SetupRemoval.at(model.machine, tip)
+    assert sr.axis_name == axis and abs(abs(sr.axis[2]) - 1.0) < 1e-12
+    offset = np.array([0.02, -0.01, 0.005]) + 3e-5 * np.cross([0.0, 0.0, 1.0], tip)
+    assert _rms(sr.remove(offset)) < 1e-12
+    e = rng.normal(0, 0.01, (len(q), 3)) + offset
+    np.testing.assert_allclose(sr.remove(e), _setup_removed(e, tip, np.array([0.0, 0.0, 1.0])), atol=1e-12)
+    tilt = 3e-5 * np.cross([1.0, 0.0, 0.0], tip)          # a tilt of the part: not what probing sets
+    assert _rms(sr.remove(tilt)) > 0.3 * _rms(tilt)
+
+
+def test_the_k2_range_is_the_quantiles_of_the_rms_over_drawn_machines(case):
+    """The range (singular values, 20,000 draws) against machines drawn one by one from the same distribution,
+    their errors at the poses computed with the full Jacobian and the RMS taken plainly; raw and set-up removed."""
+    instrument, model, sim, fm, comp, _ = case
+    rng = np.random.default_rng(5)
+    q = model.machine.random_poses(300, rng)
+    L = model.tool_lengths(None, len(q))
+    e = rng.normal(0, 0.004, (len(q), 3))
+    unc = PR.band(fm, model, q, None, L, {"stage": e}, {}, None)
+    J, _ = PR.parameter_jacobians(fm, model, q, L)
+    scales = PR.prior_scales(fm, model)
+    m, Su = PR._undetermined_covariance(fm, np.array([scales[u] ** 2 for u in PR._units(fm, fm.parameter_names)]))
+    D = rng.multivariate_normal(m, Su + np.asarray(fm.covariance), size=4000, method="eigh")
+    drawn = e[None] + np.einsum("nkp,dp->dnk", J, D)                    # (draws, n, 3)
+    tip = model.ideal_tool(q, L)[0]
+    z = rng.standard_normal(len(D))
+
+    def workspace_rms(x):
+        """RMS over the workspace of a drawn machine known at the 300 poses: their mean square plus its sampling
+        error (the spread of the squared errors over the poses / sqrt(n)), drawn."""
+        sq = np.sum(x ** 2, axis=2)
+        return np.sqrt(np.clip(sq.mean(axis=1) + z * sq.std(axis=1) / math.sqrt(sq.shape[1]), 0, None))
+    raw = workspace_rms(drawn)
+    sr = workspace_rms(np.array([_setup_removed(x, tip, np.array([0.0, 0.0, 1.0])) for x in drawn]))
+    for got, plain in ((unc["tip_error_mm"]["stage"], raw), (unc["tip_error_mm"]["stage"]["setup_removed"], sr)):
+        lo, hi = np.percentile(plain, [2.275, 97.725])
+        spread = np.std(plain)
+        print(f"{instrument}: range {1e3 * got['range_k2'][0]:.3f} to {1e3 * got['range_k2'][1]:.3f} um, drawn "
+              f"one by one {1e3 * lo:.3f} to {1e3 * hi:.3f} um")
+        assert abs(got["range_k2"][0] - lo) < 0.15 * spread
+        assert abs(got["range_k2"][1] - hi) < 0.15 * spread
+    assert unc["tip_error_mm"]["stage"]["expected_rms"] ** 2 == pytest.approx(np.mean(np.sum(drawn ** 2, axis=2)),
+                                                                              rel=0.02)
+
+
+# -- issue 29's check: an R-test of 40 planned poses at controller resolution, the truth from the NumPy chain -------
+LOCATION = ("dYOA", "dZOA", "SBOA", "SCOA", "dXOC", "dYOC", "SAOC", "SBOC")
+#: What makes linear axes bad: squareness, a scale error and straightness the R-test's model does not hold.
+BAD_AXES = {"dx_x:x1": 0.015, "dy_x:x2": 0.010, "dz_y:y2": -0.008, "ex_y:y1": 2e-5}
+
+
+def _true_errors(model, q, base, effects):
+    """Error values per pose (n, 41): the base values plus polynomial effects c u^deg, u the axis position scaled
+    to its stroke (written here from the effect grammar, not through fiveaxis.effects)."""
+    E = np.tile([base[n] for n in model.errors], (len(q), 1))
+    for ident, c in effects.items():
+        param, spec = ident.split(":")
+        var = next(v for v in model.variables if v.lower() == spec[0])
+        lo, hi = model.machine.axis(var).model_stroke
+        u = (q[:, list(model.variables).index(var)] - 0.5 * (lo + hi)) / (0.5 * (hi - lo))
+        E[:, list(model.errors).index(param)] += c * u ** int(spec[1:])
+    return E
+
+
+@pytest.fixture(scope="module", params=[pytest.param("good", marks=pytest.mark.slow),
+                                        pytest.param("bad", marks=pytest.mark.slow)])
+def rtest_campaign(request, tmp_path_factory):
+    """ac_trunnion, rotary location errors of 10-30 um / urad, the linear axes good (errors of 0.5 um and 1 urad)
+    or bad (also BAD_AXES); an R-test of 40 planned poses (`plan`), simulated (1 um noise), written as a controller
+    writes it (0.001 mm, 0.0001 deg, readings to 0.01 um), fitted, compensated (3 nodes per linear axis); the true
+    tool-tip error over 2000 random poses before and after the table from the NumPy chain (model/htm.py)."""
+    from conftest import run_cli
+    from fiveaxis.compensation.table import compensated_commands
+    from fiveaxis.measurement.files import read
+    from fiveaxis.model import htm
+    import pandas as pd
+    kind = request.param
+    d = tmp_path_factory.mktemp(f"rtest_{kind}")
+    model = load("ac_trunnion")
+    machine = model.machine
+    rng = np.random.default_rng(11)
+    base = {}
+    for n in model.errors:
+        ang = machine.is_angular(n)
+        if n in LOCATION:
+            base[n] = float(rng.choice([-1, 1]) * rng.uniform(10, 30) * (1e-6 if ang else 1e-3))
+        else:
+            base[n] = float(rng.normal(0, 1e-6 if ang else 0.5e-3))
+    effects = BAD_AXES if kind == "bad" else {}
+    assert run_cli("plan", "--machine", "ac_trunnion", "--instrument", "rtest", "--n", "40", "-o", str(d / "plan.csv"),
+                 "--gcode", str(d / "plan.ngc"))[0] == 0
+    sim = ["simulate", "--machine", "ac_trunnion", "--poses", str(d / "plan.csv"), "--seed", "11",
+           "-o", str(d / "raw.csv")]
+    sim += [a for n, v in base.items() for a in ("--error", f"{n}={v!r}")]
+    sim += [a for e, v in effects.items() for a in ("--effect", f"{e}={v!r}")]
+    assert run_cli(*sim)[0] == 0
+    df = pd.read_csv(d / "raw.csv")
+    for c, digits in (("X", 3), ("Y", 3), ("Z", 3), ("A", 4), ("C", 4), ("dx", 5), ("dy", 5), ("dz", 5)):
+        df[c] = df[c].round(digits)
+    df.to_csv(d / "meas.csv", index=False)
+    meas = read(d / "meas.csv", machine)
+    fm = MF.from_fit(F.fit(model, meas))
+    comp = CP.compensate(fm, model, {"X": 3, "Y": 3, "Z": 3}, poses=2000)
+    q = machine.random_poses(2000, np.random.default_rng(12))
+    L = machine.tool_length
+    E = _true_errors(model, q, base, effects)
+    P0, _ = htm.tool(machine, q, L)
+    before = htm.tool(machine, q, L, E)[0] - P0
+    cmd = compensated_commands(comp.table, q)
+    after = htm.tool(machine, cmd, L, _true_errors(model, cmd, base, effects))[0] - P0
+    truth = {}
+    for key, e in (("before", before), ("after_table", after)):
+        sr = _setup_removed(e, P0, np.array([0.0, 0.0, 1.0]))
+        # the truth over 2000 poses is itself a sample of the workspace: its standard error (mean square)
+        truth[key] = {"raw": (_rms(e), np.std(np.sum(e ** 2, axis=1)) / math.sqrt(len(e))),
+                      "setup_removed": (_rms(sr), np.std(np.sum(sr ** 2, axis=1)) / math.sqrt(len(sr)))}
+    return kind, comp, truth
+
+
+def _inside(rng, value, se) -> bool:
+    """value (an RMS over a sample of poses whose mean square has standard error se) within the k = 2 range."""
+    lo, hi = rng
+    return math.sqrt(max(lo ** 2 - 2 * se, 0.0)) <= value <= math.sqrt(hi ** 2 + 2 * se)
+
+
+def test_rtest_prediction_holds_on_the_true_machine(rtest_campaign):
+    """Issue 29's check: the predicted k = 2 range of the workspace error after the table and the part's set-up
+    contains the true machine's and is at most 3x as wide as it (or 2 um); raw and before, the ranges contain the
+    truth too; on a machine with bad linear axes nothing gets worse."""
+    kind, comp, truth = rtest_campaign
+    unc = comp.account["uncertainty"]["tip_error_mm"]
+    for key in ("before", "after_table"):
+        for view in ("raw", "setup_removed"):
+            band = unc[key] if view == "raw" else unc[key]["setup_removed"]
+            value, se = truth[key][view]
+            print(f"{kind} {key} {view}: true {1e3 * value:.2f} um, predicted k = 2 range "
+                  f"{1e3 * band['range_k2'][0]:.2f} to {1e3 * band['range_k2'][1]:.2f} um (fitted model "
+                  f"{1e3 * band['predicted_rms']:.2f} um)")
+            assert _inside(band["range_k2"], value, se), (key, view)
+    lo, hi = unc["after_table"]["setup_removed"]["range_k2"]
+    after, before = truth["after_table"]["setup_removed"][0], truth["before"]["setup_removed"][0]
+    assert hi - lo <= max(3 * after, 0.002)
+    assert after <= before
+
+
+@pytest.mark.xfail(strict=True, reason="the fit's minimum-norm values of what an R-test cannot see leave 66 % here "
+                                       "(19-35 % on four other draws); the errors' physical sizes as a prior in the "
+                                       "estimator (issue 29, priors) bring it to 4 % (3-4 % on the others)")
+def test_rtest_compensation_leaves_a_quarter_on_good_linear_axes(rtest_campaign):
+    kind, comp, truth = rtest_campaign
+    if kind != "good":
+        pytest.skip("the good machine's criterion")
+    after, before = truth["after_table"]["setup_removed"][0], truth["before"]["setup_removed"][0]
+    print(f"true RMS after the part's set-up: before {1e3 * before:.2f} um, after the table {1e3 * after:.2f} um")
+    assert after <= 0.25 * before

@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 import fiveaxis
-from fiveaxis.compensation import table as CT
+from fiveaxis.compensation import folder as CF
+from fiveaxis.compensation import pipeline as CP
+from fiveaxis.compensation.record import summary
 from fiveaxis.diagnosis import diagnose as D
 from fiveaxis.effects import families as fx
 from fiveaxis.estimation import fit as F
@@ -20,7 +22,6 @@ from fiveaxis.linuxcnc import configuration as lx
 from fiveaxis.measurement import instruments as ins
 from fiveaxis.measurement.files import read
 from fiveaxis.measurement.simulate import simulate, to_frame
-from fiveaxis.model import effect_ids as ids
 
 NOISE = 1e-3
 
@@ -31,10 +32,10 @@ def model():
 
 
 def test_grammar_and_knots(model):
-    e = ids.split("dx_x:xk100", ["x", "y", "z", "A", "C", "t"])
-    assert (e.kind, e.arg, e.text) == ("profile", 100.0, "dx_x:xk100")
-    assert ids.split("dx_x:tk100", ["x", "t"]) is None and ids.split("dx_x:xk0", ["x"]) is None
-    assert "k<spacing>" in ids.explain("dx_x:xq5", ["x"])
+    fam, parts = fx.split("dx_x:xk100", ["x", "y", "z", "A", "C", "t"])
+    assert (fam.NAME, parts, fam.format(*parts)) == ("profile", ("dx_x", "x", 100.0), "dx_x:xk100")
+    assert fx.split("dx_x:tk100", ["x", "t"]) is None and fx.split("dx_x:xk0", ["x"]) is None
+    assert "k<spacing>" in fx.explain("dx_x:xq5", ["x"])
     eff = fx.parse("dx_x:xk100", model.machine, model.errors)
     assert eff.knots == tuple(float(k) for k in range(-400, 401, 100))
     assert eff.names[0] == "dx_x:xk100@-400" and len(eff.names) == 9
@@ -95,7 +96,7 @@ class TargetErrors:
 
 @pytest.fixture(scope="module")
 def lead_screw(model, tmp_path_factory):
-    plan = ins.interferometer(model, 0, np.random.default_rng(31), targets=9, axes=["X"])
+    plan = ins.plan("interferometer", model, 0, np.random.default_rng(31), targets=9, axes=["X"])
     targets = tuple(np.unique(plan.poses[:, 0]))
     v = np.random.default_rng(32).uniform(-1, 1, 9)
     values = 0.030 * (v - v.min()) / np.ptp(v) - 0.015                   # 30 um spread
@@ -131,15 +132,15 @@ def test_lead_screw_comp_file_leaves_the_noise(model, lead_screw, tmp_path):
     path = MF.save(fm, tmp_path / "model.json")
     fm = MF.load(path)                                                # through the file
     assert [e.kind for e in fm.effects] == ["reversal", "profile"] and fm.effects[1].arg == 100.0
-    comp = CT.compensate(fm, model, counts={v: 9 if v == "X" else 2 for v in model.variables}, poses=200)  # X: knots
+    comp = CP.compensate(fm, model, counts={v: 9 if v == "X" else 2 for v in model.variables}, poses=200)  # X: knots
     (tmp_path / "comp").mkdir()
-    CT.write(comp, tmp_path / "comp")
+    CF.write(comp, tmp_path / "comp", summary(comp))
     nominal, fwd, rev = lx.read_comp_file(tmp_path / "comp" / "linuxcnc" / "joint0-X.comp")
     assert list(nominal) == list(range(-400, 401, 100))               # the trims sit at the profile's knots
     assert np.median(fwd - rev) == pytest.approx(-0.025, abs=0.001)    # the reversal: forward 25 um below reverse
     before = simulate(model, effects, noise=NOISE, seed=33, plan=plan)
     after = simulate(model, effects, noise=NOISE, seed=33, plan=plan,
-                     commands=CT.linuxcnc_function(tmp_path / "comp", model))
+                     commands=CF.linuxcnc_function(tmp_path / "comp", model))
     spread = lambda du: float(np.sqrt(np.mean((du - du.mean()) ** 2)))      # noqa: E731  (the dead path aside)
     assert spread(before.meas.du) > 10 * NOISE
     assert spread(after.meas.du) <= 1.25 * NOISE
@@ -150,21 +151,21 @@ def test_lead_screw_comp_file_leaves_the_noise(model, lead_screw, tmp_path):
 def test_lead_screw_through_the_command_line(model, lead_screw, tmp_path, capsys):
     from conftest import run_cli
     _, _, _, path = lead_screw
-    rc, out, err = run_cli(capsys, "diagnose", path, "--machine", "ac_trunnion", "--add", "dx_x:xr", "--top", "2")
+    rc, out, err = run_cli("diagnose", path, "--machine", "ac_trunnion", "--add", "dx_x:xr", "--top", "2")
     assert rc == 0, err
     assert "1. dx_x:xk100" in out and "a per-position positioning error profile of X" in out
-    rc, out, err = run_cli(capsys, "fit", path, "--machine", "ac_trunnion", "--add", "dx_x:xr", "--add",
+    rc, out, err = run_cli("fit", path, "--machine", "ac_trunnion", "--add", "dx_x:xr", "--add",
                            "dx_x:xk100", "-o", tmp_path / "m.json")
     assert rc == 0, err
-    rc, out, err = run_cli(capsys, "compensate", tmp_path / "m.json", "-o", tmp_path / "c", "--nodes",
+    rc, out, err = run_cli("compensate", tmp_path / "m.json", "-o", tmp_path / "c", "--nodes",
                            "X=9,Y=2,Z=2,A=2,C=2", "--poses", "100")
     assert rc == 0, err
-    rc, out, err = run_cli(capsys, "simulate", "--machine", "ac_trunnion", "--instrument", "interferometer",
+    rc, out, err = run_cli("simulate", "--machine", "ac_trunnion", "--instrument", "interferometer",
                            "--axes", "X", "--targets", "9", "--effect", "dx_x:xr=0.0125", "--seed", "3", "-o",
                            tmp_path / "after.csv", "--compensation", tmp_path / "c", "--linuxcnc")
     assert rc == 0 and "compensated by LinuxCNC with" in err, err
-    rc, _, err = run_cli(capsys, "simulate", "--machine", "ac_trunnion", "--effect", "dx_x:xk100=0.01", "-o",
+    rc, _, err = run_cli("simulate", "--machine", "ac_trunnion", "--effect", "dx_x:xk100=0.01", "-o",
                          tmp_path / "x.csv")
     assert rc == 2 and "--effect dx_x:xk100=0.01: a profile needs its value at each of its 9 knots (-400, -300" in err
-    rc, _, err = run_cli(capsys, "simulate", "--machine", "ac_trunnion", "--linuxcnc", "-o", tmp_path / "x.csv")
+    rc, _, err = run_cli("simulate", "--machine", "ac_trunnion", "--linuxcnc", "-o", tmp_path / "x.csv")
     assert rc == 2 and "--linuxcnc applies the LinuxCNC files of a compensation folder" in err

@@ -6,7 +6,7 @@ from html.parser import HTMLParser
 
 import pytest
 
-from fiveaxis.cli import main
+from conftest import run_cli
 from fiveaxis.exceptions import InputError
 from fiveaxis.report import compensation as C
 from fiveaxis.report import html, record
@@ -138,11 +138,11 @@ def _png(path):
 def test_compensation_folder(tmp_path, example):
     """The report reads the folder `fiveaxis compensate` writes: the predicted tip error per stage, the map, the
     files for the controller; a summary for another machine or a damaged number is a one-line error."""
-    from fiveaxis.cli import main
+    from conftest import run_cli
     d = tmp_path
-    assert main(["simulate", "--n", "300", "--seed", "2", "--effect", "ex_x:x1", "-o", str(d / "m.csv")]) == 0
-    assert main(["fit", str(d / "m.csv"), "--add", "ex_x:x1", "-o", str(d / "model.json")]) == 0
-    assert main(["compensate", str(d / "model.json"), "-o", str(d / "comp"), "--poses", "300", "--plot"]) == 0
+    assert run_cli("simulate", "--n", "300", "--seed", "2", "--effect", "ex_x:x1", "-o", str(d / "m.csv"))[0] == 0
+    assert run_cli("fit", str(d / "m.csv"), "--add", "ex_x:x1", "-o", str(d / "model.json"))[0] == 0
+    assert run_cli("compensate", str(d / "model.json"), "-o", str(d / "comp"), "--poses", "300", "--plot")[0] == 0
     summary = json.loads((d / "comp" / "summary.json").read_text())
     comp = C.read(d / "comp", "li2018")
     assert [st["key"] for st in comp["stages"]][0] == "before"
@@ -167,13 +167,13 @@ def test_compensation_folder(tmp_path, example):
 def test_compensation_by_tool_length(tmp_path, example):
     """A table over tool lengths (`compensate --tool-lengths`): the report shows the predicted error at each length,
     the numbers of summary.json's predicted_by_tool_length; a damaged length is a one-line error."""
-    from fiveaxis.cli import main
+    from conftest import run_cli
     d = tmp_path
-    assert main(["simulate", "--n", "300", "--seed", "2", "--effect", "ex_x:x1", "-o", str(d / "m.csv")]) == 0
-    assert main(["fit", str(d / "m.csv"), "--add", "ex_x:x1", "-o", str(d / "model.json")]) == 0
+    assert run_cli("simulate", "--n", "300", "--seed", "2", "--effect", "ex_x:x1", "-o", str(d / "m.csv"))[0] == 0
+    assert run_cli("fit", str(d / "m.csv"), "--add", "ex_x:x1", "-o", str(d / "model.json"))[0] == 0
     nodes = [a for v in ("X=2", "Y=2", "Z=2", "A=3", "B=3") for a in ("--nodes", v)]
-    assert main(["compensate", str(d / "model.json"), "-o", str(d / "comp"), "--poses", "400",
-                 "--tool-lengths", "150,250", *nodes]) == 0
+    assert run_cli("compensate", str(d / "model.json"), "-o", str(d / "comp"), "--poses", "400",
+                 "--tool-lengths", "150,250", *nodes)[0] == 0
     summary = json.loads((d / "comp" / "summary.json").read_text())
     comp = C.read(d / "comp", "li2018")
     by = comp["by_tool_length"]
@@ -184,7 +184,7 @@ def test_compensation_by_tool_length(tmp_path, example):
         assert r["after_table"]["rms"] == e["tip_error_mm"]["after_table"]["rms"] < r["before"]["rms"]
     rep = record.Report(dict(example.record, compensation=comp), dict(example.figures))
     page = html.render(rep)
-    assert 'id="compensation-by-tool-length"' in page and "200 (between)" in page
+    assert 'id="compensation-by-tool-length"' in page and "200 (between)" in re.sub(r"<[^>]+>", "", page)
     bad = json.loads(json.dumps(summary))
     bad["predicted_by_tool_length"][1]["tool_length_mm"] = -5
     (d / "comp" / "summary.json").write_text(json.dumps(bad))
@@ -201,7 +201,7 @@ def test_people_units():
 
 def run(capsys, *argv):
     try:
-        rc = main([str(a) for a in argv])
+        rc = run_cli(*argv, echo=True)[0]
     except SystemExit as exc:
         rc = exc.code
     out, err = capsys.readouterr()
@@ -210,8 +210,8 @@ def run(capsys, *argv):
 
 def test_cli_writes_once_and_refuses_to_overwrite(capsys, tmp_path):
     small = tmp_path / "small.csv"
-    assert main(["simulate", "--effect", "E_AX:x1=2e-5", "--n", "200", "--seed", "5", "--with-sigma",
-                 "-o", str(small)]) == 0
+    assert run_cli("simulate", "--effect", "E_AX:x1=2e-5", "--n", "200", "--seed", "5", "--with-sigma",
+                 "-o", str(small))[0] == 0
     out = tmp_path / "r.html"
     rc, stdout, err = run(capsys, "report", small, "-o", out, "--rounds", "2", "--no-sensitivity", "--json")
     assert rc == 0 and f"wrote {out}" in err and out.stat().st_mode & 0o044 == 0o044
@@ -226,3 +226,24 @@ def test_cli_writes_once_and_refuses_to_overwrite(capsys, tmp_path):
     assert rc == 2 and err.count("\n") == 1 and "unknown parameter 'E_QX'" in err
     rc, _, err = run(capsys, "report", small, "-o", tmp_path / "q.html", "--compensation", tmp_path / "nope")
     assert rc == 2 and "compensation folder not found" in err and not (tmp_path / "q.html").exists()
+
+
+@pytest.mark.slow
+def test_calibration_loop_is_written_once(capsys, example):
+    """`diagnose --rounds` (the loop make run shows) and the report run the same loop: the same rounds, the same
+    residuals, the same effects added, each round adding the previous round's best candidate."""
+    rc, out, err = run(capsys, "diagnose", EXAMPLE, "--rounds", "4", "--top", "5", "--json")
+    assert rc == 0, err
+    js = json.loads(out)["rounds"]
+    rounds = example.record["rounds"]
+    assert [j["added"] for j in js] == [r["added"] for r in rounds]
+    assert [j["rms_mm"] * 1e3 for j in js] == pytest.approx([r["rms_um"] for r in rounds], rel=1e-9)
+    for a, b in zip(js, js[1:]):
+        assert a["verdict"] == "missing effect" and b["added"] == a["added"] + [a["candidates"][0]["id"]]
+    assert js[-1]["verdict"] != "missing effect"
+    rc, text, _ = run(capsys, "diagnose", EXAMPLE, "--rounds", "4", "--top", "2")
+    trail = " -> ".join(f"{j['rms_mm_without_outliers'] * 1000:.4g} um" for j in js)
+    assert rc == 0 and text.count("[[Diagnosis]]") == len(js) and f"residual RMS {trail} against noise" in text
+    assert f"effects found: {', '.join(js[-1]['added'])}; verdict: {js[-1]['verdict']}" in text
+    rc, _, err = run(capsys, "diagnose", EXAMPLE, "--rounds", "0")
+    assert rc == 2 and err.count("\n") == 1 and "--rounds" in err

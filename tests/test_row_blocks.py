@@ -21,12 +21,15 @@ from fiveaxis.model.error_model import load
 from fiveaxis.measurement.files import read
 from fiveaxis.estimation import result as R
 
-FIVEAXIS = [sys.executable, "-m", "fiveaxis.cli"]
+from conftest import run_cli
+
+FIVEAXIS = [sys.executable, "-m", "fiveaxis.cli"]       # its own process: a Dask client, a memory bound
 
 
 def simulate(tmp_path, name, *args):
     out = tmp_path / name
-    subprocess.run(FIVEAXIS + ["simulate", *args, "-o", str(out), "--force"], check=True, capture_output=True)
+    rc, _, err = run_cli("simulate", *args, "-o", out, "--force")
+    assert rc == 0, err
     return out
 
 
@@ -51,7 +54,12 @@ def assert_same_fit(a: R.FitResult, b: R.FitResult):
     np.testing.assert_allclose([c.value for c in b.combinations], [c.value for c in a.combinations],
                                rtol=1e-6, atol=1e-9 * max([c.std for c in a.combinations] + [1e-300]))
     assert b.rms_mm == pytest.approx(a.rms_mm, rel=1e-9)
-    np.testing.assert_allclose(b.residual, a.residual, atol=1e-9 * np.max(np.abs(a.residual)))
+    # the residuals differ by what the parameters' difference explains (first order: |A| |theta_a - theta_b|; the
+    # prior-decided parameters of a MAP fit are large, 200 um, and differ by rounding between the two paths) and
+    # rounding
+    dtheta = np.abs(a.theta - b.theta)
+    explained = np.concatenate(a.design.map(lambda block: np.abs(block.A) @ dtheta))    # in memory or in blocks
+    np.testing.assert_array_less(np.abs(b.residual - a.residual), 2 * explained + 1e-9 * np.max(np.abs(a.residual)))
     assert list(a.outliers.data_rows) == list(b.outliers.data_rows)
     assert b.known_sigma == a.known_sigma and b.sigma2 == pytest.approx(a.sigma2, rel=1e-9)
 

@@ -71,7 +71,7 @@ def test_payloads_run_in_rs274_but_not_through_fiveaxis(rs274, tmp_path, marker,
         subprocess.run([rs274, "-g", str(path)], cwd=tmp_path, capture_output=True, timeout=60)
         assert marker.exists() == live, f"control: rs274 {'did not run' if live else 'ran'} {name}"
         marker.unlink(missing_ok=True)
-    rc, out, err = run_cli(capsys, "lsa", "--machine", "ac_trunnion", "--toolpath", path)
+    rc, out, err = run_cli("lsa", "--machine", "ac_trunnion", "--toolpath", path)
     assert not marker.exists(), f"{name}: code ran through fiveaxis"
     assert rc == 2 and err.count("\n") == 1 and "Traceback" not in err, err
     assert f"{path}: line " in err, err

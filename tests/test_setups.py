@@ -90,8 +90,8 @@ def test_what_the_placement_hides_is_said_with_the_measurement_that_would_separa
 def test_rigid_part_rotation_recovered(model):
     """A part measured in 3-D (tip readings), placed with a rotation about all three axes: every placement unknown
     and combination the data determines matches the truth within 3 standard uncertainties."""
-    from fiveaxis.measurement.instruments import tip
-    plan = tip(model, 300, np.random.default_rng(5))
+    from fiveaxis.measurement import instruments as ins
+    plan = ins.plan("tip", model, 300, np.random.default_rng(5))
     plan.setup = np.array(["block"] * plan.n, dtype=object)
     plan.setup_kind, plan.setup_frame = {"block": "rigid"}, {"block": "workpiece"}
     sim = simulate(model, [], noise=NOISE, seed=5, plan=plan, with_sigma=True,

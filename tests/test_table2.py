@@ -1,11 +1,11 @@
 """Table 2: 18 groups for li2018; the printed table reproduced except the documented typos; the S_yz move."""
 import json
-import subprocess
-import sys
 
 import sympy as sp
 
 from fiveaxis.model.machine import load_machine
+
+from conftest import run_cli
 from fiveaxis_derive.model import derive_model
 from fiveaxis_derive.table2 import groups, printed_table, reconcile, to_json, to_latex
 
@@ -63,12 +63,12 @@ def test_latex_table():
 
 
 def test_cli_table2_json_end_to_end():
-    out = subprocess.run([sys.executable, "-m", "fiveaxis.cli", "table2", "--machine", "li2018", "--json"],
-                         capture_output=True, text=True, check=True).stdout
+    rc, out, err = run_cli("table2", "--machine", "li2018", "--json")
+    assert rc == 0, err
     from fiveaxis.model.iso_names import table
     iso = {n: e.iso for n, e in table(load_machine("li2018")).items()}
     assert json.loads(out) == to_json(model("equations"), iso)
     assert json.loads(out)["groups"][0]["iso"] == ["E_AX"]
-    out = subprocess.run([sys.executable, "-m", "fiveaxis.cli", "table2", "--convention", "printed", "--reconcile"],
-                         capture_output=True, text=True, check=True).stdout
+    rc, out, err = run_cli("table2", "--convention", "printed", "--reconcile")
+    assert rc == 0, err
     assert "17 of 18 printed rows match" in out and "row  8 differs" in out

@@ -15,7 +15,7 @@ import pytest
 import fiveaxis
 from fiveaxis.linuxcnc import rs274 as gcode
 from fiveaxis.sensitivity import surfaces, toolpath
-from fiveaxis.cli import main
+from conftest import run_cli
 from fiveaxis.exceptions import InputError
 
 CENTRE = np.array([50.0, 30.0, 20.0])     # sphere centre in the workpiece frame (mm), off the trunnion's axes
@@ -99,7 +99,7 @@ def numpy_pl(model, q, E, L0, LE, normals=None, order=16):
 
 
 def run_json(capsys, argv):
-    assert main(argv + ["--json"]) == 0, capsys.readouterr().err
+    assert run_cli(*argv, "--json", echo=True)[0] == 0, capsys.readouterr().err
     return json.loads(capsys.readouterr().out)
 
 
@@ -163,7 +163,7 @@ def test_without_normals_the_output_says_so_and_mode_0_matches_numpy(rs274, caps
     names = list(out["indices"])
     np.testing.assert_allclose([out["indices"][n] for n in names], [ref[trunnion.errors.index(n)] for n in names],
                                rtol=1e-9, atol=1e-15)
-    assert main(["lsa", "--machine", "ac_trunnion", "--toolpath", str(program)] + STEP) == 0
+    assert run_cli("lsa", "--machine", "ac_trunnion", "--toolpath", program, *STEP, echo=True)[0] == 0
     assert "normals: none: LSIL without the surface normal N" in capsys.readouterr().out
 
 
@@ -202,7 +202,7 @@ def test_inches_and_offsets_are_machine_positions_in_mm(rs274, tmp_path, trunnio
 def test_bad_gcode_is_one_line(rs274, capsys, tmp_path, text, needle):
     f = tmp_path / "bad.ngc"
     f.write_text(text)
-    assert main(["lsa", "--machine", "ac_trunnion", "--toolpath", str(f)]) == 2
+    assert run_cli("lsa", "--machine", "ac_trunnion", "--toolpath", str(f), echo=True)[0] == 2
     err = capsys.readouterr().err
     assert err.startswith("fiveaxis: error: ") and needle in err and len(err.strip().splitlines()) == 1, err
     assert str(f) in err
@@ -228,7 +228,7 @@ def test_rejected_line_is_the_source_line_even_with_n_words_and_block_delete(rs2
 def test_bad_csv_toolpath_is_one_line(capsys, tmp_path, text, needle):
     f = tmp_path / "path.csv"
     f.write_text(text)
-    assert main(["lsa", "--machine", "ac_trunnion", "--toolpath", str(f)]) == 2
+    assert run_cli("lsa", "--machine", "ac_trunnion", "--toolpath", str(f), echo=True)[0] == 2
     err = capsys.readouterr().err
     assert needle in err and len(err.strip().splitlines()) == 1, err
 
@@ -244,7 +244,7 @@ def test_explicit_poses_and_their_errors(capsys, trunnion):
     for spec, needle in [("X=1,Y=2,Z=3,A=0", "C is missing"), ("X=1,Y=2,Z=3,A=0,C=0,B=1", "B is not an axis"),
                          ("X=1,Y=2,Z=3,A=0,C=0,nx=0,ny=0,nz=0", "zero length"),
                          ("X=1e300,Y=2,Z=3,A=0,C=0", "outside the stroke")]:
-        assert main(["lsa", "--machine", "ac_trunnion", "--pose", spec]) == 2
+        assert run_cli("lsa", "--machine", "ac_trunnion", "--pose", spec, echo=True)[0] == 2
         err = capsys.readouterr().err
         assert needle in err and len(err.strip().splitlines()) == 1, err
 
@@ -271,15 +271,16 @@ def test_surface_normal_undefined_on_the_path_is_one_line(rs274, capsys, trunnio
     # the sphere's centre put at the tool tip of the first sample: no normal there
     tp = toolpath.from_program(gcode.interpret(program), trunnion.machine, 4.0, 4.0)
     tip = trunnion.ideal_tool(tp.poses.array[:1], trunnion.machine.tool_length)[0][0]
-    assert main(["lsa", "--machine", "ac_trunnion", "--toolpath", str(program), "--surface",
-                 "sphere:%r,%r,%r" % tuple(float(t) for t in tip)] + STEP) == 2
+    assert run_cli("lsa", "--machine", "ac_trunnion", "--toolpath", program, "--surface",
+                   "sphere:%r,%r,%r" % tuple(float(t) for t in tip), *STEP, echo=True)[0] == 2
     err = capsys.readouterr().err
     assert "normal is undefined at contact point 1" in err and len(err.strip().splitlines()) == 1
 
 
 def test_path_compensation_and_plots(rs274, capsys, tmp_path, program):
-    assert main(["lsa", "--machine", "ac_trunnion", "--toolpath", str(program), "--surface",
-                 "sphere:%g,%g,%g" % tuple(CENTRE), "--compensate", "--plot", str(tmp_path), "--json"] + STEP) == 0
+    assert run_cli("lsa", "--machine", "ac_trunnion", "--toolpath", program, "--surface",
+                   "sphere:%g,%g,%g" % tuple(CENTRE), "--compensate", "--plot", tmp_path, "--json", *STEP,
+                   echo=True)[0] == 0
     captured = capsys.readouterr()
     out = json.loads(captured.out)
     comp = out["compensation"]

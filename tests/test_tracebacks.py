@@ -50,19 +50,19 @@ def one_line_error(rc, err, *needles):
     (["compensate", "{d}/deep.json", "-o", "{d}/o"], ["deep.json: invalid JSON (nested too deeply"]),
 ])
 def test_one_line_errors(files, capsys, argv, needles):
-    one_line_error(*run_cli(capsys, *[a.format(d=files) for a in argv])[::2], *needles)
+    one_line_error(*run_cli(*[a.format(d=files) for a in argv])[::2], *needles)
 
 
 @pytest.fixture(scope="module")
 def comp_folder(tmp_path_factory):
     """A compensate folder of a fitted model (the truth of a simulation, written as a model file)."""
-    from fiveaxis.cli import main
+    from conftest import run_cli
     d = tmp_path_factory.mktemp("comp")
-    assert main(["simulate", "--n", "120", "--no-time", "--seed", "2", "-o", str(d / "m.csv")]) == 0
-    assert main(["fit", str(d / "m.csv"), "-o", str(d / "model.json")]) == 0
+    assert run_cli("simulate", "--n", "120", "--no-time", "--seed", "2", "-o", str(d / "m.csv"))[0] == 0
+    assert run_cli("fit", str(d / "m.csv"), "-o", str(d / "model.json"))[0] == 0
     (d / "comp").mkdir()
-    assert main(["compensate", str(d / "model.json"), "-o", str(d / "comp"), "--nodes", "X=2,Y=2,Z=2",
-                 "--poses", "200", "--comp-points", "9"]) == 0
+    assert run_cli("compensate", str(d / "model.json"), "-o", str(d / "comp"), "--nodes", "X=2,Y=2,Z=2",
+                 "--poses", "200", "--comp-points", "9")[0] == 0
     return d
 
 
@@ -71,7 +71,7 @@ def test_compensate_options_out_of_range(comp_folder, capsys):
     for extra, needle in ((["--seed", "-1"], "--seed: expected a whole number >= 0, got -1"),
                           (["--nodes", "X=1e9"], "--nodes: a table of"),
                           (["--nodes", "X=1e9", "--max-nodes", "2000000000000"], "would need about")):
-        rc, _, err = run_cli(capsys, "compensate", d / "model.json", "-o", d / "o2", *extra)
+        rc, _, err = run_cli("compensate", d / "model.json", "-o", d / "o2", *extra)
         one_line_error(rc, err, needle)
 
 
@@ -95,6 +95,6 @@ def test_malformed_summary_in_report_compensation(comp_folder, tmp_path, capsys,
     shutil.copytree(comp_folder / "comp", folder)
     summ = folder / "summary.json"
     summ.write_text(edit(summ.read_text()))
-    rc, _, err = run_cli(capsys, "report", comp_folder / "m.csv", "--compensation", folder, "-o",
+    rc, _, err = run_cli("report", comp_folder / "m.csv", "--compensation", folder, "-o",
                          tmp_path / "r.html", "--no-sensitivity")
     one_line_error(rc, err, needle)

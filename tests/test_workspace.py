@@ -8,7 +8,7 @@ import pytest
 
 import fiveaxis
 from fiveaxis.sensitivity import paper as presets
-from fiveaxis.cli import main
+from conftest import run_cli
 from fiveaxis.exceptions import InputError
 from fiveaxis.sensitivity.experiments import diagonal_points, vital_set
 from fiveaxis.sensitivity.grid import describe_source, from_workspace, workspace_grid
@@ -20,7 +20,7 @@ LI = (MACHINES_DIR / "li2018.toml").read_text()
 
 
 def run_json(capsys, argv):
-    assert main(argv + ["--json"]) == 0, capsys.readouterr().err
+    assert run_cli(*argv, "--json", echo=True)[0] == 0, capsys.readouterr().err
     return json.loads(capsys.readouterr().out)
 
 
@@ -60,7 +60,7 @@ def test_small_strokes_give_a_grid_within_them(tmp_path, monkeypatch, capsys):
     for argv, needle in [(["--preset", "paper"], "preset paper: axis X range [-2500, 2500] mm leaves the stroke "
                                                  "[-300, 300] mm of small"),
                          (["--axis", "A=-30:30:3"], "--axis: axis A range [-30, 30] deg leaves the stroke")]:
-        assert main(["gsa", "--machine", str(path)] + argv) == 2
+        assert run_cli("gsa", "--machine", path, *argv, echo=True)[0] == 2
         err = [ln for ln in capsys.readouterr().err.splitlines() if not ln.startswith("fiveaxis: deriving")]
         assert len(err) == 1 and err[0].startswith("fiveaxis: error: ") and needle in err[0], err
 
@@ -127,12 +127,12 @@ def test_paper_preset_is_printed_and_keeps_the_papers_numbers(capsys):
     assert own["indices"] == out["indices"]
     assert set(own["compensation"]["vital"]) == set(out["compensation"]["vital"])
     assert own["compensation"]["position_mm"] == out["compensation"]["position_mm"]
-    assert main(["gsa", "--machine", "ac_trunnion", "--preset", "paper"]) == 2
+    assert run_cli("gsa", "--machine", "ac_trunnion", "--preset", "paper", echo=True)[0] == 2
     assert "the paper's presets need the li2018 kinematics" in capsys.readouterr().err
 
 
 def test_lsa_without_a_path_on_another_machine_says_what_to_give(capsys):
-    assert main(["lsa", "--machine", "tilting_head"]) == 2
+    assert run_cli("lsa", "--machine", "tilting_head", echo=True)[0] == 2
     err = capsys.readouterr().err
     assert "give a path with --toolpath FILE or --pose X=..,Y=..,Z=..,B=..,C=.." in err
 

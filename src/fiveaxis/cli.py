@@ -6,9 +6,13 @@ imported only when its command runs, so `fiveaxis table2` never loads numba and 
 from __future__ import annotations
 
 import argparse
+import atexit
 import importlib
+import os
+import re
 import sys
 
+from .commands import options
 from .exceptions import InputError, one_line
 from . import __version__
 
@@ -35,6 +39,10 @@ COMMANDS = {
                                              "target and axis) with ISO 230-9's uncertainty"),
     "iso230-4": ("fiveaxis.commands.iso230", "ISO 230-4 circular test figures (G, F, H) of ballbar circles and the "
                                              "ballbar's diagnostic list"),
+    "iso230-3": ("fiveaxis.commands.iso230_3", "ISO 230-3 thermal tests (ETVE, spindle, moving axis): drift per "
+                                               "direction and phase beside the temperatures"),
+    "iso230-3-simulate": ("fiveaxis.commands.iso230_3", "a simulated ISO 230-3 test file (displacements of a "
+                                                        "five-sensor nest and temperatures over hours)"),
 }
 
 
@@ -60,39 +68,45 @@ def _version() -> str:
     return __version__
 
 
-#: The library speaks Python (keyword arguments); on the command line its messages name the options instead.
-TRANSLATIONS = (("(force=True replaces it)", "(use --force to replace it)"),
-                ("(in_place=True rewrites it)", "(use --in-place to rewrite it)"),
-                ("give it as machine=...", "give it with --machine"),
-                ("LE: the effective cutting length", "--le: the effective cutting length"),
-                ("L0: the tool length", "--l0: the tool length"),
-                ("L0/LE: expected", "--l0/--le: expected"),
-                ("worker_kernel: expected", "--worker-kernel: expected"),
-                ("chunk: expected", "--chunk: expected"),
-                ("cone: expected", "--cone: expected"),
-                ("axis spec '", "--axis '"),
-                ("order: the Gauss-Legendre order", "--order: the Gauss-Legendre order"),
-                ("give order=N", "give --order N"),
-                ("normal_mode: expected", "--normal-mode: expected"),
-                ("effect value ", "--effect "),
-                ("bound: expected a positive", "--bound: expected a positive"),
-                ("samples: expected a power of 2", "--samples: expected a power of 2"),
-                ("poses: give a normal", "--pose: give a normal"),
-                ("u_device_um: expected", "--u-device: expected"),
-                ("expansion_ppm_per_K: expected", "--expansion-ppm-per-K: expected"),
-                ("misalignment_mm: expected", "--misalignment: expected"),
-                ("drift_um: expected", "--drift: expected"),
-                ("temperature_deviation_K: expected", "--temperature-deviation: expected"),
-                ("temperature_deviation_K and expansion_ppm_per_K: state both",
-                 "--temperature-deviation and --expansion-ppm-per-K: state both"),
-                ("target tolerance: expected", "--tolerance: expected"),
-                ("give the kinematics (", "give --kinematics ("))
+#: The library speaks Python: an InputError carries the keyword argument(s) it is about (`exc.key`), spelled in its
+#: message as `key:`, `key=VALUE`, `key=True` or `key 'VALUE'`. On the command line the message names the option
+#: that sets it: one map, library key -> option (COMMAND_OPTIONS: where a command spells a key differently).
+OPTIONS = {
+    "force": "--force", "in_place": "--in-place", "machine": "--machine", "convention": "--convention",
+    "LE": "--le", "L0": "--l0", "order": "--order", "normal_mode": "--normal-mode", "cone": "--cone",
+    "worker_kernel": "--worker-kernel", "chunk": "--chunk", "axis spec": "--axis", "positions": "--positions",
+    "errors": "--errors", "effect value": "--effect", "effect": "--effect", "bound": "--bound",
+    "samples": "--samples", "poses": "--poses", "damping": "--damping", "tool_lengths": "--tool-lengths",
+    "feed": "--feed", "the kinematics": "--kinematics", "target tolerance": "--tolerance",
+    "u_device_um": "--u-device", "expansion_ppm_per_K": "--expansion-ppm-per-K", "misalignment_mm": "--misalignment",
+    "drift_um": "--drift", "temperature_deviation_K": "--temperature-deviation",
+    "spacing_mm": "--spacing", "spindle_on_min": "--spindle-on", "spindle_off_min": "--spindle-off",
+    "spindle_speed_rpm": "--spindle-speed", "test_hours": "--hours", "run_hours": "--run-hours",
+    "interval_s": "--interval", "speed_rpm": "--speed",
+}
+COMMAND_OPTIONS = {"lsa": {"poses": "--pose"}, "fit": {"effect": "--add"}, "diagnose": {"effect": "--add"},
+                   "report": {"effect": "--add"}}
+#: What may follow a key in a message for it to be the key (not a word of the sentence).
+_AFTER = r"(?=:|/|,|\)| '| and | \()"
 
 
-def to_command_line(message: str) -> str:
-    """A library message with its Python argument names replaced by the command-line options that set them."""
-    for library, cli in TRANSLATIONS:
-        message = message.replace(library, cli)
+def option(key: str, command: str | None = None) -> str | None:
+    """The command-line option of a library key (for command), or None."""
+    return COMMAND_OPTIONS.get(command, {}).get(key) or OPTIONS.get(key)
+
+
+def to_command_line(message: str, keys=None, command: str | None = None) -> str:
+    """A library message about keys (InputError.key: a str or a tuple) with each key replaced by the option that
+    sets it: `damping: expected` -> `--damping: expected`, `(force=True replaces it)` -> `(--force replaces it)`,
+    `give order=N` -> `give --order N`, `axis spec 'Y=0'` -> `--axis 'Y=0'`."""
+    for key in (keys,) if isinstance(keys, str) else (keys or ()):
+        opt = option(key, command)
+        if opt is None:
+            continue
+        word = rf"(?<![\w-]){re.escape(key)}"
+        message = re.sub(word + r"=True\b", opt, message)
+        message = re.sub(word + "=", opt + " ", message)
+        message = re.sub(word + (r"(?=[ :/,)])" if " " in key else _AFTER), opt, message)
     return message
 
 
@@ -101,13 +115,14 @@ def main(argv=None) -> int:
     command = next((a for a in argv if not a.startswith("-")), None)
     parser = build_parser(command if command in COMMANDS else None)
     args = parser.parse_args(argv)
+    options.resolve(args)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
     try:
         return int(args.func(args) or 0)
     except InputError as exc:
-        print(f"fiveaxis: error: {to_command_line(str(exc))}", file=sys.stderr)
+        print(f"fiveaxis: error: {to_command_line(str(exc), exc.key, args.command)}", file=sys.stderr)
         return 2
     except OSError as exc:            # a file that cannot be read or written: its name and the reason, on one line
         if isinstance(exc, BrokenPipeError):
@@ -123,5 +138,34 @@ def main(argv=None) -> int:
         return 2
 
 
+#: numba's threading layer of the command line, unless NUMBA_THREADING_LAYER says otherwise: workqueue is in every
+#: numba build, has no fork handlers and no teardown. TBB (chosen by default where libtbb is installed) joins its
+#: workers before every fork (each rs274 run) and in its module's teardown inside the interpreter's last garbage
+#: collection, where `plan` was seen to hang for minutes under load (issue 28, point 5). The kernels are written for
+#: it: none enters a parallel kernel from several threads (fiveaxis.parallel).
+THREADING_LAYER = "workqueue"
+
+
+def entry() -> None:
+    """The `fiveaxis` program: main(), then an end as soon as it is done. The threading layer is chosen before numba
+    is imported (THREADING_LAYER); after main, stdout and stderr are flushed, the exit handlers run (Dask's,
+    temporary folders', logging's) and the process ends (os._exit) without the interpreter's teardown of ~1,200
+    modules, which took 2 to 4 s after the last line under load and held TBB's finalisation. Tests call main()."""
+    os.environ.setdefault("NUMBA_THREADING_LAYER", THREADING_LAYER)
+    try:
+        rc = main()
+    except SystemExit as exc:                # argparse: --help, --version, usage errors
+        rc = 0 if exc.code is None else exc.code if isinstance(exc.code, int) else 1
+        if not isinstance(exc.code, (int, type(None))):
+            print(exc.code, file=sys.stderr)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):        # a reader that went away, a closed stream: nothing more to say
+            pass
+    atexit._run_exitfuncs()
+    os._exit(rc)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()

@@ -57,19 +57,47 @@ def threads() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
+#: numba threading layers whose parallel kernels may be entered from several threads at once ("default" and
+#: "safe" pick TBB first, or OpenMP; "forksafe" may pick workqueue).
+THREADSAFE_LAYERS = ("tbb", "omp", "threadsafe")
+
+
+def kernels_threadsafe() -> bool:
+    """Whether the blocks of a pass may run on several threads: numba's parallel kernels, which the blocks call, may
+    then be entered from several threads at once. Not with the workqueue layer (it aborts the process: "Concurrent
+    access has been detected"), which the command line chooses (`fiveaxis.cli.THREADING_LAYER`)."""
+    layer = str(numba.config.THREADING_LAYER).lower()
+    if layer in ("default", "safe"):
+        try:
+            from numba.np.ufunc import tbbpool  # noqa: F401 - what numba itself tries first
+            return True
+        except ImportError:
+            return layer == "default" and _omp_available()
+    return layer in THREADSAFE_LAYERS
+
+
+def _omp_available() -> bool:
+    try:
+        from numba.np.ufunc import omppool  # noqa: F401
+        return True
+    except ImportError:
+        return False
+
+
 def _one_numba_thread():
     numba.set_num_threads(1)          # per thread: the pass's threads share the cores, not each its own team
 
 
 class Local:
-    """Tasks in this process, on `threads` threads (None: `threads()`; 1: one after the other)."""
+    """Tasks in this process, on `threads` threads (None: `threads()` where numba's parallel kernels may be entered
+    from several threads, `kernels_threadsafe`, else one; 1: one after the other)."""
 
     def __init__(self, threads: int | None = None):
         self.threads = threads
 
     def map(self, fn, tasks, near=None):
         """Yield fn(*task) for every task (an iterable of argument tuples), in order; near is ignored here."""
-        n = self.threads or threads()
+        n = self.threads or (threads() if kernels_threadsafe() else 1)
         if n <= 1:
             for task in tasks:
                 yield fn(*task)

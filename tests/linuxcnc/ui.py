@@ -94,7 +94,7 @@ def main():
     c.rapidrate(1.0)
     c.wait_complete()
     pins = [p["NAME"] for p in hal.get_info_pins()]
-    result["kinematics_pins"] = {p: hal.get_value(p) for p in pins if "-kins." in p or p.startswith("fiveaxis_kins.")}
+    result["kinematics_pins"] = {p: hal.get_value(p) for p in pins if "-kins." in p or "_kins." in p}
     for line in job["setup"]:
         c.mdi(line)
         c.wait_complete()

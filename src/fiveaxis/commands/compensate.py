@@ -8,6 +8,7 @@ import json
 import math
 from pathlib import Path
 
+from . import options
 from ..exceptions import InputError
 
 
@@ -16,14 +17,12 @@ def register_compensate(p):
     p.add_argument("-o", "--output", type=Path, required=True, metavar="DIR",
                    help="output folder (created if its parent exists): table.csv/.parquet, summary.json, linuxcnc/ "
                         "(with volumetric/: the LinuxCNC kinematics module and a simulated configuration)")
-    p.add_argument("--machine", default=None,
-                   help="machine name or file (default: the one the model was fitted for; must be that file)")
+    options.machine(p, None, "machine name or file (default: the one the model was fitted for; must be that file)")
     p.add_argument("--nodes", action="append", default=[], metavar="AXIS=COUNT",
                    help="table nodes over an axis' stroke, e.g. X=9 or A=31 (repeatable; default: 5 per linear "
                         "axis, one every 10 degrees on rotary axes)")
-    p.add_argument("--tool-lengths", default=None, metavar="L1,L2,...|LO:HI:COUNT",
-                   help="tool lengths (mm) for the table's tool-length dimension: a list, e.g. 80,120,160, or LO:HI:"
-                        "COUNT evenly spaced, e.g. 60:200:8 (at least 2, positive, ascending). The table gets a first "
+    options.tool_lengths(p, "tool lengths (mm) for the table's tool-length dimension (at least 2, positive, "
+                            "ascending). The table gets a first "
                         "column L and is solved exactly at every (L, pose) node; a controller interpolates "
                         "multilinearly over L and the axes and holds the edge values outside the lengths. Default: "
                         "the machine's tool length only (no L column)")
@@ -37,9 +36,27 @@ def register_compensate(p):
     p.add_argument("--poses", type=int, default=None, help="random poses for the predicted error (default 4000)")
     p.add_argument("--seed", type=int, default=0, help="random seed of those poses (default 0)")
     p.add_argument("--plot", action="store_true", help="also write error_map.png")
-    p.add_argument("--json", action="store_true", help="print summary.json instead of the report")
-    p.add_argument("--force", action="store_true", help="replace existing output files")
+    options.json_output(p, "print summary.json instead of the report")
+    options.force(p)
+    p.add_argument("--temperature", action="append", default=[], metavar="NAME=DEGC",
+                   help="a model with temperature effects: the state the error is also predicted at (each sensor "
+                        "the model reads, e.g. spindle=35; default: its highest reading in the fitted data); "
+                        "repeatable")
     p.set_defaults(func=run_compensate)
+
+
+def _temperatures(specs) -> dict:
+    out = {}
+    for spec in specs:
+        name, sep, raw = spec.partition("=")
+        try:
+            value = float(raw)
+            if not sep or not name.strip() or not math.isfinite(value):
+                raise ValueError
+        except ValueError:
+            raise InputError(f"--temperature {spec!r}: expected NAME=DEGC, e.g. spindle=35") from None
+        out[name.strip()] = value
+    return out
 
 
 def _counts(specs) -> dict:
@@ -59,39 +76,40 @@ def _counts(specs) -> dict:
     return out
 
 
-def _tool_lengths(spec):
-    """--tool-lengths L1,L2,... or LO:HI:COUNT -> a list of lengths (mm); InputError naming the option."""
-    if spec is None:
-        return None
-    expected = "expected L1,L2,... or LO:HI:COUNT in mm, e.g. 80,120,160 or 60:200:8"
+def _remove_empty(folder: Path) -> None:
+    """Remove folder and its subfolders where they are empty (never a file: what is in them stays)."""
+    for sub in sorted((p for p in folder.rglob("*") if p.is_dir() and not p.is_symlink()), reverse=True):
+        try:
+            sub.rmdir()
+        except OSError:
+            pass
     try:
-        if ":" not in spec:
-            return [float(x) for x in spec.split(",")]
-        lo, hi, count = spec.split(":")
-        lo, hi, n = float(lo), float(hi), float(count)
-    except ValueError:
-        raise InputError(f"--tool-lengths {spec!r}: {expected}") from None
-    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo) or n != int(n) or n < 2:
-        raise InputError(f"--tool-lengths {spec!r}: LO:HI:COUNT needs LO < HI (mm) and an integer COUNT >= 2")
-    return [lo + (hi - lo) * i / (int(n) - 1) for i in range(int(n))]
+        folder.rmdir()
+    except OSError:
+        pass
 
 
 def run_compensate(args) -> int:
+    from ..compensation import folder as F
+    from ..compensation import pipeline as P
     from ..compensation import table as C
+    from ..compensation.record import summary
     from ..estimation import fitted_model as MF
     from ..model.error_model import load
     from ..plots.compensation import figure
     from ..report import text
     fm = MF.load(args.model)
-    model = load(args.machine, fm.convention) if args.machine else MF.load_model(fm, str(args.model))
-    MF.check_model(fm, model, str(args.model))
+    if args.machine:               # before the output folder is made (load_model checks the model file's own)
+        model = load(args.machine, fm.convention)
+        MF.check_model(fm, model, str(args.model))
+    else:
+        model = MF.load_model(fm, str(args.model))
     out = args.output
     if not out.is_dir():
         if not out.parent.is_dir():
             raise InputError(f"-o {out}: output folder not found (nor its parent {out.parent})")
         if out.exists():
             raise InputError(f"-o {out}: exists and is not a folder")
-        out.mkdir()
     if args.seed < 0:
         raise InputError(f"--seed: expected a whole number >= 0, got {args.seed}")
     counts = _counts(args.nodes)
@@ -102,7 +120,7 @@ def run_compensate(args) -> int:
         size = math.prod(C.table_counts(model.machine, counts, None).values())
     except InputError as exc:
         raise InputError(f"--nodes: {exc}") from None
-    lengths = _tool_lengths(args.tool_lengths)
+    lengths = options.tool_lengths_of(args.tool_lengths)
     if lengths is not None:
         try:
             lengths = C.check_tool_lengths(lengths, "--tool-lengths")
@@ -115,15 +133,25 @@ def run_compensate(args) -> int:
     if args.comp_points is not None and not 2 <= args.comp_points <= 256:
         raise InputError(f"--comp-points: expected 2 to 256 (LinuxCNC reads at most 256 lines), got "
                          f"{args.comp_points}")
-    for p in C.outputs(out, args.plot) + [C.volumetric_folder(out)]:
+    for p in F.outputs(out, args.plot) + [F.volumetric_folder(out)]:
         if p.exists() and not args.force:
             raise InputError(f"{p}: exists; not overwriting it (use --force to replace it)")
-    comp = C.compensate(fm, model, counts, limit, C.DAMPING if args.damping is None else args.damping,
-                        args.comp_points, args.poses if args.poses is not None else C.ACCOUNT_POSES, args.seed,
-                        tool_lengths=lengths)
-    C.write(comp, out, force=args.force, figure=figure if args.plot else None, model_path=str(args.model))
+    made = not out.is_dir()
+    if made:
+        out.mkdir()
+    try:
+        comp = P.compensate(fm, model, counts, limit, P.DAMPING if args.damping is None else args.damping,
+                            args.comp_points, args.poses if args.poses is not None else P.ACCOUNT_POSES, args.seed,
+                            tool_lengths=lengths, temperatures=_temperatures(args.temperature))
+        record = summary(comp, str(args.model))
+        F.write(comp, out, record, force=args.force, figure=figure if args.plot else None,
+                model_path=str(args.model))
+    except BaseException:                          # refused or failed: the folder we made does not stay behind
+        if made:
+            _remove_empty(out)
+        raise
     if args.json:
-        print(json.dumps(C.summary(comp, str(args.model)), indent=1))
+        print(json.dumps(record, indent=1))
     else:
-        print(text.compensation(C.summary(comp, str(args.model)), str(out)))
+        print(text.compensation(record, str(out)))
     return 0

@@ -4,13 +4,14 @@ from __future__ import annotations
 import json
 import os
 
+from . import options
 from ..exceptions import InputError
 from .sensitivity import GSA_MAX_POSES as MAX_POSES, _count
 
 
 def register_dask(p):
-    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
-    p.add_argument("--convention", default="equations", help="'equations' or a convention of the machine file")
+    options.machine(p)
+    options.convention(p)
     p.add_argument("--preset", choices=("paper",), default=None,
                    help="a named workspace instead of the machine's (as `fiveaxis gsa --preset`)")
     p.add_argument("--axis", action="append", default=[], metavar="NAME=LO:HI:COUNT",
@@ -36,7 +37,7 @@ def register_dask(p):
     bar = p.add_mutually_exclusive_group()
     bar.add_argument("--progress", action="store_true", default=None, help="always show the progress bar")
     bar.add_argument("--no-progress", dest="progress", action="store_false", help="never show the progress bar")
-    p.add_argument("--json", action="store_true", help="print {indices, ranking, settings} as JSON")
+    options.json_output(p, "print {indices, ranking, settings} as JSON")
     p.add_argument("--top", type=int, default=10, help="rows of the printed ranking (default 10)")
     p.set_defaults(func=run_dask)
 
@@ -48,7 +49,8 @@ def run_dask(args) -> int:
     from ..guards import check_size
     from ..model.error_model import load
     from ..sensitivity.indices import reduce_grid
-    from .sensitivity import _grid, _print_ranking, _print_settings
+    from ..report import sensitivity_text as S
+    from .sensitivity import _grid, _iso
     if args.scheduler is not None:
         try:
             parallel.scheduler_address(args.scheduler)     # before the model loads: a typo fails at once
@@ -88,10 +90,7 @@ def run_dask(args) -> int:
     if args.json:
         print(json.dumps(res.to_json(), indent=1))
         return 0
-    _print_ranking(model, res, args.top, "GSIL proportions PG_i (Eq. 14, 16), largest first")
-    _print_settings(res.settings)
-    d = res.settings["dask"]
-    print(f"dask: {d['workers']} workers, {d['threads']} threads, {d['tasks']} tasks of {d['chunk']} poses, "
-          f"{res.settings['evaluated_poses']} poses evaluated (x{res.settings['reduced_factor']}), "
-          f"{res.settings['seconds']} s; peak memory of the workers {d['worker_peak_rss_mb']} MB")
+    out = res.to_json()
+    print("\n".join(S.ranking(out, _iso(model), args.top, "GSIL proportions PG_i (Eq. 14, 16), largest first")
+                    + S.settings(out["settings"]) + S.dask(out["settings"])))
     return 0

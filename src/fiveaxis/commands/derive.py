@@ -6,7 +6,8 @@ import sys
 import time
 from pathlib import Path
 
-from ..exceptions import InputError
+from . import options
+from ..exceptions import InputError, one_line
 from ..model.machine import MACHINES_DIR, load_machine
 
 
@@ -19,13 +20,11 @@ def register_derive(p):
 
 
 def register_table2(p):
-    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
-    p.add_argument("--convention", default="equations",
-                   help="'equations' (errors where Eq. 1-6 place them) or a convention of the machine file "
-                        "(li2018: 'printed', S_yz in the X->Y joint as behind the printed Table 2)")
+    options.machine(p)
+    options.convention(p)
     fmt = p.add_mutually_exclusive_group()
     fmt.add_argument("--latex", action="store_true", help="LaTeX tabular (default)")
-    fmt.add_argument("--json", action="store_true", help="JSON: {machine, convention, groups: [...]}")
+    options.json_output(fmt, "JSON: {machine, convention, groups: [...]}")
     fmt.add_argument("--reconcile", action="store_true",
                      help="compare with the paper's printed Table 2, row by row (li2018)")
     p.set_defaults(func=run_table2)
@@ -53,10 +52,10 @@ def run_derive(args) -> int:
                         stale.append(committed)
             continue
         for path, changed in generate(machine, args.out) + kins.generate(machine, args.out):
-            print(f"{'wrote' if changed else 'unchanged'} {path} ({time.perf_counter() - t0:.2f} s)")
+            print(f"{'wrote' if changed else 'unchanged'} {one_line(path)} ({time.perf_counter() - t0:.2f} s)")
     if stale:
         for path in stale:
-            print(f"stale: {path} (run `make derive`)", file=sys.stderr)
+            print(f"stale: {one_line(path)} (run `make derive`)", file=sys.stderr)
         return 1
     return 0
 
@@ -66,6 +65,7 @@ def run_table2(args) -> int:
     from fiveaxis_derive.table2 import reconcile, to_json, to_latex
 
     from ..model.iso_names import table as iso_table
+    from ..report import model_text
     machine = load_machine(args.machine)
     machine.with_convention(args.convention)
     model = derive_model(machine, args.convention)
@@ -75,15 +75,7 @@ def run_table2(args) -> int:
     elif args.reconcile:
         if machine.name != "li2018":
             raise InputError(f"{machine.path}: the printed Table 2 belongs to li2018; nothing to reconcile")
-        rows = reconcile(model)
-        for r in rows:
-            print(f"row {r['no']:2d} {r['status']:8s} {', '.join(f'{n} ({iso[n]})' if iso.get(n) else n for n in r['errors'])}")
-            for d in r["differences"]:
-                print(f"         {d}")
-            if r["status"] != "matches" and r["note"]:
-                print(f"         why: {r['note']}")
-        n_ok = sum(r["status"] == "matches" for r in rows)
-        print(f"{n_ok} of {len(rows)} printed rows match the derivation ({args.convention} convention)")
+        print(model_text.reconcile(reconcile(model), iso, args.convention))
     else:
         print(to_latex(model, iso), end="")
     return 0

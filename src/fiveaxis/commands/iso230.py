@@ -9,6 +9,8 @@ import json
 import sys
 from pathlib import Path
 
+from ..compensation import plausible
+from . import options
 from ..exceptions import InputError
 
 
@@ -16,11 +18,11 @@ def _common(p):
     p.add_argument("file", type=Path, help="measurements: CSV or Parquet with 1-D readings du along ux,uy,uz, the "
                                            "machine's axes (mm, deg), dir_<AXIS>, optional t and setup "
                                            "(docs/measurements.md, docs/iso230-2-4.md)")
-    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
-    p.add_argument("--convention", default="equations", help="convention of the machine file (default: equations)")
+    options.machine(p)
+    options.convention(p)
     p.add_argument("--frame", default=None, choices=("workpiece", "machine"),
                    help="frame of the directions ux,uy,uz (default: the file's frame column, else workpiece)")
-    p.add_argument("--json", action="store_true", help="print the JSON record instead of the tables")
+    options.json_output(p, "print the JSON record instead of the tables")
     p.add_argument("--plot", type=Path, default=None, metavar="DIR",
                    help="write the standard's plots as PNG into DIR (created if its parent exists)")
 
@@ -29,19 +31,34 @@ def register_iso230_2(p):
     _common(p)
     p.add_argument("--tolerance", type=float, default=None, metavar="MM",
                    help="positions within this distance are one target (default 0.05 mm)")
-    p.add_argument("--u-device", type=float, default=None, metavar="UM",
-                   help="standard uncertainty of the measuring device at the measured length (um; U/k of its "
-                        "calibration certificate)")
-    p.add_argument("--temperature-deviation", type=float, default=None, metavar="K",
-                   help="deviation of the machine's temperature from 20 degC during the test (K; with "
-                        "--expansion-ppm-per-K)")
-    p.add_argument("--expansion-ppm-per-K", type=float, default=None, metavar="PPM",
-                   help="half-width of the uncertainty of the machine's expansion coefficient (ppm/K, e.g. 2)")
-    p.add_argument("--misalignment", type=float, default=None, metavar="MM",
-                   help="lateral walk of the beam over the measured length (mm): the cosine error's bound")
-    p.add_argument("--drift", type=float, default=None, metavar="UM",
-                   help="environmental variation: drift of the reading of the still axis over a test's duration (um)")
+    uncertainty_options(p)
     p.set_defaults(func=run_iso230_2)
+
+
+#: ISO 230-9's inputs: (option, keyword of iso230.uncertainty.Statement, metavar, help); declared once for
+#: iso230-2 and report (whose campaign file has the same keys under [iso230_9]).
+UNCERTAINTY_OPTIONS = (
+    ("--u-device", "u_device_um", "UM", "standard uncertainty of the measuring device at the measured length (um; "
+                                        "U/k of its calibration certificate)"),
+    ("--temperature-deviation", "temperature_deviation_K", "K", "deviation of the machine's temperature from 20 degC "
+                                                                "during the test (K; with --expansion-ppm-per-K)"),
+    ("--expansion-ppm-per-K", "expansion_ppm_per_K", "PPM", "half-width of the uncertainty of the machine's "
+                                                            "expansion coefficient (ppm/K, e.g. 2)"),
+    ("--misalignment", "misalignment_mm", "MM", "lateral walk of the beam over the measured length (mm): the cosine "
+                                                "error's bound"),
+    ("--drift", "drift_um", "UM", "environmental variation: drift of the reading of the still axis over a test's "
+                                  "duration (um)"))
+
+
+def uncertainty_options(p):
+    """ISO 230-9's inputs of the ISO 230-2 figures' uncertainty as options."""
+    for option, key, metavar, text in UNCERTAINTY_OPTIONS:
+        p.add_argument(option, dest=key, type=float, default=None, metavar=metavar, help=text)
+
+
+def uncertainty_inputs(args) -> dict:
+    """{Statement keyword: value} of the ISO 230-9 options given (checked when the Statement is made)."""
+    return {key: getattr(args, key) for _, key, _, _ in UNCERTAINTY_OPTIONS if getattr(args, key) is not None}
 
 
 def register_iso230_4(p):
@@ -56,12 +73,9 @@ def register_iso230_4(p):
 
 
 def _read(args):
-    from ..measurement.files import read
     from ..model.error_model import load
     model = load(args.machine, args.convention)
-    meas = read(args.file, model.machine, min_rows=2, frame=args.frame)
-    for w in meas.warnings:
-        print(f"fiveaxis: warning: {w}", file=sys.stderr)
+    meas = options.measurements(args, model.machine, min_rows=2, frame=args.frame)
     return model, meas
 
 
@@ -78,16 +92,17 @@ def _plot_folder(folder: Path) -> Path:
 def run_iso230_2(args) -> int:
     from ..iso230 import positioning as P
     from ..iso230 import uncertainty as U
-    statement = U.Statement(args.u_device, args.temperature_deviation, args.expansion_ppm_per_K, args.misalignment,
-                            args.drift)
-    U.check(statement)
+    from ..report import iso230_text
+    statement = U.check(U.Statement(**uncertainty_inputs(args)))
     model, meas = _read(args)
     evs = P.evaluate(meas, model, P.TARGET_TOL_MM if args.tolerance is None else args.tolerance)
-    records, texts = [], []
     for ev in evs:
-        unc = U.budget(statement, ev.length_mm) or U.none_statement()
-        records.append(P.to_json(ev, unc))
-        texts.append(P.report(ev, unc))
+        axis = model.machine.axis(ev.axis)
+        found = plausible.positioning_findings(ev.figures, float(axis.stroke[1] - axis.stroke[0]))
+        if found:                                  # a unit slip: said beside the figures, and on stderr
+            ev.notes.append(f"not a machine's figures: {plausible.unit_slip(found)}")
+            print(f"fiveaxis: warning: {args.file}: {ev.axis}: {plausible.unit_slip(found)}", file=sys.stderr)
+    records = [P.to_json(ev, U.budget(statement, ev.length_mm) or U.none_statement()) for ev in evs]
     if args.plot is not None:
         from ..plots.iso230 import write_positioning
         folder = _plot_folder(args.plot)
@@ -96,7 +111,7 @@ def run_iso230_2(args) -> int:
     if args.json:
         print(json.dumps({"file": str(args.file), "machine": model.machine.name, "axes": records}, indent=1))
     else:
-        print("\n\n".join(texts))
+        print("\n\n".join(iso230_text.positioning(rec) for rec in records))
         if statement.empty:
             print("(state them with --u-device, --temperature-deviation with --expansion-ppm-per-K, --misalignment, "
                   "--drift)")
@@ -105,6 +120,7 @@ def run_iso230_2(args) -> int:
 
 def run_iso230_4(args) -> int:
     from ..iso230 import circular as C
+    from ..report import iso230_text
     if args.rounds < 1:
         raise InputError(f"--rounds: expected a positive number, got {args.rounds}")
     if args.feed is not None and not 0 < args.feed < float("inf"):
@@ -122,5 +138,5 @@ def run_iso230_4(args) -> int:
     if args.json:
         print(json.dumps(rec, indent=1))
     else:
-        print(C.report(rec))
+        print(iso230_text.circles(rec))
     return 0

@@ -11,20 +11,24 @@ from pathlib import Path
 
 import numpy as np
 
-from ..exceptions import InputError
+from . import options
+from ..exceptions import InputError, one_line
+from ..compensation import plausible
 from ..diagnosis import preconditions
 from ..estimation import design_size
-from ..measurement.instruments import NAMES as INSTRUMENTS
-from ..model.columns import FRAMES, MAX_AXIS_DEVIATION, MAX_DEVIATION_MM, MAX_TOOL_LENGTH_MM, SETUP_KINDS
+from ..measurement import instruments as ins
+from ..model.columns import FRAMES, MAX_AXIS_DEVIATION, MAX_DEVIATION_MM, SETUP_KINDS
 
 
-def _common(p, file_arg=True):
+def _common(p, file_arg=True, several=False):
     if file_arg:
-        p.add_argument("file", type=Path, help="measurements: CSV or Parquet, one row per pose (the machine's axes, "
-                                               "mm and deg; dx,dy,dz mm and/or di,dj,dk, or du with ux,uy,uz; "
-                                               "optional L,t,sigma,sigma_axis,setup,dir_<AXIS>; docs/measurements.md)")
-    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
-    p.add_argument("--convention", default="equations", help="convention of the machine file (default: equations)")
+        p.add_argument("file", type=Path, nargs="+" if several else None,
+                       help="measurements: CSV or Parquet, one row per pose (the machine's axes, mm and deg; dx,dy,dz "
+                            "mm and/or di,dj,dk, or du with ux,uy,uz; optional L,t,sigma,sigma_axis,setup,dir_<AXIS>; "
+                            "docs/measurements.md)" + ("; several files: one joint fit, each file with its own "
+                                                       "instrument, setups and noise" if several else ""))
+    options.machine(p)
+    options.convention(p)
     p.add_argument("--frame", default=None, choices=FRAMES,
                    help="frame of the deviations and directions: workpiece (default; the frame the errors are derived "
                         "in) or machine (the bed: probe cycles, bed-mounted trackers; rotated by the nominal table "
@@ -43,6 +47,16 @@ def _fit_options(p):
     p.add_argument("--setup-frame", default=None, choices=FRAMES,
                    help="frame the setups' artefacts are fixed in when their rows do not say (setup_frame column): "
                         "workpiece (on the table; default) or machine (on the bed)")
+    p.add_argument("--prior", action="append", default=[], metavar="SPEC",
+                   help="what is known before the readings (repeatable; default: every error 0 +- the size of its "
+                        "ISO 230 class, [fit] prior of the machine file): MODEL.json (an earlier fit: its values and "
+                        "posterior covariance, e.g. a laser calibration of the linear axes), NAME=SIZE or "
+                        "NAME=VALUE,SIZE (mm or rad; NAME an error, an effect coefficient or a class such as "
+                        "linear_motion_rad), or none (least squares alone)")
+    p.add_argument("--resolution", action="append", default=[], metavar="COLUMN=STEP",
+                   help="the resolution of a column (mm, deg), e.g. X=0.001 or A=0.0001 (repeatable): for Parquet "
+                        "files, whose numbers say nothing of it (counted as full precision without), or to state a "
+                        "controller's; a CSV column's is read from the digits its cells write")
     p.add_argument("--blocks", default="auto", choices=("auto", "on", "off"),
                    help="build the design in row blocks of 16,384 poses (bounded memory for 10^5-10^7 rows): auto "
                         "(above 16,384 poses; default), on, off (in memory)")
@@ -52,23 +66,27 @@ def _fit_options(p):
 
 
 def register_fit(p):
-    _common(p)
+    _common(p, several=True)
     _fit_options(p)
     p.add_argument("--first-order", action="store_true", help="skip the refinement on the exact model")
-    p.add_argument("--json", action="store_true", help="print JSON instead of the report")
+    options.json_output(p, "print JSON instead of the report")
     p.add_argument("-o", "--output", type=Path, default=None, metavar="MODEL.json",
                    help="write the fitted model (for compensate, gsa --errors)")
-    p.add_argument("--force", action="store_true", help="replace the model file if it exists")
+    options.force(p, "replace the model file if it exists")
     p.set_defaults(func=run_fit)
 
 
 def register_diagnose(p):
-    _common(p)
+    _common(p, several=True)
     _fit_options(p)
     p.add_argument("--top", type=int, default=10, help="candidates to list (default 10)")
-    p.add_argument("--json", action="store_true", help="print JSON instead of the report")
+    p.add_argument("--rounds", type=int, default=1, metavar="N",
+                   help="the calibration loop: diagnose, add the top candidate, diagnose again while an effect is "
+                        "missing, at most N diagnoses (default 1: one diagnosis); --json gives {\"rounds\": [...]}")
+    options.json_output(p, "print JSON instead of the report")
     p.add_argument("--plot", type=Path, default=None, metavar="DIR",
-                   help="write residuals.png (residuals against each variable, before/after the top candidate)")
+                   help="write residuals.png (residuals against each variable, before/after the top candidate; "
+                        "of the last round)")
     p.set_defaults(func=run_diagnose)
 
 
@@ -77,7 +95,7 @@ def register_simulate(p):
     p.add_argument("--effect", action="append", default=[], metavar="EFFECT[=VALUE]",
                    help="hidden effect, e.g. ex_x:x1=2e-5 (VALUE: change at the end of the stroke, mm or rad; "
                         "default 20 urad or 10 um); repeatable")
-    p.add_argument("--instrument", default="tip", choices=INSTRUMENTS,
+    p.add_argument("--instrument", default="tip", choices=ins.names(),
                    help="what is measured, with its standard plan: tip (random poses, 3-D tip; default), rtest, "
                         "probe-sphere, ballbar, interferometer, tracker (docs/measurements.md)")
     p.add_argument("--poses", type=Path, default=None, metavar="FILE",
@@ -98,13 +116,13 @@ def register_simulate(p):
                    help="refuse --n above this (default 10^7: minutes and gigabytes); raise it if you mean it")
     p.add_argument("--noise", type=float, default=1e-3, help="measurement noise, mm (default 0.001)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--tool-lengths", default=None, metavar="MIN,MAX",
-                   help="random tool length per pose in [MIN, MAX] mm (adds an L column)")
+    options.tool_lengths(p, "tool lengths: each pose's drawn uniformly between the smallest and the largest given, "
+                            "mm (adds an L column)")
     p.add_argument("--duration", type=float, default=3600.0, help="length of the run, s (t column; default 3600)")
     p.add_argument("--no-time", action="store_true", help="write no t column")
     p.add_argument("--with-sigma", action="store_true", help="write a sigma column (the noise level)")
     p.add_argument("-o", "--output", type=Path, required=True, help="output file, .csv or .parquet")
-    p.add_argument("--force", action="store_true", help="replace the output file if it exists")
+    options.force(p, "replace the output files if they exist")
     p.add_argument("--compensation", type=Path, default=None, metavar="DIR",
                    help="apply the compensation table of `fiveaxis compensate -o DIR` to the commands (a table with "
                         "tool lengths: at each pose's own tool length; a warning for lengths outside the table's)")
@@ -116,17 +134,22 @@ def register_simulate(p):
                    help="interferometer: the linear axes to run (default: every linear axis, a setup each)")
     p.add_argument("--targets", type=int, default=None, help="interferometer: targets per axis (default 11)")
     p.add_argument("--cycles", type=int, default=None, help="interferometer: bidirectional cycles (default 5)")
+    p.add_argument("--temperature", action="append", default=[], metavar="NAME=KIND[:KEY=VALUE,...]",
+                   help="a temperature sensor's history over the run (a temp_NAME column, degC), e.g. "
+                        "spindle=spindle:rise=15,tau=900,off=7200 (warm-up, cool-down), air=air:amp=1.5, "
+                        "bed=bed:rise=2, motor=mix:spindle=0.4,air=1 (docs/measurements.md); repeatable; drive "
+                        "effects with --effect L:temp_spindle~600=0.0012 (mm or rad per degC)")
     p.set_defaults(func=run_simulate)
 
 
 def register_model(p):
     p.add_argument("action", choices=["add"], help="add: write effects into a copy of the machine file")
     p.add_argument("effects", nargs="+", metavar="EFFECT", help="effect ids, e.g. ex_x:x1")
-    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
+    options.machine(p)
     out = p.add_mutually_exclusive_group(required=True)
     out.add_argument("-o", "--output", type=Path, help="the new machine file (a copy with the effects)")
     out.add_argument("--in-place", action="store_true", help="rewrite the machine file itself")
-    p.add_argument("--force", action="store_true", help="replace the output file if it exists")
+    options.force(p, "replace the output file if it exists")
     p.set_defaults(func=run_model)
 
 
@@ -135,7 +158,6 @@ def _load(args):
     from ..estimation.problem import machine_effects, resolve_effects
     from ..model.error_model import load
     from ..model.machine import load_machine
-    from ..measurement.files import read
     if getattr(args, "scheduler", None) is not None:
         from ..parallel import scheduler_address
         try:
@@ -144,14 +166,57 @@ def _load(args):
             raise InputError(f"--scheduler: {exc}") from None
     machine = load_machine(args.machine)
     model = load(machine, args.convention)
-    meas = read(args.file, model.machine, min_rows=2, frame=args.frame, setup_kind=args.setup_kind,
-                setup_frame=args.setup_frame)
-    for w in meas.warnings:
-        print(f"fiveaxis: warning: {w}", file=sys.stderr)
+    prior = _prior(model, args.prior)                # before the data are read: a wrong model file fails at once
+    meas = options.measurements(args, model.machine, min_rows=2, frame=args.frame, setup_kind=args.setup_kind,
+                                setup_frame=args.setup_frame, resolution=_resolution(args.resolution))
     added = machine_effects(model) + list(args.add)
     effects = resolve_effects(model, added)
     design_size.check(model, meas, effects)          # before a design is built: memory of the setups' unknowns
-    return model, meas, effects, _fixed(model, args.fix)
+    return model, meas, effects, _fixed(model, args.fix), prior
+
+
+def _prior(model, specs):
+    """The priors of a fit (`fiveaxis.estimation.priors.PriorSpec`): the machine file's [fit] prior, --prior
+    entries; at most one model file (.json), checked against the machine."""
+    from ..estimation import priors
+    files = [s for s in specs if s.lower().endswith(".json")]
+    if len(files) > 1:
+        raise InputError(f"--prior: one model file at most, got {', '.join(files)}")
+    fm = None
+    if files:
+        from ..estimation.fitted_model import check_model, load as load_model_file
+        fm = load_model_file(files[0])
+        check_model(fm, model, f"--prior {files[0]}")
+        if fm.posterior is None:
+            raise InputError(f"--prior {files[0]}: the model file has no posterior_covariance_mm_rad (written before "
+                             f"priors: fit it again with this version)")
+    return priors.spec_from(model.machine, [s for s in specs if s not in files], fm, files[0] if files else "")
+
+
+def _implausible(fm, model, path, record: dict) -> None:
+    """What the fit holds that no machine shows (compensation.plausible): one warning line with the hint "did you
+    write um in a mm column?", also in the record (`warnings`). compensate refuses such a model."""
+    found = plausible.model_findings(fm, model.machine)
+    if found:
+        line = f"{path}: {plausible.unit_slip(found)}"
+        record.setdefault("warnings", []).append(line)
+        print(f"fiveaxis: warning: {one_line(line)}", file=sys.stderr)
+
+
+def _resolution(specs) -> dict:
+    """--resolution COLUMN=STEP (mm, deg) as {column: step}."""
+    out = {}
+    for spec in specs:
+        name, sep, raw = spec.partition("=")
+        try:
+            step = float(raw)
+        except ValueError:
+            step = float("nan")
+        if not sep or not name.strip() or not (0 < step < float("inf")):
+            raise InputError(f"--resolution {spec}: expected COLUMN=STEP with a positive step in the column's unit "
+                             f"(mm, deg), e.g. X=0.001")
+        out[name.strip()] = step
+    return out
 
 
 def _fixed(model, specs) -> dict:
@@ -208,16 +273,19 @@ def run_fit(args) -> int:
     from ..estimation import fit as F
     from ..estimation.result import to_json
     from ..report import text
-    model, meas, effects, fixed = _load(args)
+    model, meas, effects, fixed, prior = _load(args)
     if args.output is not None and args.output.exists() and not args.force:
         raise InputError(f"{args.output}: exists; not overwriting it (use --force to replace it)")
     with _where_blocks(args) as in_blocks:
-        res = F.fit(model, meas, effects, refine=not args.first_order, fixed=fixed, in_blocks=in_blocks)
+        res = F.fit(model, meas, effects, refine=not args.first_order, fixed=fixed, in_blocks=in_blocks,
+                    prior=prior)
+    from ..estimation.fitted_model import from_fit, save
+    fm = from_fit(res)
     if args.output is not None:
-        from ..estimation.fitted_model import from_fit, save
-        save(from_fit(res), args.output, force=args.force)
-        print(f"fiveaxis: wrote {args.output}", file=sys.stderr)
+        save(fm, args.output, force=args.force)
+        print(f"fiveaxis: wrote {one_line(args.output)}", file=sys.stderr)
     j = to_json(res)
+    _implausible(fm, model, meas.path, j)
     if args.json:
         _dump(j)
     else:
@@ -226,47 +294,42 @@ def run_fit(args) -> int:
 
 
 def run_diagnose(args) -> int:
-    from ..diagnosis import diagnose as D
+    from ..diagnosis import rounds as loop
     from ..report import text
     if args.top < 1:
         raise InputError(f"--top: expected a positive number, got {args.top}")
-    model, meas, effects, fixed = _load(args)
+    if args.rounds < 1:
+        raise InputError(f"--rounds: expected a positive number of diagnoses, got {args.rounds}")
+    model, meas, effects, fixed, prior = _load(args)
     preconditions.check(meas)                        # enough distinct poses for the cross-validation
     with _where_blocks(args) as in_blocks:
-        dg = D.diagnose(model, meas, effects, top=args.top, fixed=fixed, in_blocks=in_blocks)
+        dgs = loop.rounds(model, meas, effects, args.rounds, top=args.top, fixed=fixed, in_blocks=in_blocks,
+                          prior=prior)
     if args.plot is not None:
         from ..plots.residuals import plot_residuals
-        path = plot_residuals(dg, args.plot)
+        path = plot_residuals(dgs[-1], args.plot)
         print(f"fiveaxis: wrote {path}", file=sys.stderr)
-    j = dg.to_json()
+    js = [dg.to_json() for dg in dgs]
+    from ..estimation.fitted_model import from_fit
+    _implausible(from_fit(dgs[0].fit), model, meas.path, js[0])         # the data as given: a unit slip
     if args.json:
-        _dump(j)
+        _dump(js[0] if args.rounds == 1 else {"rounds": js})
     else:
-        print(text.diagnosis(j))
+        print(text.diagnosis(js[0]) if args.rounds == 1 else text.rounds(js))
     return 0
 
 
 def run_simulate(args) -> int:
     from ..model.error_model import load
     from ..measurement.files import in_frame, write
-    from ..outputs import write_text
+    from ..outputs import target, write_text
     from ..measurement.simulate import simulate, to_frame
-    if args.output.exists() and not args.force:
-        raise InputError(f"{args.output}: exists; not overwriting it (use --force to replace it)")
     truth_path = args.truth or args.output.with_name(args.output.name + ".truth.json")
-    if truth_path.exists() and not args.force:
-        raise InputError(f"{truth_path}: exists; not overwriting it (use --force to replace it)")
+    for path in (args.output, truth_path):         # both checked before either is written: nothing half left
+        target(path, args.force)
     model = load(args.machine, args.convention)
-    lengths = None
-    if args.tool_lengths:
-        try:
-            lo, hi = (float(x) for x in args.tool_lengths.split(","))
-        except ValueError:
-            raise InputError(f"--tool-lengths: expected MIN,MAX in mm, got {args.tool_lengths!r}") from None
-        if not (lo == lo and hi == hi and 0 <= lo <= hi <= MAX_TOOL_LENGTH_MM):
-            raise InputError(f"--tool-lengths: expected 0 <= MIN <= MAX <= {MAX_TOOL_LENGTH_MM:g} mm, got "
-                             f"{args.tool_lengths!r}")
-        lengths = (lo, hi)
+    given = options.tool_lengths_of(args.tool_lengths)
+    lengths = None if given is None else (min(given), max(given))
     if not (args.duration > 0 and args.duration < float("inf")):
         raise InputError(f"--duration: expected a positive, finite time in s, got {args.duration}")
     for opt, v in (("--noise", args.noise), ("--noise-axis", args.noise_axis), ("--setup-scale", args.setup_scale)):
@@ -284,11 +347,11 @@ def run_simulate(args) -> int:
     if args.linuxcnc and args.compensation is None:
         raise InputError("--linuxcnc applies the LinuxCNC files of a compensation folder: give --compensation DIR")
     if args.compensation is not None and args.linuxcnc:
-        from ..compensation.table import linuxcnc_function
+        from ..compensation.folder import linuxcnc_function
         commands = linuxcnc_function(args.compensation, model)
         comp = f", compensated by LinuxCNC with {args.compensation}/linuxcnc"
     elif args.compensation is not None:
-        from ..compensation.table import command_function, load_table
+        from ..compensation.folder import command_function, load_table
         table = load_table(args.compensation, model)
         commands = command_function(args.compensation, model, table)
         comp = f", compensated by {args.compensation}"
@@ -298,14 +361,15 @@ def run_simulate(args) -> int:
     plan = None
     if args.poses is not None:
         plan = _plan_from_file(args, model, lengths)
-    options = {}
+    standard = {}
     for key in ("axes", "targets", "cycles"):
         value = getattr(args, key)
         if value is None:
             continue
-        if args.instrument != "interferometer" or args.poses is not None:
-            raise InputError(f"--{key}: an option of the interferometer's standard plan (--instrument interferometer)")
-        options[key] = [a.strip() for a in value.split(",")] if key == "axes" else value
+        owner = next(r for r in ins.REGISTRY.values() if key in r.plan_options)
+        if owner.name != args.instrument or args.poses is not None:
+            raise InputError(f"--{key}: an option of the {owner.name}'s standard plan (--instrument {owner.name})")
+        standard[key] = [a.strip() for a in value.split(",")] if key == "axes" else value
     errors = {}
     for spec in args.error:
         name, sep, raw = spec.partition("=")
@@ -315,11 +379,17 @@ def run_simulate(args) -> int:
             raise InputError(f"--error {spec}: expected NAME=VALUE (mm or rad)") from None
         if not sep or errors[name.strip()] != errors[name.strip()] or abs(errors[name.strip()]) == float("inf"):
             raise InputError(f"--error {spec}: expected NAME=VALUE with a finite value (mm or rad)")
+    temperatures = {}
+    for spec in args.temperature:
+        name, sep, profile = spec.partition("=")
+        if not sep or not name.strip():
+            raise InputError(f"--temperature {spec}: expected NAME=KIND[:KEY=VALUE,...], e.g. spindle=spindle:rise=15")
+        temperatures[name.strip()] = profile
     sim = simulate(model, args.effect, n=args.n, noise=args.noise, seed=args.seed, tool_lengths=lengths,
                    duration=None if args.no_time else args.duration, with_sigma=args.with_sigma,
                    instrument=args.instrument, with_axis=args.with_axis, noise_axis=args.noise_axis, plan=plan,
                    setup_scale=args.setup_scale, errors=errors, setup_kind=args.setup_kind, commands=commands,
-                   options=options)
+                   options=standard, temperatures=temperatures)
     meas = sim.meas
     _check_simulated(meas)
     if table is not None:

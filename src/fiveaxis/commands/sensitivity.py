@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import options
 from ..exceptions import InputError
 
 #: Default most poses of one run (fiveaxis.guards): gsa and sobol evaluate and forget (10^9), lsa keeps 41
@@ -51,11 +52,9 @@ def _count(text: str) -> int:
 
 
 def _common(p, le_default: str, order_default: str, max_poses: int):
-    p.add_argument("--machine", default="li2018", help="machine name or file (default: li2018)")
-    p.add_argument("--convention", default="equations",
-                   help="'equations' (errors where Eq. 1-6 place them) or a convention of the machine file "
-                        "(li2018: 'printed', the placement behind the printed Table 2 and the paper's results)")
-    p.add_argument("--json", action="store_true", help="print {indices, ranking, settings} as JSON")
+    options.machine(p)
+    options.convention(p)
+    options.json_output(p, "print {indices, ranking, settings} as JSON")
     p.add_argument("--plot", type=Path, metavar="DIR", help="write PNG plots into DIR (their paths go to stderr)")
     p.add_argument("--l0", type=float, default=None,
                    help="tool length L0, mm (default: the machine file's; li2018: 200, the paper's)")
@@ -89,7 +88,17 @@ def _setup(args, L0_default=None, LE_default=None):
     ev = read(model, args.errors)
     L0 = args.l0 if args.l0 is not None else (L0_default if L0_default is not None else model.machine.tool_length)
     LE = args.le if args.le is not None else (LE_default if LE_default is not None else model.machine.cutting_length)
-    quadrature(L0, LE, 1)                    # L0 > 0, 0 < LE <= L0, finite
+    try:
+        quadrature(L0, LE, 1)                # L0 > 0, 0 < LE <= L0, finite
+    except InputError as exc:               # lengths the user did not give: the machine file's, named as such
+        given = {"L0": args.l0 is not None or L0_default is not None,
+                 "LE": args.le is not None or LE_default is not None}
+        keys = (exc.key,) if isinstance(exc.key, str) else tuple(exc.key or ())
+        if keys and not any(given.get(k, True) for k in keys):
+            raise InputError(f"{model.machine.path}: tool.length {model.machine.tool_length:g} mm, "
+                             f"tool.cutting_length {model.machine.cutting_length:g} mm: {exc} (the machine file's; "
+                             f"give the tool with --l0 and --le, mm)") from None
+        raise
     if args.plot is not None and args.plot.exists() and not args.plot.is_dir():
         raise InputError(f"--plot {args.plot}: exists and is not a directory")
     return model, ev, L0, LE
@@ -101,14 +110,6 @@ def _error_settings(settings, ev):
         settings["errors_undetermined_kept"] = list(ev.kept)
     if ev.left_out:
         settings["errors_left_out_parameters"] = list(ev.left_out)
-
-
-def _print_error_notes(ev):
-    if ev.kept:
-        print(f"errors: {len(ev.kept)} undetermined in the fitted model keep the machine file's values: "
-              f"{', '.join(ev.kept)}")
-    if ev.left_out:
-        print(f"errors: fitted parameters that are not geometric errors are left out: {', '.join(ev.left_out)}")
 
 
 def _dump(out):
@@ -139,46 +140,6 @@ def _grid(args, model):
     if args.axis:
         source += "; changed by --axis " + " ".join(args.axis)
     return grid, source, L0, LE
-
-
-def _print_ranking(model, result, top: int, title: str):
-    """The largest proportions with each error's ISO 230 name."""
-    from ..model import iso_names as iso
-    p = result.proportions
-    idx = {n: i for i, n in enumerate(result.names)}
-    names = iso.names(model)
-    print(title)
-    print(f"{'rank':>4}  {'error':<6} {'ISO 230':<9} {'proportion':>10}")
-    prev = None
-    for r, name in enumerate(result.ranking[:top], 1):
-        v = p[idx[name]]
-        tie = "  (tied: same J)" if prev is not None and abs(v - prev) <= 1e-12 * max(abs(v), 1e-300) else ""
-        print(f"{r:>4}  {name:<6} {names[name].iso or '-':<9} {100 * v:>9.2f}%{tie}")
-        prev = v
-
-
-def _print_settings(s):
-    q = s["quadrature"]
-    rule = "exact integral over L" if q["order"] == "exact" else f"Gauss-Legendre order {q['order']}"
-    line = (f"settings: {s['machine']} ({s['convention']} convention), L0 {s['L0_mm']:g} mm, LE {s['LE_mm']:.4g} mm, "
-            f"{rule}")
-    if "max_abs_change_of_proportion" in q:
-        line += (f" (vs Gauss-Legendre order {q['check_order']}: largest change of a proportion "
-                 f"{q['max_abs_change_of_proportion']:.1e})")
-    left = (f"{s['skipped_poses']} poses" if "skipped_poses" in s else f"{s['skipped_nodes']} nodes")
-    line += f", {s['poses']} poses, {left} left out (|P_err| ~ 0)"
-    print(line)
-    if "workspace" in s:
-        print(f"workspace: {s['workspace']}")
-
-
-def _print_compensation(rows, title, unit, paper: dict | None = None):
-    print(title)
-    print(f"  {'':2}{'scenario':<15} {unit:>12} {'improvement':>12} {'%':>6}")
-    for i, r in enumerate(rows, 1):
-        print(f"  {i:<2}{r.scenario:<15} {r.value:>12.5g} {r.improvement:>12.5g} {r.improvement_pct:>6.1f}")
-    if paper:
-        print("  paper: " + ", ".join(f"{k} {v}" for k, v in paper.items()))
 
 
 def _rows_json(rows):
@@ -254,6 +215,7 @@ def _compensate_gsa(args, model, errors, grid, L0, res):
 
 
 def run_gsa(args) -> int:
+    from ..report import sensitivity_text as S
     from ..sensitivity import paper as presets
     from ..sensitivity.experiments import scenario_errors
     from ..sensitivity.indices import CHUNK, gsil
@@ -308,18 +270,19 @@ def run_gsa(args) -> int:
     if args.json:
         _dump(out)
         return 0
-    _print_ranking(model, res, args.top, "GSIL proportions PG_i (Eq. 14, 16), largest first")
-    _print_settings(res.settings)
-    _print_error_notes(ev)
+    lines = (S.ranking(out, _iso(model), args.top, "GSIL proportions PG_i (Eq. 14, 16), largest first")
+             + S.settings(out["settings"]) + S.error_notes(out["settings"]))
     if comp:
+        c = out["compensation"]
         fig = "Fig. 16a: " if paper else ""
-        where = f"the {args.points} points of Fig. 15" if paper else \
-            f"the {args.points} points of the workspace's body diagonals and its centre"
-        _print_compensation(comp["position_mm"], f"{fig}average position error at {where} (L = {L0:g} mm), "
-                            f"vital = {', '.join(vital)} ({why})", "mm",
-                            presets.PAPER_COMPENSATION["workspace_position"] if paper else None)
-        _print_compensation(comp["posture_rad"], f"{'Fig. 16b: ' if paper else ''}average posture error", "rad",
-                            presets.PAPER_COMPENSATION["workspace_posture"] if paper else None)
+        where = f"the {c['points']} points of Fig. 15" if paper else \
+            f"the {c['points']} points of the workspace's body diagonals and its centre"
+        lines += S.compensation(c["position_mm"], f"{fig}average position error at {where} (L = {c['L_mm']:g} mm), "
+                                f"vital = {', '.join(c['vital'])} ({c['vital_rule']})", "mm",
+                                presets.PAPER_COMPENSATION["workspace_position"] if paper else None)
+        lines += S.compensation(c["posture_rad"], f"{'Fig. 16b: ' if paper else ''}average posture error", "rad",
+                                presets.PAPER_COMPENSATION["workspace_posture"] if paper else None)
+    print("\n".join(lines))
     return 0
 
 
@@ -366,9 +329,7 @@ def _path(args, model, L0):
     elif args.toolpath.suffix.lower() == ".csv":
         tp = toolpath.read_csv(args.toolpath, model.machine, max_rows=args.max_poses)
     else:
-        if not args.toolpath.is_file():
-            raise InputError(f"{args.toolpath}: {'not a file' if args.toolpath.exists() else 'no such file'}")
-        program = gcode.interpret(args.toolpath)
+        program = gcode.interpret(args.toolpath)      # read through fiveaxis.inputs: a regular file, bounded
         tp = toolpath.from_program(program, model.machine, args.step_mm, args.step_deg, args.max_poses, how)
     if args.surface:
         if tp.has_normals:
@@ -379,6 +340,7 @@ def _path(args, model, L0):
 
 
 def run_lsa(args) -> int:
+    from ..report import sensitivity_text as S
     from ..sensitivity import paper as presets
     from ..sensitivity.indices import DEFAULT_ORDER, lsil
     from ..guards import check_size
@@ -406,7 +368,8 @@ def run_lsa(args) -> int:
     if cone:
         if args.positions < 1:
             raise InputError(f"--positions: expected at least 1, got {args.positions}")
-        check_size(args.positions, "cone positions", args.max_poses, "--max-poses {n}")
+        check_size(args.positions, "cone positions", args.max_poses, "--max-poses {n}",
+                   detail=f"--positions {args.positions}")
         poses = presets.cone_poses(model, cone, args.positions)
         mode = 0 if args.normal_mode is None else args.normal_mode
     else:
@@ -465,43 +428,32 @@ def run_lsa(args) -> int:
         _dump(out)
         return 0
     what = f"at cone position {cone}" if cone else ("at the given poses" if args.pose else "along the path")
-    _print_ranking(model, res, args.top, f"LSIL proportions PL_i {what} (normal mode {mode}), largest first")
-    _print_settings(res.settings)
-    if tp is not None:
-        print(f"path: {tp.source}")
-    print(f"normals: {res.settings['normals']}")
-    _print_error_notes(ev)
-    if segs is not None:
-        _print_segments(res, segs, args.segments)
+    st = out["settings"]
+    lines = (S.ranking(out, _iso(model), args.top, f"LSIL proportions PL_i {what} (normal mode {mode}), largest "
+                                                   f"first") + S.settings(st)
+             + ([f"path: {st['path']}"] if "path" in st else []) + [f"normals: {st['normals']}"]
+             + S.error_notes(st))
+    if "segments" in out:
+        lines += S.segments(out["segments"], args.segments)
     if comp:
-        if cone:
-            _print_compensation(comp, f"Fig. 11: average machining error of the side surface, vital = "
-                                f"{', '.join(vital)} ({why})", "mm", presets.PAPER_COMPENSATION[f"cone{cone}"])
-        else:
-            _print_compensation(comp, f"machining error {measure}, vital = {', '.join(vital)} ({why})", "mm")
+        c = out["compensation"]
+        title = (f"Fig. 11: average machining error of the side surface, vital = " if cone else
+                 f"machining error {c['measure']}, vital = ")
+        lines += S.compensation(c["machining_error_mm"], title + f"{', '.join(c['vital'])} ({c['vital_rule']})", "mm",
+                                presets.PAPER_COMPENSATION[f"cone{cone}"] if cone else None)
+    print("\n".join(lines))
     return 0
+
+
+def _iso(model) -> dict:
+    """{error: ISO 230 name or None} for the rankings."""
+    from ..model import iso_names as iso
+    return {n: e.iso for n, e in iso.names(model).items()}
 
 
 def _ranking(names, proportions):
     from ..sensitivity.indices import ranking
     return ranking(list(names), proportions)
-
-
-def _print_segments(res, segs, shown):
-    picked = range(len(segs)) if len(segs) <= shown else \
-        sorted(set(np.linspace(0, len(segs) - 1, shown).round().astype(int).tolist()))
-    every = "each of" if len(picked) == len(segs) else f"{len(picked)} evenly spread of"
-    print(f"per segment (which errors matter where): the three largest PL_i of {every} {len(segs)} segments")
-    for s in (segs[i] for i in picked):
-        if s["proportions"] is None:
-            top = "all indices zero"
-        else:
-            p = dict(zip(res.names, s["proportions"]))
-            top = ", ".join(f"{n} {100 * p[n]:.1f}%" for n in _ranking(res.names, s["proportions"])[:3])
-        span = f"poses {s['first_pose'] + 1}-{s['last_pose'] + 1}"
-        print(f"  {s['label']:<14} {span:<16} {top}")
-    if len(picked) < len(segs):
-        print(f"  ({len(segs) - len(picked)} more segments in --json; --segments N lists N of them)")
 
 
 def _lsa_plots(args, model, res, cone, tp, comp, errors, L0, LE, mode, vital):
@@ -549,6 +501,7 @@ def register_sobol(p):
 
 
 def run_sobol(args) -> int:
+    from ..report import sensitivity_text as S
     from ..guards import check_size
     from ..sensitivity.indices import gsil, ranking
     from ..sensitivity.sobol import MAX_POSES, compare, sobol_total
@@ -579,16 +532,5 @@ def run_sobol(args) -> int:
     if args.json:
         _dump(out)
         return 0
-    pg = dict(zip(model.errors, g.proportions))
-    rank_g = {n: i + 1 for i, n in enumerate(g.ranking)}
-    print(f"Sobol' total indices of mean |P_err| over the workspace ({s['evaluations']} evaluations), "
-          f"with the GSIL rank")
-    print(f"{'rank':>4}  {'error':<6} {'S_T':>7} {'+-95%':>7}   {'PG_i':>7} {'GSIL rank':>9}")
-    idx = {n: i for i, n in enumerate(s["names"])}
-    for r, n in enumerate(out["ranking"][:args.top], 1):
-        print(f"{r:>4}  {n:<6} {s['ST'][idx[n]]:>7.3f} {s['ST_conf'][idx[n]]:>7.3f}   {100 * pg[n]:>6.2f}% "
-              f"{rank_g[n]:>9}")
-    print(f"Spearman rank correlation of S_T and GSIL: {cmp['spearman']:.3f}; top 4 in common: "
-          f"{', '.join(cmp['top4_common'])}")
-    print(f"workspace: {source}")
+    print("\n".join(S.sobol(out, g.to_json(), args.top)))
     return 0

@@ -1,12 +1,12 @@
 """The chain both corrections invert: the actual tool of a machine with errors, and the damping of rotary
-corrections that the volumetric table (`compensation.table`) and the kinematics module (`compensation.kinematics`)
+corrections that the volumetric table (`compensation.correction`, `compensation.table`) and the kinematics module (`compensation.kinematics`)
 share."""
 from __future__ import annotations
 
 import numpy as np
 
 #: Penalty on rotary corrections where the rotary joints hardly move the tool axis (dimensionless; see
-#: `compensation.table`).
+#: `compensation.correction`).
 DAMPING = 0.2
 
 

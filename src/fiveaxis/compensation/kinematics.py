@@ -1,14 +1,14 @@
 """A fitted model in the LinuxCNC kinematics module (fiveaxis.linuxcnc.kinematics): the pins' values, what the
 module cannot hold, and what it is predicted to leave.
 
-The module holds the base error values and the effects that depend on the joint positions (polynomial and
-periodic in an axis; profiles when they come). It refuses, with a one-line reason each (`ModuleValues.left_out`,
-printed by `compensate`, in summary.json): reversal effects (a kinematics module does not see the direction of
-motion; forward and reverse trims for the module's configuration are not written yet), time effects (no time in
-kinematics; taken at t = 0 as in the table) and custom effects of the machine file (not in the module yet). The
-prediction (`predicted`) uses exactly what the module holds: the fitted model restricted to those effects,
-evaluated where the module evaluates them (full-turn rotary axes wrapped), through the module's NumPy reference.
-Units: mm and rad.
+The module holds the base error values and the effects whose family gives them a slot (`module` of each family in
+`fiveaxis.effects`: polynomial and periodic in an axis; temperature effects, read from a sensor pin each channel,
+`temp.<c>`). It refuses, with the family's one-line reason each (`ModuleValues.left_out`, printed by `compensate`,
+in summary.json): reversal effects, time effects (taken at t = 0 as in the table), profiles and custom effects of
+the machine file, and effects beyond the module's slots or sensors. The prediction (`predicted`) uses exactly what
+the module holds: the fitted model restricted to those effects, evaluated where the module evaluates them
+(full-turn rotary axes wrapped; temperatures a steady state: the lags settled), through the module's NumPy
+reference. Units: mm and rad; degC.
 """
 from __future__ import annotations
 
@@ -16,55 +16,42 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..effects.families import TIME
+from ..effects import families as fx
 from ..linuxcnc import kinematics as K
 from .chain import DAMPING, actual_tool
 from ..estimation.fitted_model import errors_at
 
-REASONS = {
-    "reversal": "a reversal depends on the direction of motion, which kinematics do not see; not compensated "
-                "with the module (../joint*.comp carry it with forward and reverse trims, but they belong to the "
-                "stock kinematics; reversal trims for the module's configuration are not written yet)",
-    "thermal": "a time effect: kinematics hold no time (taken at t = 0, as in the table)",
-    "time": "a time effect: kinematics hold no time (taken at t = 0, as in the table)",
-    "custom": "custom effects of the machine file are not in the module yet",
-    "profile": "a per-position profile is not in the module yet (../joint*.comp carry it as trims at its knots, but "
-               "they belong to the stock kinematics)",
-    "slots": f"the module has {K.SLOTS} effect slots, all in use",
-}
+SLOTS_FULL = f"the module has {K.SLOTS} effect slots, all in use"
+SENSORS_FULL = f"the module reads {K.TEMPS} temperature sensors, all in use"
 
 
 def module_values(fm, model, damping: float = DAMPING) -> K.ModuleValues:
     """The values of the module's pins for a fitted model (see the module docstring)."""
     names = tuple(model.errors)
     variables = list(model.variables)
-    slots, left = [], []
+    slots, left, channels, refs = [], [], [], []
     for rec in fm.effects:
-        reason = None
-        if rec.kind == "custom":
-            reason = "custom"
-        elif rec.var == TIME or rec.kind == "thermal":
-            reason = "time"
-        elif rec.kind not in ("polynomial", "periodic"):
-            reason = rec.kind if rec.kind in REASONS else "custom"
-        elif len(slots) >= K.SLOTS:
-            reason = "slots"
-        if reason:
-            left.append(f"effect {rec.id} left out of the kinematics module: {REASONS[reason]}")
+        slot = fx.family(rec.kind).module(rec, fm.scales, variables)
+        if isinstance(slot, dict) and len(slots) >= K.SLOTS:
+            slot = SLOTS_FULL
+        if isinstance(slot, dict) and "channel" in slot and slot["channel"] not in channels:
+            if len(channels) >= K.TEMPS:
+                slot = SENSORS_FULL
+            else:
+                channels.append(slot["channel"])
+                refs.append(slot["reference"])
+        if isinstance(slot, str):
+            left.append(f"effect {rec.id} left out of the kinematics module: {slot}")
             continue
-        sc = fm.scales[rec.var]
+        if "channel" in slot:
+            slot = dict(slot, channel=channels.index(slot["channel"]))
         param = names.index(rec.param) if rec.param in names else len(names)        # L: the tool length
-        joint = variables.index(sc.column)
-        if rec.kind == "polynomial":
-            slots.append(K.Slot(param, "polynomial", joint, int(rec.deg), 1.0, float(sc.centre), float(sc.half),
-                                float(rec.values[0]), 0.0, rec.id))
-        else:
-            slots.append(K.Slot(param, "periodic", joint, 0, float(rec.arg) / float(sc.to_unit), 0.0, 1.0,
-                                float(rec.values[0]), float(rec.values[1]), rec.id))
+        slots.append(K.Slot(param, **slot, id=rec.id))
     units = tuple("rad" if model.machine.is_angular(n) else "mm" for n in names)
     errors = np.array([fm.errors[n] for n in names], dtype=float)
     return K.ModuleValues(model.machine.name, names, errors, units, tuple(slots), float(model.machine.tool_length),
-                          float(damping), tuple(left))
+                          float(damping), tuple(left), model.convention or "equations", tuple(channels),
+                          tuple(float(r) for r in refs))
 
 
 def module_model(fm, values: K.ModuleValues):
@@ -73,29 +60,30 @@ def module_model(fm, values: K.ModuleValues):
     return replace(fm, effects=tuple(e for e in fm.effects if e.id in held))
 
 
-def tool_function(fm, model):
+def tool_function(fm, model, temps=None):
     """tool_fn(positions, L) -> (tip, axis) of the fitted machine (mm) where the module evaluates it: effects at
-    the positions with full-turn rotary axes wrapped, no time, reversal effects at their mean."""
+    the positions with full-turn rotary axes wrapped, no time, reversal effects at their mean, temperatures temps
+    ({temp_<name>: degC}; a steady state; None or a channel left out: at its reference)."""
 
     def tool_fn(positions, L):
-        E, dL = errors_at(fm, model, K.wrap_positions(model.machine, positions))
+        E, dL = errors_at(fm, model, K.wrap_positions(model.machine, positions), temps=temps)
         return actual_tool(model, positions, E, dL, L)
     return tool_fn
 
 
-def joints_for(fm, model, values: K.ModuleValues, poses, L=None):
+def joints_for(fm, model, values: K.ModuleValues, poses, L=None, temps=None):
     """The joints the module commands (K.Inverse) for nominal poses (n, nvar): their tip and rotary angles as
-    world coordinates, tool length L (mm; None: the model's)."""
+    world coordinates, tool length L (mm; None: the model's), its temperature pins at temps (degC, steady)."""
     L = model.tool_lengths(values.tool_length if L is None else L, len(model.poses(poses)))
     world = K.nominal_world(model, poses, L)
-    return K.inverse(model, tool_function(module_model(fm, values), model), world, L, values.damping)
+    return K.inverse(model, tool_function(module_model(fm, values), model, temps), world, L, values.damping)
 
 
-def predicted(fm, model, values: K.ModuleValues, errors_fn, q, dirs, L=None) -> dict:
-    """What the machine errors_fn describes does when the module, with the values of the fitted model fm, commands
-    nominal poses q (n, nvar): {"tip_mm": (n, 3) tool-tip error, "axis_rad": (n, 3) tool-axis error, "converged",
-    "max_iterations"}."""
-    inv = joints_for(fm, model, values, q, L)
+def predicted(fm, model, values: K.ModuleValues, errors_fn, q, dirs, L=None, temps=None) -> dict:
+    """What the machine errors_fn describes does when the module, with the values of the fitted model fm and its
+    temperature pins at temps ({temp_<name>: degC}, None: at their references), commands nominal poses q (n, nvar):
+    {"tip_mm": (n, 3) tool-tip error, "axis_rad": (n, 3) tool-axis error, "converged", "max_iterations"}."""
+    inv = joints_for(fm, model, values, q, L, temps)
     Ls = model.tool_lengths(values.tool_length if L is None else L, len(q))
     E, dL = errors_fn(inv.joints, dirs)
     P, V = actual_tool(model, inv.joints, E, dL, Ls)

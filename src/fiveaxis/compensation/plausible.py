@@ -15,6 +15,7 @@ import re
 
 import numpy as np
 
+from ..effects.families import family
 from ..exceptions import InputError
 
 #: Bounds, with why. A real machine's geometric errors are micrometres and microradians; location errors of axes
@@ -31,6 +32,105 @@ LIMITS = {
 
 HINT = ("refused: nothing is written for the controller (a model file edited by hand, a fit that failed, or the "
         "machine file's nominal geometry far off?)")
+
+#: What machine tools show, judged against the axis' stroke (issue 28, point 6): a value beyond is not a machine's
+#: but most often micrometres written into a millimetre column. (bound, what it is; mm unless said.)
+MACHINES = {
+    "noise_mm": (0.1, "a machine tool's repeatability or a reading's noise (a worn machine: 0.02 mm)"),
+    "backlash_mm": (0.25, "a machine tool's backlash (worn screws: 0.05 mm)"),
+    "deviation_of_stroke": (0.01, "1 % of the axis' stroke (machines deviate by 0.001 % to 0.05 % of it)"),
+    "deviation_floor_mm": (0.5, "the least bound of a deviation along a short axis"),
+}
+UNIT_HINT = "did you write um in a mm column?"
+
+
+def deviation_bound(stroke_mm: float) -> float:
+    """The largest deviation (mm) a machine shows along an axis of this stroke (mm): MACHINES' share of it, not
+    below the floor."""
+    return max(MACHINES["deviation_floor_mm"][0], MACHINES["deviation_of_stroke"][0] * abs(stroke_mm))
+
+
+def _um(mm: float) -> str:
+    return f"{1e3 * mm:.4g} um"
+
+
+def unit_slip(findings: list[str]) -> str:
+    """One line from findings (each 'what value, beyond what'): the first, how many more, and the hint."""
+    more = f" (and {len(findings) - 1} more)" if len(findings) > 1 else ""
+    return f"{findings[0]}{more}; {UNIT_HINT}"
+
+
+def model_findings(fm, machine) -> list[str]:
+    """What a fitted model (fiveaxis.estimation.fitted_model.FittedModel) holds that no machine shows: its noise
+    estimate, the backlash of its reversal effects, the change of its polynomial effects over the stroke, the
+    determined errors and combinations beyond LIMITS. Empty when all is plausible. mm and rad."""
+    out = []
+    noise = fm.fit.get("noise_mm")
+    limit, what = MACHINES["noise_mm"]
+    if isinstance(noise, (int, float)) and not noise <= limit:
+        out.append(f"noise estimate {_um(noise)} (fit.noise_mm): beyond {what}, {_um(limit)}")
+    units = fm.error_units
+    for e in fm.effects:
+        if units.get(e.param) != "mm" or not e.values:
+            continue
+        for quantity, size, column in family(e.kind).extents(e, fm.scales):
+            if quantity == "backlash":
+                limit, what = MACHINES["backlash_mm"]
+                if not size <= limit:
+                    out.append(f"effect {e.id}: a backlash of {_um(size)}: beyond {what}, {_um(limit)}")
+                continue
+            axis = machine.axis(column)
+            if axis.type != "linear":
+                continue
+            stroke = float(axis.stroke[1] - axis.stroke[0])
+            if not size <= deviation_bound(stroke):
+                out.append(f"effect {e.id}: a change of {_um(size)} along {axis.name}, a {stroke:g} mm stroke: "
+                           f"beyond {MACHINES['deviation_of_stroke'][1]}")
+    for name, value in fm.errors.items():
+        if name in fm.undetermined:
+            continue
+        key, unit = ("error_rad", "rad") if units.get(name) == "rad" else ("error_mm", "mm")
+        limit, what = LIMITS[key]
+        if not abs(value) <= limit:
+            out.append(f"{name} = {value:.3g} {unit}: beyond {what}, {limit:g} {unit}")
+    for c in fm.combinations:
+        terms = list(c.get("terms", {}))
+        value = c.get("value_mm_rad")
+        if not terms or not isinstance(value, (int, float)):
+            continue
+        key, unit = ("error_rad", "rad") if units.get(terms[0]) == "rad" else ("error_mm", "mm")
+        limit, what = LIMITS[key]
+        if not abs(value) <= limit:
+            out.append(f"{c.get('formula', terms[0])} = {value:.3g} {unit}: beyond {what}, {limit:g} {unit}")
+    return out
+
+
+def positioning_findings(figures: dict, stroke_mm: float) -> list[str]:
+    """What ISO 230-2 figures (fiveaxis.iso230.positioning.figures, mm) of an axis of this stroke hold that no
+    machine shows: the systematic deviation E beyond deviation_bound, the repeatability (its s, R / 4) beyond the
+    noise bound, the reversal B beyond the backlash bound."""
+    out = []
+    bound = deviation_bound(stroke_mm)
+    if not figures["E"] <= bound:
+        out.append(f"E {_um(figures['E'])} on an axis of {stroke_mm:g} mm stroke: beyond "
+                   f"{MACHINES['deviation_of_stroke'][1]}, {_um(bound)}")
+    s = max(figures["R_fwd"], figures["R_bwd"]) / 4
+    limit, what = MACHINES["noise_mm"]
+    if not s <= limit:
+        out.append(f"a repeatability s of {_um(s)} (R/4): beyond {what}, {_um(limit)}")
+    limit, what = MACHINES["backlash_mm"]
+    if not figures["B"] <= limit:
+        out.append(f"B {_um(figures['B'])}: beyond {what}, {_um(limit)}")
+    return out
+
+
+def check_model(fm, machine, where: str) -> None:
+    """Refuse (one line, with the hint) a fitted model that holds what no machine shows (model_findings), before
+    anything is computed or written for a controller."""
+    found = model_findings(fm, machine)
+    if found:
+        raise InputError(f"{where}: {unit_slip(found)} (or a model that misses an effect: `fiveaxis diagnose`); "
+                         f"refused: nothing is written for the controller")
 
 
 #: A number that is not finite, as Python or C print it, in a file's text.
@@ -76,8 +176,10 @@ def check_compensation(comp, texts: dict) -> None:
     """A Compensation (fiveaxis.compensation.table) and the texts of its LinuxCNC files: every number finite,
     corrections within LIMITS, the table not worse than no compensation; InputError otherwise."""
     tab, model = comp.table, comp.model
-    hint = HINT if comp.damping > 0 else ("refused: nothing is written for the controller (damping 0 leaves the "
-                                          "corrections unbounded near singular poses: use damping > 0)")
+    hint = HINT if comp.damping > 0 else ("refused: nothing is written for the controller (damping=0 leaves the "
+                                          "corrections unbounded near singular poses: give damping=0.2, the default, "
+                                          "or more)")
+    key = None if comp.damping > 0 else "damping"
     c = tab.c.reshape(-1, len(tab.variables))
     for j, (v, rotary) in enumerate(zip(tab.variables, tab.rotary)):
         key, unit = ("correction_rad", "rad") if rotary else ("correction_mm", "mm")
@@ -88,7 +190,7 @@ def check_compensation(comp, texts: dict) -> None:
             i = int(np.flatnonzero(bad)[0])
             raise InputError(f"compensation table: c_{v} = {col[i]:.3g} {unit} at "
                              f"{_pose(model, tab.poses()[i])}: more than {limit:g} {unit}, "
-                             f"beyond {what}; {hint}")
+                             f"beyond {what}; {hint}", key=key)
     for comp_file in comp.lc.comps:
         limit = LIMITS["correction_rad" if comp_file.unit == "deg" else "correction_mm"][0]
         limit = math.degrees(limit) if comp_file.unit == "deg" else limit
@@ -97,6 +199,14 @@ def check_compensation(comp, texts: dict) -> None:
                 raise InputError(f"LinuxCNC comp file of {comp_file.variable}: a trim of "
                                  f"{float(np.max(np.abs(trims))):.3g} {comp_file.unit} is not finite or beyond "
                                  f"{limit:g} {comp_file.unit}; {HINT}")
+        axis = model.machine.axis(comp_file.variable)
+        if comp_file.unit == "mm" and axis.type == "linear":
+            stroke = float(axis.stroke[1] - axis.stroke[0])
+            worst = float(max(np.max(np.abs(comp_file.forward)), np.max(np.abs(comp_file.reverse))))
+            if worst > deviation_bound(stroke):
+                raise InputError(f"LinuxCNC comp file of {comp_file.variable}: a trim of {_um(worst)} on a "
+                                 f"{stroke:g} mm stroke: beyond {MACHINES['deviation_of_stroke'][1]}, "
+                                 f"{_um(deviation_bound(stroke))}; {UNIT_HINT} {HINT}")
     for name, text in texts.items():
         numbers = "\n".join(line for line in text.splitlines() if not line.lstrip().startswith("#"))
         if NOT_FINITE.search(numbers):
@@ -108,7 +218,8 @@ def check_compensation(comp, texts: dict) -> None:
         raise InputError(f"predicted tool-tip error: not finite (before {before:g} mm, after the table {after:g} mm)"
                          f"; {HINT}")
     if after > limit * before and after > 1e-6:
+        why = ("damping=0 leaves the rotary corrections near singular poses unbounded: give damping=0.2, the default"
+               if comp.damping == 0 else f"damping {comp.damping:g}")
         raise InputError(f"the table would make the tool tip worse than no compensation: RMS {1e3 * after:.4g} um "
-                         f"after it against {1e3 * before:.4g} um without (damping {comp.damping:g}: rotary "
-                         f"corrections near singular poses need damping > 0); refused: nothing is written for the "
-                         f"controller")
+                         f"after it against {1e3 * before:.4g} um without ({why}); refused: nothing is written for the "
+                         f"controller", key=key)

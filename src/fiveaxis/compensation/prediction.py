@@ -1,6 +1,6 @@
 """What a compensation's prediction cannot know: the fit's uncertainty and the directions the data did not determine.
 
-The account (compensation.table.account) predicts the tool-tip error left after each stage (LinuxCNC's files, the
+The account (compensation.account.account) predicts the tool-tip error left after each stage (LinuxCNC's files, the
 kinematics module, the table) on the fitted model, whose undetermined parameters carry the minimum-norm solution.
 The true machine differs by D = theta_true - theta_fit: to first order the error left at a pose q becomes
 e(q) + J(q) D, J the tip's derivative by the machine's parameters (errors, effect coefficients) at q (the
@@ -13,9 +13,12 @@ compensations move the axes by far less than J changes over). D has two parts:
   With that prior, S = diag(s^2), and what the data determines known, D_u ~ N(m, B^T (B S^-1 B^T)^-1 B),
   m = -B^T (B S^-1 B^T)^-1 B S^-1 theta_fit (the prior's best value of the undetermined part, against the fit's
   minimum norm).
-`band` gives per stage a range for the true RMS (k = 2: triangle inequality around the prior's best value, see
-band), its expected value, and the parts' shares; tool-axis figures the same (model estimates: the axis was
-measured only if the data had axis readings or several tool lengths). `determining` says which measurement would
+`band` gives per stage a range for the true RMS over the workspace (k = 2: the 2.275 % and 97.725 % quantiles of
+the RMS over machines drawn from D ~ N(m, C + Sigma_u); the RMS is a quadratic form of D, reduced once to the
+singular values of what D does at the poses, so 20,000 draws cost little), its expected value and the parts'
+shares, raw and with the part's set-up taken out (a work offset and the alignment about the table's axis:
+compensation.part_setup); tool-axis figures the same, raw (model estimates: the axis was measured only if the data
+had axis readings or several tool lengths). `determining` says which measurement would
 determine the undetermined part that matters: tip readings over the whole workspace at the model's tool, with a
 second tool length, or with the tool axis read.
 Units: mm and rad.
@@ -26,6 +29,7 @@ import math
 
 import numpy as np
 
+from .part_setup import SetupRemoval
 from ..effects import families as fx
 from ..estimation.fitted_model import effect_of
 
@@ -35,6 +39,11 @@ MAX_POSES = 1000
 SECOND_TOOL_MM = 100.0
 #: Readings of a candidate measurement (random poses within the strokes, seeded).
 CANDIDATE_POSES = 300
+#: Machines drawn from the fit's distribution for the k = 2 ranges (seeded: the same ranges on every run), and the
+#: lower tail of a k = 2 range (a normal's mass below -2 sd).
+DRAWS = 20_000
+DRAWS_SEED = 2
+K2_LOW = 0.02275
 
 
 def _units(fm, names) -> list[str]:
@@ -94,9 +103,10 @@ def parameter_jacobians(fm, model, q, L, dirs=None):
     V0 = model.ideal_tool(q, L)[1]
     ctx = fx.context(model.machine, q, None, fm_dirs(model, dirs, n), sc=fm.scales)
     for rec in fm.effects:
-        if rec.var == fx.TIME or (rec.kind == "reversal" and dirs is None):
+        here = fx.family(rec.kind).evaluated_in(rec, ctx)        # no time here; without directions no reversal
+        if here is None:
             continue
-        basis = effect_of(rec, model).basis(ctx)              # (n, k)
+        basis = effect_of(rec, model).basis(here)              # (n, k)
         for k, cname in enumerate(rec.names):
             if cname not in col:
                 continue
@@ -156,12 +166,12 @@ def band(fm, model, q, dirs, L, tip_stages: dict, axis_stages: dict, noise: floa
     """The prediction's uncertainty (see the module docstring) for stages {name: (n, 3) error at poses q} of the
     tool tip (mm) and of the tool axis (rad); {} when the model file carries no covariance (written before it).
 
-    Per stage: `predicted_rms` (the fitted model, as the account), `centre_rms` (the undetermined part at the
-    prior's best value m), `uncertainty_rms` u (the RMS error of D - m: the fit's uncertainty and the undetermined
-    part's spread), `range_k2` = [centre - 2u, centre + 2u] (clipped at 0): the true RMS lies there whenever the
-    RMS of J (D - m) is at most 2u (triangle inequality; 95 % or more for one dominant direction, more for many),
-    `expected_rms` = sqrt(centre^2 + u^2). With noise (mm, one reading), the tip stages also get
-    `remeasured_range_k2`: what a tip measurement over the workspace with that noise per component would read."""
+    Per stage: `predicted_rms` (the fitted model, as the account), `range_k2`: the 2.275 % and 97.725 % quantiles
+    of the true RMS over the poses (k = 2: 95.45 % of the machines the fit allows lie inside) for
+    D ~ N(m, C + Sigma_u), `expected_rms` (the root of its mean square). With noise (mm, one reading), the tip
+    stages also get `remeasured_range_k2`: what a tip measurement of as many random poses over the workspace, with
+    that noise per component, would read. The tip stages also with the part's set-up taken out (`setup_removed`, the same
+    figures; compensation.part_setup)."""
     if fm.covariance is None or not len(fm.parameter_names):
         return {}
     q = np.asarray(q, float)[:MAX_POSES]
@@ -173,26 +183,34 @@ def band(fm, model, q, dirs, L, tip_stages: dict, axis_stages: dict, noise: floa
     S = np.array([scales[u] ** 2 for u in _units(fm, fm.parameter_names)])
     m, Su = _undetermined_covariance(fm, S)
     C = np.asarray(fm.covariance, float)
+    R = _factor(Su + C)
+    setup = SetupRemoval.at(model.machine, model.ideal_tool(q, Ls)[0])
+    draws = np.random.default_rng(DRAWS_SEED).standard_normal((DRAWS, 2 + R.shape[1]))
 
-    def one(stages, D, with_noise):
+    def one(stages, D, project=None):
+        shift = np.einsum("nkp,p->nk", D, m)
+        spread = _Spread(D.reshape(-1, D.shape[-1]) @ R, n, project, draws)
         out = {}
-        G = _gram(D)
-        u = _spread(G, Su + C)
         for name, e in stages.items():
             e = np.asarray(e, float)[:n]
-            centre = _rms_rows(e + np.einsum("nkp,p->nk", D, m))
-            lo, hi = max(centre - 2 * u, 0.0), centre + 2 * u
-            out[name] = {"predicted_rms": _rms_rows(e), "centre_rms": centre, "uncertainty_rms": u,
-                         "range_k2": [lo, hi], "expected_rms": math.sqrt(centre ** 2 + u ** 2)}
-            if with_noise and noise:
-                out[name]["remeasured_range_k2"] = [math.sqrt(x ** 2 + 3 * noise ** 2) for x in (lo, hi)]
-        parts = {"fit": _spread(G, C), "undetermined": _spread(G, Su),
-                 "undetermined_best_value": _rms_rows(np.einsum("nkp,p->nk", D, m))}
+            a = e + shift
+            if project is not None:
+                e, a = project(e), project(a)
+            out[name] = {"predicted_rms": _rms_rows(e), **spread.quantiles(a.ravel(), noise if D is J else None)}
+        shift = shift if project is None else project(shift)
+        Dp = D if project is None else project(D.reshape(-1, D.shape[-1])).reshape(D.shape)
+        G = _gram(Dp)
+        parts = {"fit": _spread(G, C), "undetermined": _spread(G, Su), "undetermined_best_value": _rms_rows(shift)}
         return out, parts
 
-    tip, tip_parts = one(tip_stages, J, True)
-    axis, axis_parts = one(axis_stages, K, False)
-    return {"poses": int(n), "coverage": "k = 2 (see range_k2)",
+    tip, tip_parts = one(tip_stages, J)
+    tip_sr, tip_parts_sr = one(tip_stages, J, setup.remove)
+    for name, s in tip_sr.items():
+        tip[name]["setup_removed"] = s
+    tip_parts["setup_removed"] = tip_parts_sr
+    axis, axis_parts = one(axis_stages, K)
+    return {"poses": int(n), "coverage": "k = 2: the 2.275 % to 97.725 % quantiles of the true RMS (see range_k2)",
+            "draws": DRAWS, "part_setup": setup.describe(),
             "prior": {"linear_mm": scales["mm"], "angular_rad": scales["rad"], "from": scales["from"]},
             "undetermined_directions": 0 if fm.undetermined_basis is None else int(len(fm.undetermined_basis)),
             "noise_mm": noise, "tip_error_mm": tip, "tip_parts_rms_mm": tip_parts,
@@ -200,6 +218,69 @@ def band(fm, model, q, dirs, L, tip_stages: dict, axis_stages: dict, noise: floa
             "axis_note": "tool-axis figures are model estimates: the axis is determined only as far as the data "
                          "had tool-axis readings or several tool lengths (see axis_parts_rms_rad)",
             "determining": determining(fm, model, J, Su, m, float(Ls[0]))}
+
+
+def local_upper(fm, model, q, L, e, per_cell: int, setup: bool = True) -> np.ndarray | None:
+    """The k = 2 upper bound (mm) of the true machine's RMS tool-tip error in each cell of per_cell consecutive
+    poses q (mm, rad; tool length L, mm) whose errors on the fitted model are e (n, 3): RMS(e + J m) over the cell
+    plus twice the RMS spread of J D over it (triangle inequality: holds whenever the spread stays within 2 sd), the
+    part's set-up taken out over all the poses when setup; None when the model file has no covariance."""
+    if fm.covariance is None or not len(fm.parameter_names):
+        return None
+    q = np.asarray(q, float)
+    n = len(q)
+    Ls = model.tool_lengths(L, n)
+    J, _ = parameter_jacobians(fm, model, q, Ls)
+    scales = prior_scales(fm, model)
+    m, Su = _undetermined_covariance(fm, np.array([scales[u] ** 2 for u in _units(fm, fm.parameter_names)]))
+    M = J.reshape(-1, J.shape[-1]) @ _factor(Su + np.asarray(fm.covariance, float))
+    a = np.asarray(e, float) + np.einsum("nkp,p->nk", J, m)
+    if setup:
+        sr = SetupRemoval.at(model.machine, model.ideal_tool(q, Ls)[0])
+        M, a = sr.remove(M), sr.remove(a)
+    cells = n // per_cell
+    centre = np.sqrt(np.mean(np.sum(a.reshape(cells, per_cell, 3) ** 2, axis=2), axis=1))
+    spread = np.sqrt(np.sum(M.reshape(cells, per_cell * 3, -1) ** 2, axis=(1, 2)) / per_cell)
+    return centre + 2 * spread
+
+
+def _factor(M) -> np.ndarray:
+    """R (p, k) with R R^T = M for a covariance M (p, p): its eigenvectors scaled, the null directions dropped."""
+    w, V = np.linalg.eigh((M + M.T) / 2)
+    keep = w > 1e-12 * max(float(w.max()), 1e-300)
+    return V[:, keep] * np.sqrt(w[keep])
+
+
+class _Spread:
+    """The RMS over the workspace of a + M z for z ~ N(0, I): M (3n, k) (the errors at n poses that a parameter
+    change z in units of its spread makes, optionally projected), reduced once to its singular values s and left
+    vectors U, so that for a stage a the mean square over the poses is (|a|^2 + 2 (s U^T a) . w + s^2 . w^2) / n
+    with w = V^T z ~ N(0, I) (draws). The n poses are a sample of the workspace: the mean square over the whole
+    workspace differs from theirs by about sd(|a_i|^2) / sqrt(n) (the sample's standard error), drawn as well."""
+
+    def __init__(self, M, n, project, draws):
+        if project is not None:
+            M = project(M)
+        self.U, self.s, _ = np.linalg.svd(M, full_matrices=False)
+        self.n, self.w, self.z = n, draws[:, 2:2 + len(self.s)], draws[:, :2]
+
+    def quantiles(self, a, noise: float | None = None) -> dict:
+        """For errors a (3n,) at the poses: `range_k2` of the RMS over the workspace, `expected_rms`, and with noise
+        (mm per reading component) `remeasured_range_k2`: what a tip measurement of as many random poses would read
+        (its own sample and its noise, 3 noise^2 in the mean square, added)."""
+        b = self.s * (self.U.T @ a)
+        sampling = float(np.std(np.sum(a.reshape(self.n, -1) ** 2, axis=1))) / math.sqrt(self.n)
+        ms = (a @ a + 2 * self.w @ b + self.w ** 2 @ self.s ** 2) / self.n + sampling * self.z[:, 0]
+        out = {"range_k2": _k2(ms), "expected_rms": math.sqrt((a @ a + self.s @ self.s) / self.n)}
+        if noise:
+            out["remeasured_range_k2"] = _k2(ms + sampling * self.z[:, 1] + 3 * noise ** 2)
+        return out
+
+
+def _k2(mean_squares) -> list[float]:
+    """The k = 2 range [2.275 %, 97.725 %] of the RMS values whose mean squares are drawn."""
+    lo, hi = np.percentile(np.sqrt(np.clip(mean_squares, 0, None)), [100 * K2_LOW, 100 * (1 - K2_LOW)])
+    return [float(lo), float(hi)]
 
 
 def _candidates(fm, model, L0, seed):
@@ -250,56 +331,35 @@ STAGE_LABELS = {"before": "before", "after_linuxcnc": "after LinuxCNC (stock kin
 DOMINATES = 2.0
 
 
+def _setup_removed(unc: dict) -> tuple[dict, dict]:
+    """The tip stages and parts with the part's set-up taken out (what a part shows), or the raw ones for a record
+    written before them."""
+    tip, parts = unc["tip_error_mm"], unc["tip_parts_rms_mm"]
+    if "setup_removed" not in parts:
+        return tip, parts
+    return {k: s["setup_removed"] for k, s in tip.items()}, parts["setup_removed"]
+
+
 def warnings(unc: dict) -> list[str]:
-    """One line per thing the user must know before trusting the prediction (none when all is well)."""
+    """One line per thing the user must know before trusting the prediction (none when all is well); judged on what
+    a part shows, the part's set-up taken out."""
     if not unc:
         return []
     out = []
-    tip = unc["tip_error_mm"]
-    parts = unc["tip_parts_rms_mm"]
+    tip, parts = _setup_removed(unc)
     undet = math.hypot(parts["undetermined"], parts["undetermined_best_value"])
     best = (unc.get("determining") or {}).get("best")
     todo = f"; measure: {best['measurement']} ({best['command']})" if best else ""
     if undet > DOMINATES * parts["fit"] and undet > 1e-4:
         out.append(f"what the data does not determine moves the tool tip by {1e3 * undet:.3g} um RMS over the "
-                   f"workspace (the fit's uncertainty: {1e3 * parts['fit']:.3g} um): the predicted errors are not "
-                   f"what the machine will show{todo}")
+                   f"workspace after the part's set-up (the fit's uncertainty: {1e3 * parts['fit']:.3g} um): the "
+                   f"predicted errors are not what the machine will show{todo}")
     before = tip.get("before", {}).get("range_k2")
     for key in ("after_table", "after_kinematics_module", "after_linuxcnc"):
         after = tip.get(key, {}).get("range_k2")
         if before and after and after[1] > before[0] and after[0] > 0.5 * before[0]:
             out.append(f"{STAGE_LABELS[key]} the machine may be no better than before ({1e3 * after[0]:.3g} to "
-                       f"{1e3 * after[1]:.3g} um against {1e3 * before[0]:.3g} to {1e3 * before[1]:.3g} um RMS): do "
-                       f"not compensate with this model{todo}")
+                       f"{1e3 * after[1]:.3g} um against {1e3 * before[0]:.3g} to {1e3 * before[1]:.3g} um RMS after "
+                       f"the part's set-up): do not compensate with this model{todo}")
             break
     return out
-
-
-def text_lines(unc: dict) -> list[str]:
-    """The prediction's uncertainty as report lines (um, urad)."""
-    if not unc:
-        return ["  the prediction's uncertainty: unknown (the model file has no covariance: fit it again with this "
-                "version)"]
-    p, parts = unc["prior"], unc["tip_parts_rms_mm"]
-    lines = [f"  what the prediction cannot know (true RMS tool-tip error, k = 2 range, um): the fit's uncertainty "
-             f"{1e3 * parts['fit']:.3g} um, the {unc['undetermined_directions']} undetermined directions "
-             f"{1e3 * math.hypot(parts['undetermined'], parts['undetermined_best_value']):.3g} um (their size taken "
-             f"as the determined ones': {1e3 * p['linear_mm']:.3g} um, {1e6 * p['angular_rad']:.3g} urad)"]
-    noise = unc.get("noise_mm")
-    for key, s in unc["tip_error_mm"].items():
-        lo, hi = s["range_k2"]
-        re = s.get("remeasured_range_k2")
-        more = (f"; a tip measurement with {1e3 * noise:.2g} um noise would read {1e3 * re[0]:.3g} to "
-                f"{1e3 * re[1]:.3g}") if re and noise else ""
-        lines.append(f"    {STAGE_LABELS.get(key, key):56s} {1e3 * lo:8.3f} to {1e3 * hi:.3f}{more}")
-    ax = unc["axis_error_rad"]
-    if "after_table" in ax:
-        lo, hi = ax["after_table"]["range_k2"]
-        lines.append(f"  tool-axis error after the table (model estimate): {1e6 * lo:.3g} to {1e6 * hi:.3g} urad RMS "
-                     f"(k = 2)")
-    best = (unc.get("determining") or {}).get("best")
-    if best:
-        lines.append(f"  to determine the undetermined part ({100 * best['determines_share']:.0f} % of it): "
-                     f"{best['measurement']}: {best['command']}")
-    lines += [f"  WARNING: {w}" for w in warnings(unc)]
-    return lines

@@ -1,11 +1,13 @@
 """The candidate effects of a diagnosis, their scores against a residual, and the penalty of choosing one.
 
-Families (`fiveaxis.effects.families`; ids in `fiveaxis.model.effect_ids`):
+Families (the registry `fiveaxis.effects.families`; each family's module owns its ids and candidates):
 - polynomial `<param>:<var><deg>`: every error and L x every variable (t if the data has times) x degrees 1-3;
 - reversal `<param>:<var>r`: every error and L x every pose variable whose dir_<VAR> column has both signs;
 - periodic `<param>:<var>p<P>`: every error and L x every variable, the period P searched (a periodogram of the
   residual, `fiveaxis.diagnosis.searches`): the best period per (param, var);
 - thermal `<param>:te<tau>`: every error and L, the time constant searched: the best per param;
+- temperature `<param>:[<axis>.]temp_<name>[~<tau>]`: every error and L against every temperature channel of the
+  data, the lag searched (none included), and each linear axis' scale expansion (`fiveaxis.diagnosis.heat`);
 - custom: the machine file's `[effects.<name>]`.
 The pool is built on the rows of a screen: every reading in memory, a sample of poses for a set in row blocks
 (`fiveaxis.diagnosis.diagnose`). The searches of each cross-validation fold (its own periods and time constants on
@@ -32,16 +34,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..effects import families as fx
-from ..effects.custom import load_custom
 from ..measurement import observations as ob
+from . import heat
 from . import searches as es
 from .profiles import profile_candidates
 
 #: A candidate whose projected column keeps less than this fraction of its norm is already in the model.
 ABSORBED = 1e-6
-FAMILIES = ("polynomial", "reversal", "periodic", "thermal", "profile", "custom")
-#: Families whose candidates carry a searched argument (period, time constant): one more parameter each.
-SEARCHED = ("periodic", "thermal")
 #: Searched (parameter, variable) pairs whose period or time constant is searched again in each CV fold.
 CV_SEARCH_PAIRS = 8
 
@@ -191,13 +190,14 @@ class Prior:
         more)."""
         key = (family, N, k)
         if key not in self._memo:           # asked for thousands of times per diagnosis, a few distinct
-            self._memo[key] = ebic_penalty(N, self.trials.get(family, 1), k + (family in SEARCHED), self.F)
+            self._memo[key] = ebic_penalty(N, self.trials.get(family, 1), k + fx.family(family).SEARCHED, self.F)
         return self._memo[key]
 
     def to_json(self, N: int) -> dict:
         return {f: {"M": int(m), "penalty_one_coefficient": self.penalty(f, N, 1),
-                    **({"penalty_two_coefficients": self.penalty(f, N, 2)} if f in ("periodic", "custom") else {}),
-                    **({"searched_argument": "counted as one more coefficient"} if f in SEARCHED else {})}
+                    **({"penalty_two_coefficients": self.penalty(f, N, 2)} if 2 in fx.family(f).LISTED_WIDTHS
+                       else {}),
+                    **({"searched_argument": "counted as one more coefficient"} if fx.family(f).SEARCHED else {})}
                 for f, m in self.trials.items() if m > 0}
 
 
@@ -230,8 +230,7 @@ class Pool:
     def items(self) -> list:
         """Every candidate of the whole screen as (effect, family), in the order of `columns`."""
         return ([(e, str(f)) for e, f in zip(self.singles, self.single_family)]
-                + [(e, "periodic") for e in self.periodic] + [(e, "custom") for e in self.customs]
-                + [(e, "profile") for e in self.profiles])
+                + [(e, e.NAME) for e in self.periodic + self.customs + self.profiles])
 
     def columns(self) -> np.ndarray:
         """The weighted columns of `items`, side by side (N, sum of their coefficients)."""
@@ -244,7 +243,7 @@ class Pool:
 
     @property
     def block_family(self) -> list:
-        return ["periodic"] * len(self.periodic) + ["custom"] * len(self.customs)
+        return [e.NAME for e in self.blocks]
 
     def block_cols(self, b: int) -> np.ndarray:
         B = len(self.periodic)
@@ -252,12 +251,12 @@ class Pool:
 
     def searched_json(self) -> dict:
         out = {}
+        per, th = fx.Periodic.NAME, fx.Thermal.NAME
         if self.bands:
-            out["periodic"] = {"bands": [b.to_json() for b in self.bands],
-                               "pairs": len(self.periodic_found), "trials": self.prior.trials.get("periodic", 0)}
+            out[per] = {"bands": [b.to_json() for b in self.bands],
+                        "pairs": len(self.periodic_found), "trials": self.prior.trials.get(per, 0)}
         if self.grid is not None:
-            out["thermal"] = dict(self.grid.to_json(), parameters=len(self.thermal_found),
-                                  trials=self.prior.trials.get("thermal", 0))
+            out[th] = dict(self.grid.to_json(), parameters=len(self.thermal_found), trials=self.prior.trials.get(th, 0))
         return out
 
 
@@ -275,7 +274,7 @@ def param_columns(block, w: np.ndarray):
 
 def customs(model, present) -> list:
     """The machine file's custom effects not already in the model."""
-    return [load_custom(model.machine, nm) for nm in model.machine.effects if nm not in present]
+    return fx.CustomEffect.candidates(model.machine, model.errors, None, present)
 
 
 def build_pool(block, w, Q: np.ndarray, rw: np.ndarray, present: set, custom: list, periodic: bool = True,
@@ -288,17 +287,15 @@ def build_pool(block, w, Q: np.ndarray, rw: np.ndarray, present: set, custom: li
     prob = block.prob
     machine, model = prob.model.machine, prob.model
     unseen = set(unseen)
-    poly = [e for e in fx.vocabulary(machine, model.errors, prob.meas.t is not None)
-            if e.id not in present and e.param not in unseen]
-    rev = [e for e in fx.reversals(machine, model.errors, prob.meas.dirs) if e.id not in present and
-           e.param not in unseen]
+    poly = [e for e in fx.Polynomial.candidates(machine, model.errors, prob.ctx, present) if e.param not in unseen]
+    rev = [e for e in fx.Reversal.candidates(machine, model.errors, prob.ctx, present) if e.param not in unseen]
     params, P = param_columns(block, w)
     seen = [i for i, p in enumerate(params) if p not in unseen]
     params, P = [params[i] for i in seen], P[:, seen]
     sums = es.row_sums(params, P, rw, Q, prob.obs.row, prob.meas.n)
     bands = []
     for tok, s in (prob.scales.items() if periodic else ()):
-        if s.column is None and prob.meas.t is None:
+        if s.column is None and prob.meas.t is None or s.unit == "degC":     # periods of pose variables and time
             continue
         b = es.band(tok, prob.ctx.raw(tok) * s.to_unit, sums.live)
         if b is not None:
@@ -306,13 +303,16 @@ def build_pool(block, w, Q: np.ndarray, rw: np.ndarray, present: set, custom: li
     per = [f for f in es.periodic(sums, bands) if f.effect.id not in present]
     grid = es.tau_grid(prob.meas.t, sums.live) if prob.meas.t is not None else None
     therm = [f for f in es.thermal(sums, grid) if f.effect.id not in present] if grid is not None else []
+    temp, temp_trials = heat.search(sums, prob.ctx, machine, grid, float(rw @ rw), len(rw), present)
+    temp = [f for f in temp if f.effect.id not in present]
     active = int(np.sum(sums.W2.sum(axis=0) > 0))
     prof = profile_candidates(block, w, present, unseen) if profiles else []
-    trials = {"polynomial": len(poly), "reversal": len(rev),
-              "periodic": active * sum(b.trials for b in bands) if per else 0,
-              "thermal": active * grid.trials if therm else 0, "profile": len(prof), "custom": len(custom)}
-    singles = poly + rev + [f.effect for f in therm]
-    fam = np.array(["polynomial"] * len(poly) + ["reversal"] * len(rev) + ["thermal"] * len(therm), dtype=object)
+    trials = {fx.Polynomial.NAME: len(poly), fx.Reversal.NAME: len(rev),
+              fx.Periodic.NAME: active * sum(b.trials for b in bands) if per else 0,
+              fx.Thermal.NAME: active * grid.trials if therm else 0, fx.Profile.NAME: len(prof),
+              fx.Temperature.NAME: temp_trials if temp else 0, fx.CustomEffect.NAME: len(custom)}
+    singles = poly + rev + [f.effect for f in therm + temp]
+    fam = np.array([e.NAME for e in singles], dtype=object)
     G = candidate_matrix(block, w, singles)
     peff = [f.effect for f in per]
     Gp = candidate_matrix(block, w, peff) if peff else np.zeros((len(rw), 0))
@@ -333,27 +333,26 @@ def search_again(pool: Pool, block, w, Q: np.ndarray, rw: np.ndarray, chosen: li
     it. New candidates join the pool (the trials of the prior are those of the first search: the same grid).
     Returns how many joined."""
     prob = block.prob
-    found = []
+    per, therm = [], []
     tokens = [b.token for b in pool.bands] + ([fx.TIME] if pool.grid is not None else [])
+    have = {e.id for e in pool.singles} | {e.id for e in pool.periodic} | set(present)
+
+    def new(found):
+        out = [f for f in found if f.effect.id not in have]
+        have.update(f.effect.id for f in out)
+        return out
     for tok in dict.fromkeys(tokens):
         others = [cols for e, cols in chosen if getattr(e, "var", None) != tok]   # a custom effect (no one variable) stays
         Qx = extend(Q, np.hstack(others)) if others else Q
         r = rw - Qx @ (Qx.T @ rw)
         sums = es.row_sums(pool.params, pool.P, r, Qx, prob.obs.row, prob.meas.n)
-        found += [("periodic", f) for f in es.periodic(sums, [b for b in pool.bands if b.token == tok])]
+        per += new(es.periodic(sums, [b for b in pool.bands if b.token == tok]))
         if tok == fx.TIME and pool.grid is not None:
-            found += [("thermal", f) for f in es.thermal(sums, pool.grid)]
-    have = {e.id for e in pool.singles} | {e.id for e in pool.periodic} | set(present)
-    new, seen = [], set()
-    for fam, f in found:
-        if f.effect.id not in have and f.effect.id not in seen:
-            new.append((fam, f))
-            seen.add(f.effect.id)
-    therm = [f for fam, f in new if fam == "thermal"]
-    per = [f for fam, f in new if fam == "periodic"]
+            therm += new(es.thermal(sums, pool.grid))
     if therm:
         pool.singles = pool.singles + [f.effect for f in therm]
-        pool.single_family = np.concatenate([pool.single_family, np.array(["thermal"] * len(therm), dtype=object)])
+        pool.single_family = np.concatenate([pool.single_family, np.array([f.effect.NAME for f in therm],
+                                                                          dtype=object)])
         pool.G = np.hstack([pool.G, candidate_matrix(block, w, [f.effect for f in therm])])
         pool.thermal_found = pool.thermal_found + therm
     if per:
@@ -406,12 +405,12 @@ def fold_searches(pool: Pool, prob, train_sets) -> None:
     pairs = {}
     for x in top_per:
         pairs.setdefault(x.effect.var, []).extend(f * q + local[x.param_index] for f in range(len(train_sets)))
-    results = [("periodic", x) for x in es.periodic(sums, pool.bands, pairs)] if pairs else []
+    results = list(es.periodic(sums, pool.bands, pairs)) if pairs else []
     if top_th and pool.grid is not None:
         cols = [f * q + local[x.param_index] for f in range(len(train_sets)) for x in top_th]
-        results += [("thermal", x) for x in es.thermal(sums, pool.grid, cols)]
-    for fam, x in results:
-        pool.fold_found[x.param_index // q].append((fam, x))
+        results += es.thermal(sums, pool.grid, cols)
+    for x in results:
+        pool.fold_found[x.param_index // q].append((x.effect.NAME, x))
 
 
 def folds_of_readings(prob, k: int, seed: int = 0) -> np.ndarray:
@@ -436,11 +435,11 @@ def plausibility(machine, effect) -> tuple:
     translation before a rotation (a rotation shows only through a lever arm); (5) the most local: the parameter's
     axis nearest to the variable's in the kinematic chain; (6) the machine's error order. Custom effects head their
     set (the user wrote them for it)."""
-    if not isinstance(effect, fx.Effect):
+    if effect.USER_WRITTEN:
         return (-1,)
     own = fx.is_own(machine, effect)
     along = fx.own_positioning(machine, effect)
-    order = 0 if effect.kind == "reversal" else (effect.deg if effect.kind == "poly" else 4)
+    order = effect.plausibility
     rotation = effect.param != fx.TOOL and machine.is_angular(effect.param)
     distance = fx.chain_distance(machine, effect)
     return (0 if own else 1, 0 if along else 1, order, 1 if rotation else 0, distance)

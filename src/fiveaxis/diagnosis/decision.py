@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import parallel
+from ..effects import families as fx
 from ..estimation import solver as sv
 from . import candidates as cd
 
@@ -319,7 +320,7 @@ class _Scorer:
         width = {k: len(lay.cols[k]) for k in ks}
         self.Q = Q
         self.singles = [k for k in ks if width[k] == 1]
-        self.pairs = [k for k in ks if width[k] == 2 and lay.families[k] == "periodic"]
+        self.pairs = [k for k in ks if width[k] == 2 and fx.family(lay.families[k]).PAIR]
         taken = set(self.singles) | set(self.pairs)
         self.blocks = [k for k in ks if k not in taken]
         self.effects = [lay.effects[k] for k in self.singles]

@@ -38,11 +38,12 @@ from ..estimation import design as dsg
 from ..estimation import fit as F
 from ..estimation import solver as sv
 from ..estimation.problem import resolve_effects, with_effects
-from ..estimation.result import FitResult, no_outliers, to_json as fit_json
+from ..estimation.result import FitResult, no_outliers, plausible, to_json as fit_json
 from ..measurement import observations as ob
 from ..model import iso_names as iso
 from . import candidates as cd
 from . import decision as dc
+from . import heat
 from . import residual_tests as st
 from . import separation
 
@@ -80,6 +81,7 @@ class Diagnosis:
     unexplained: dict | None = None
     searched: dict = field(default_factory=dict)
     hidden_by_placement: list = field(default_factory=list)  # candidates only a setup's placement absorbs
+    heat: dict | None = None   # temperatures: confounding with time, a missing sensor, the sensors needed (heat.py)
 
     def to_json(self) -> dict:
         fj = fit_json(self.fit)
@@ -96,7 +98,8 @@ class Diagnosis:
                 "candidates": self.candidates, "forward": self.forward, "structure": self.structure,
                 "structure_test": self.structure_test, "already_in_model": self.absorbed,
                 "hidden_by_placement": self.hidden_by_placement,
-                **({"unexplained": self.unexplained} if self.unexplained else {})}
+                **({"unexplained": self.unexplained} if self.unexplained else {}),
+                **({"heat": self.heat} if self.heat else {})}
 
 
 def residual_structure(prob, w, residual: np.ndarray, tests=None) -> dict:
@@ -110,13 +113,15 @@ def residual_structure(prob, w, residual: np.ndarray, tests=None) -> dict:
 
 
 
-def diagnose(model, meas, added=(), top: int = 10, fixed=None, in_blocks: bool | None = None) -> "Diagnosis":
+def diagnose(model, meas, added=(), top: int = 10, fixed=None, in_blocks: bool | None = None,
+             prior=None) -> "Diagnosis":
     """Fit, then rank every candidate effect by how much of the residual it explains, decide, and give a verdict.
     fixed: {name: value} parameters held at known values (mm, rad); in_blocks: a set too large for memory, in row
-    blocks (None: above `fiveaxis.estimation.design.IN_MEMORY_POSES` poses)."""
+    blocks (None: above `fiveaxis.estimation.design.IN_MEMORY_POSES` poses); prior: the fit's priors
+    (`fiveaxis.estimation.priors.PriorSpec`; None: the defaults)."""
     with F.one_blas_thread():
         # the least-squares fit is not kept beside the robust one (10^6 poses: its problem's arrays are ~0.4 GB)
-        res = robust_fit(F.fit(model, meas, added, fixed=fixed, in_blocks=in_blocks, robust=False))
+        res = robust_fit(F.fit(model, meas, added, fixed=fixed, in_blocks=in_blocks, robust=False, prior=prior))
         return diagnose_fit(res, top)
 
 
@@ -209,9 +214,8 @@ def _items(pool: cd.Pool, keep) -> list:
     periodic = range(len(pool.periodic)) if keep is None else keep[1]
     profiles = range(len(pool.profiles)) if keep is None else keep[2]
     items = [(pool.singles[j], str(pool.single_family[j]), None) for j in singles]
-    items += [(pool.periodic[b], "periodic", None) for b in periodic]
-    items += [(e, "custom", None) for e in pool.customs]
-    items += [(pool.profiles[j], "profile", None) for j in profiles]
+    items += [(e, e.NAME, None) for e in [pool.periodic[b] for b in periodic] + pool.customs
+              + [pool.profiles[j] for j in profiles]]
     items += [(x.effect, fam, f) for f, found in enumerate(pool.fold_found) for fam, x in found]
     return items
 
@@ -244,7 +248,7 @@ def _cut(pool: cd.Pool, sc: Screen, known: bool):
         for e in pool.profiles:
             got = cd.score_block(sc.Q, cd.candidate_matrix(sc.block, sc.w, [e]), sc.rw)
             d.append(cd.deltas(rss, np.array([got.gain]), N,
-                               np.array([pool.prior.penalty("profile", N, max(got.k, 1))]), known)[0])
+                               np.array([pool.prior.penalty(e.NAME, N, max(got.k, 1))]), known)[0])
         profiles = sorted(int(j) for j in np.argsort(d, kind="stable")[:SCREEN_PROFILES])
     return sorted(singles), sorted(periodic), profiles
 
@@ -343,10 +347,17 @@ def diagnose_fit(res: FitResult, top: int = 10) -> "Diagnosis":
         return item
 
     def head_key(k):
-        return (lay.families[k] != "custom", lay.families[k] in cd.SEARCHED,
-                cd.plausibility(machine, lay.effects[k]))
+        fam = fx.family(lay.families[k])
+        return (not fam.USER_WRITTEN, fam.SEARCHED, cd.plausibility(machine, lay.effects[k]))
 
     out = dc.decide(rows, lay, pool.prior, res.idf, known, top, describe, head_key)
+    # A candidate whose size over the data is beyond what a machine's error can be (`result.PLAUSIBLE`) is not
+    # listed as a physical candidate unless the decision accepted it (then the text says so).
+    accepted_ids = set(out.decision.get("accepted") or []) | {out.decision.get("best")}
+    dropped = [c["id"] for c in out.listed if c.get("plausible") is False and c["id"] not in accepted_ids]
+    if dropped:
+        out.listed = [c for c in out.listed if c["id"] not in dropped]
+        out.decision["not_listed_implausible"] = dropped
     if out.listed and out.listed[0]["aliases"] and len(lay.cols[_index(lay, out.listed[0]["id"])]) == 1:
         group = [lay.effects[_index(lay, out.listed[0]["id"])]] + [lay.effects[j]
                                                                     for j in out.listed[0]["alias_members"]]
@@ -366,10 +377,13 @@ def diagnose_fit(res: FitResult, top: int = 10) -> "Diagnosis":
     noise = (res.noise(ob.LENGTH) or 0.0) if known else out.noise_mm
     c_s = cd.project(sc.Q, pool.G, sc.rw, pool.singles) if pool.singles else None
     absorbed_idx = [j for j, ratio in enumerate(c_s.ratio) if ratio <= cd.ABSORBED] if c_s is not None else []
-    absorbed = [pool.singles[j].id for j in absorbed_idx if pool.single_family[j] != "thermal"]
+    absorbed = [pool.singles[j].id for j in absorbed_idx if not fx.family(pool.single_family[j]).SEARCHED]
     dg = conclude(res, sc.prob, sc.w, sc.residual, r_cur, out.decision, out.forward, noise, out.listed, pool,
                   out.rss, absorbed, prob.meas.n)
     dg.hidden_by_placement = separation.hidden_by_placement(sc.block, sc.w, pool.singles, pool.G, absorbed_idx)
+    if c_s is not None:
+        dg.heat = heat.assess(res, c_s, pool, [lay.effects[k] for k in out.accepted] if out.decision.get("passes")
+                              else [], noise, dg.verdict, dg.structure_test.get("strongest"))
     if not sc.whole:
         dg.searched = dict(dg.searched, sample_poses=int(sc.prob.meas.n))
     return dg
@@ -447,11 +461,14 @@ def candidate_item(prob, eff, family, coefs, rms_after, gain, rss, delta) -> dic
             "coefficient": phys[0][0] if phys else None, "unit": phys[0][1] if phys else ""}
     if len(phys) > 1:
         item["coefficients"] = [{"name": nm, "value": v, "unit": u} for nm, (v, u) in zip(eff.names, phys)]
-    if family == "periodic":
-        item["period"] = eff.arg
-        item["amplitude"] = float(math.hypot(*[v for v, _ in phys]))
-    if family == "thermal":
-        item["tau_s"] = eff.arg
+    item.update(eff.listing(phys))
+    unit = "mm" if eff.param == fx.TOOL else ("rad" if machine.is_angular(eff.param) else "mm")
+    with np.errstate(invalid="ignore", over="ignore"):
+        change = np.asarray(eff.basis(prob.ctx), float) @ np.asarray(coefs, float) if prob.ctx.n else np.zeros(1)
+    size = float(np.nanmax(change) - np.nanmin(change)) if np.isfinite(change).any() else math.inf
+    item["size"], item["size_unit"] = size, unit
+    if not plausible(size, unit):
+        item["plausible"] = False            # issue 29: not a machine's error (a column the data see at rounding)
     return item
 
 

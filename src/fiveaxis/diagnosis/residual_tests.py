@@ -49,9 +49,12 @@ class Test:
 
 
 def _variables(prob):
-    """(token, values per reading in the interface unit) of the effect variables the data has."""
+    """(token, values per reading in the interface unit) of the effect variables the data has (the pose variables
+    and time; temperature channels are searched as effects of their own family, `fiveaxis.diagnosis.heat`)."""
     out = []
     for tok, s in prob.scales.items():
+        if s.unit == "degC":
+            continue
         try:
             raw = prob.ctx.raw(tok)
         except Exception:                  # no t column

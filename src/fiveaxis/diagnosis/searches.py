@@ -33,7 +33,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model import effect_ids as ids
 from ..effects import families as fx
 from scipy.sparse import csr_matrix
 
@@ -260,9 +259,8 @@ def periodic(sums: RowSums, bands: list, pairs=None) -> list[Found]:
         for i, p in enumerate(cols):
             u = back[i]
             param = sums.params[p]
-            e = ids.EffectId(param, b.token, "periodic", float(P[u, best[u]]))
             gain = float(exact[u, best[u]]) if cols[uniq[u]] == p else None
-            out.append(Found(fx.Effect(e.text, param, b.token, "periodic", e.arg), gain, int(p)))
+            out.append(Found(fx.Periodic.make(param, b.token, float(P[u, best[u]])), gain, int(p)))
         # Parameters sharing a column share the period; their exact gain differs only by the projection.
         redo = [k for k, f_ in enumerate(out) if f_.gain is None]
         if redo:
@@ -360,7 +358,12 @@ def tau_grid(t: np.ndarray, live: np.ndarray) -> TauGrid | None:
 
 def _thermal_gains(sums, t, taus):
     """Exact gains (np, k) of columns a_p (1 - exp(-t / tau)) for every parameter and taus (k,)."""
-    X = -np.expm1(-t[:, None] / taus[None, :])                        # (n, k)
+    return column_gains(sums, -np.expm1(-t[:, None] / taus[None, :]))
+
+
+def column_gains(sums, X):
+    """Exact gains (np, k) of the columns a_p X[:, j] for every parameter p and every basis X[:, j] (X: (n, k),
+    one value per pose)."""
     b = sums.W1.T @ X
     g2 = sums.W2.T @ (X * X)
     n, r, npar = sums.W3.shape
@@ -397,8 +400,7 @@ def thermal(sums: RowSums, grid: TauGrid, params=None) -> list[Found]:
     out = []
     for i, p in enumerate(cols):
         param = sums.params[p]
-        e = ids.EffectId(param, fx.TIME, "thermal", float(taus[i]))
-        out.append(Found(fx.Effect(e.text, param, fx.TIME, "thermal", e.arg), float(exact[i]), int(p)))
+        out.append(Found(fx.Thermal.make(param, fx.TIME, float(taus[i])), float(exact[i]), int(p)))
     return out
 
 

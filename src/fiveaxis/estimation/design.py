@@ -92,7 +92,7 @@ class Block:
         out = np.empty((pb.obs.m, k)) if out is None else out
         if not effects:
             return out
-        bases = [e.basis(pb.ctx) for e in effects]                     # per pose
+        bases = [fx.basis_of(e, pb.ctx) for e in effects]              # per pose
         params = list(dict.fromkeys(e.param for e in effects))
         PC = np.column_stack([self.param_column(p, base, tool_dir) for p in params])
         where = {p: i for i, p in enumerate(params)}
@@ -180,9 +180,11 @@ def _finite(X: np.ndarray, pb: Problem, names) -> np.ndarray:
     bad = ~np.isfinite(X)
     if bad.any():
         r, c = np.argwhere(bad)[0]
-        raise InputError(f"{pb.meas.path}: data row {pb.meas.rows[pb.obs.row[r]]}: the design column of {names[c]} is "
-                         f"not finite there (an effect's expression undefined at this pose, e.g. log or sqrt of a "
-                         f"negative value)")
+        eff = next((e for e in pb.effects if names[c] in e.names), None)
+        what = (f"the custom effect {eff.id} of {pb.model.machine.path} ({eff.param} += {eff.expr}): its column "
+                f"{names[c]}" if getattr(eff, "expr", None) else f"the design column of {names[c]}")
+        raise InputError(f"{pb.meas.path}: data row {pb.meas.rows[pb.obs.row[r]]}: {what} is not finite there (an "
+                         f"expression undefined at this pose, e.g. log or sqrt of a negative value)")
     return X
 
 

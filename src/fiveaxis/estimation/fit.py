@@ -53,6 +53,10 @@ ROUNDING = 1e-9
 IRLS_SETTLED = 3
 IRLS_SETTLED_STEP = 1e-4
 IRLS_MAX = 20
+#: The variance factor that weights the prior is that of the fit's own (exact) residual: re-solved until it
+#: changes by less than PRIOR_WEIGHT_RTOL, at most PRIOR_WEIGHT_ITER times.
+PRIOR_WEIGHT_RTOL = 0.1
+PRIOR_WEIGHT_ITER = 6
 
 
 def one_blas_thread():
@@ -62,15 +66,16 @@ def one_blas_thread():
 
 
 def fit(model, meas, added=(), refine: bool = True, max_iter: int = 6, fixed=None,
-        robust: bool = True, exclude=None, in_blocks: bool | None = None) -> FitResult:
+        robust: bool = True, exclude=None, in_blocks: bool | None = None, prior=None) -> FitResult:
     """Fit the errors of a model, the added effects and the setups to measurements; first order, then exact.
 
     added: effect ids or records, or a Problem already built; fixed: {name: value} held at known values (mm, rad);
     robust: find gross outliers and leave them out (see the module docstring); exclude: (m,) bool over the
     readings (observation rows): outliers found elsewhere (e.g. against a richer model), left out instead;
-    in_blocks: build the design in row blocks (None: above `design.IN_MEMORY_POSES` poses)."""
+    in_blocks: build the design in row blocks (None: above `design.IN_MEMORY_POSES` poses); prior: a
+    `priors.PriorSpec` (None: every parameter's default prior; `PriorSpec(off=True)`: least squares alone)."""
     with one_blas_thread():
-        prob = added if isinstance(added, Problem) else build(model, meas, added, fixed)
+        prob = added if isinstance(added, Problem) else build(model, meas, added, fixed, prior)
         design = dsg.backend(prob, in_blocks)
         if exclude is not None and np.any(exclude) and not _variance_components(prob):
             # the fit of every reading would only be thrown away (it sets no weights the refit starts from)
@@ -86,10 +91,11 @@ def fit(model, meas, added=(), refine: bool = True, max_iter: int = 6, fixed=Non
 
 
 def _variance_components(prob: Problem) -> bool:
-    """Whether a fit of prob reweights its kinds of readings (mm, rad) by their noise estimated from the residual:
-    several kinds, one at least without a sigma column."""
-    groups = prob.obs.group
-    present = [g for g in (ob.LENGTH, ob.ANGLE) if (groups == g).any()]
+    """Whether a fit of prob reweights its noise groups (each kind of reading, mm or rad, of each file:
+    `noise_groups`) by their noise estimated from the residual: several groups, one at least without a sigma column
+    (`fit_problem`'s rule)."""
+    groups = noise_groups(prob)
+    present = np.unique(groups)
     return len(present) > 1 and any(not prob.known[groups == g].all() for g in present)
 
 
@@ -98,17 +104,20 @@ def fit_problem(prob: Problem, design, refine: bool = True, max_iter: int = 6) -
     refinement, variance components, uncertainties, identifiability."""
     free = prob.free
     fixed_vals = prob.fixed_values
-    groups = prob.obs.group
-    present = [g for g in (ob.LENGTH, ob.ANGLE) if (groups == g).any()]
+    groups = noise_groups(prob)
+    present = [int(g) for g in np.unique(groups)]
     unknown = [g for g in present if not prob.known[groups == g].all()]
     w = prob.w.copy()
-    theta, idf, r_first, ref = _solve(design, w, free, fixed_vals, refine, max_iter)
+    known = not unknown
+    prior = _prior(prob)
+    theta, idf, r_first, ref, post = _solve(design, w, free, fixed_vals, refine, max_iter, known, prior)
     m = len(prob.d)
     if m - idf.rank < 1 and unknown:
         raise InputError(f"{prob.meas.path}: {m} reading(s) for {idf.rank} determined parameter(s): the noise cannot "
                          f"be estimated (expected more readings than parameters, or a sigma column)")
     if unknown and len(present) > 1:
-        # Variance components: weight each kind of reading (mm, rad) by its own noise, estimated from the residual.
+        # Variance components: weight each kind of reading (mm, rad) of each file by its own noise, estimated from
+        # the residual.
         for _ in range(4):
             rw = ref.residual * w
             s2 = {}
@@ -124,22 +133,35 @@ def fit_problem(prob: Problem, design, refine: bool = True, max_iter: int = 6) -
                     change = max(change, abs(f - 1))
             if change < 1e-3:
                 break
-            theta, idf, r_first, ref = _solve(design, w, free, fixed_vals, refine, max_iter)
+            theta, idf, r_first, ref, post = _solve(design, w, free, fixed_vals, refine, max_iter, known, prior)
+    if post is not None and unknown:
+        # The prior is weighted by the readings' variance factor: that of the exact model's least-squares residual
+        # (not the first order's: data without noise give 0, and the data decide what they determine; nor the
+        # posterior's own residual, which the prior's pull would inflate, pulling harder in turn).
+        for _ in range(PRIOR_WEIGHT_ITER):
+            g = ref.gradient if ref.gradient is not None else post.gradient
+            s2 = sv.ls_chi2(idf, g, float(np.sum((ref.residual * w) ** 2))) / max(m - idf.rank, 1)
+            if abs(s2 - post.sigma2) <= PRIOR_WEIGHT_RTOL * max(s2, post.sigma2):
+                break
+            theta, idf, r_first, ref, post = _solve(design, w, free, fixed_vals, refine, max_iter, known, prior, s2)
     prob = replace(prob, w=w)
     design = design.with_problem(prob)
-    known = not unknown
     residual = ref.residual
     dof = max(m - idf.rank, 1)
     chi2 = float(np.sum((residual * w) ** 2))
     sigma2 = 1.0 if known else chi2 / dof
     scale = math.sqrt(chi2 / dof) if known and chi2 / dof > 1.0 else 1.0
-    covf = sv.covariance(idf, sigma2) * scale ** 2
+    cov_data = sv.covariance(idf, sigma2) * scale ** 2
+    covf = cov_data if post is None else post.covariance() * scale ** 2
     p = len(prob.names)
     cov = np.zeros((p, p))
     fi = np.flatnonzero(free)
     cov[np.ix_(fi, fi)] = covf
     res = FitResult(prob, ref.theta, cov, idf, residual, r_first, sigma2, known, ref.iterations, scale,
                     design=design, exact=ref.exact, note=ref.note)
+    res.cov_data = np.zeros((p, p))
+    res.cov_data[np.ix_(fi, fi)] = cov_data
+    res.posterior = post
     fnames = [prob.names[i] for i in fi]
     res.groups, res.combinations = sv.groups_and_combinations(idf, ref.theta[fi], covf, fnames,
                                                               [lead_priority(prob, n) for n in fnames])
@@ -154,14 +176,33 @@ def fit_problem(prob: Problem, design, refine: bool = True, max_iter: int = 6) -
     return res
 
 
-def _solve(design, w, free, fixed_vals, refine, max_iter):
-    """(theta, identifiability, first-order residual, refinement) for the current weights."""
-    theta, idf, r_first, at = sv.least_squares(design, w, free, fixed_vals, exact_too=refine)
+def noise_groups(prob: Problem) -> np.ndarray:
+    """(m,) the noise group of each reading: its kind (`observations.LENGTH` mm, `ANGLE` rad) in its file (a joint
+    set of files, `measurement.files.join`: 2 * file + kind)."""
+    src = prob.meas.source
+    return prob.obs.group + (0 if src is None else 2 * np.asarray(src)[prob.obs.row])
+
+
+def _prior(prob: Problem):
+    """(mean, covariance) of the free parameters' prior, or None when none has one (least squares alone)."""
+    if prob.prior is None:
+        return None
+    pf = prob.prior.free(prob.free)
+    if not pf.has.any():
+        return None
+    return pf.mean, pf.cov
+
+
+def _solve(design, w, free, fixed_vals, refine, max_iter, known=False, prior=None, sigma2=None):
+    """(theta, identifiability, first-order residual, refinement, posterior or None) for the current weights (the
+    prior weighted by sigma2, or by the first-order least-squares fit's variance factor)."""
+    theta, idf, r_first, post, at = sv.least_squares(design, w, free, fixed_vals, known=known, prior=prior,
+                                                     sigma2=sigma2, exact_too=refine)
     if refine:
-        ref = sv.refine(design, w, free, theta, idf, r_first, max_iter, at)
+        ref = sv.refine(design, w, free, theta, idf, r_first, max_iter, post, at)
     else:
         ref = sv.Refinement(theta, r_first, 0, False)
-    return theta, idf, r_first, ref
+    return theta, idf, r_first, ref, post
 
 
 def outlier_threshold(N: int) -> float:
@@ -249,8 +290,10 @@ def _refit_without(prob: Problem, design, flags, refine, max_iter, thr, known) -
     s = _robust_scale(out.residual * out.problem.w, known) or 1.0
     idx = np.flatnonzero(flags)
     obs = prob.obs
-    out.outliers = Outliers(prob.meas.rows[obs.row[idx]], list(obs.labels()[idx]), obs.group[idx], r_all[idx],
-                            r_all[idx] * prob.w[idx] / s, thr, s, len(prob.d), idx)
+    meas = prob.meas
+    files = None if not meas.sources else [str(meas.sources[meas.source[obs.row[i]]]) for i in idx]
+    out.outliers = Outliers(meas.rows[obs.row[idx]], list(obs.labels()[idx]), obs.group[idx], r_all[idx],
+                            r_all[idx] * prob.w[idx] / s, thr, s, len(prob.d), idx, files)
     return out
 
 

@@ -5,10 +5,11 @@ geometric error values by name (mm, rad), the added effects with their coefficie
 them at any pose (the scaling of each effect variable), standard uncertainties, and what the data did not determine.
 
 Policy for parameters the data does not determine alone (they sit in the null space of the fit's design): they carry
-the minimum-norm solution of the fit (least squares with unit-norm design columns: of all parameter vectors that
-explain the data equally well, the shortest), and they are listed by name under `undetermined`. Their individual
-values mean nothing; the tool-tip errors they predict at the measured tool lengths do (those depend only on the
-combinations the data determines, listed under `combinations`).
+the fit's maximum a posteriori value (`fiveaxis.estimation.priors`: every error's prior, 0 and its ISO 230 class
+size by default; of all parameter vectors that explain the data equally well, the one the prior finds likeliest; a
+fit with `--prior none` keeps the minimum-norm solution), and they are listed by name under `undetermined`. Their
+values are the prior's, moved by the combinations the data determine (listed under `combinations`); the tool-tip
+errors they predict at the measured tool lengths depend only on those combinations.
 
 The file is JSON, mm and rad, with the unit in every key that holds a number:
     {"format": "fiveaxis fitted model", "version": 1,
@@ -21,20 +22,25 @@ The file is JSON, mm and rad, with the unit in every key that holds a number:
      "scales": {token: {"variable", "centre_<unit>", "half_range_<unit>"}},
      "fit": {"n_poses", "rms_mm", "noise_mm", "rank", "n_parameters", "measured_tool_lengths_mm": [min, max]},
      "covariance_mm_rad": {"names": [...], "matrix": [[...]]},
-     "undetermined_directions_mm_rad": {"names": [...], "basis": [[...], ...]}}
+     "undetermined_directions_mm_rad": {"names": [...], "basis": [[...], ...]},
+     "posterior_covariance_mm_rad": {"names": [...], "matrix": [[...]]},
+     "priors_mm_rad": {name: {"value", "std", "source"}}}
 `errors_mm_rad` is also what `gsa --errors model.json` reads. `covariance_mm_rad` is the fit's covariance of the
 machine's parameters (errors, then effect coefficients; zero along what the data does not determine);
 `undetermined_directions_mm_rad` spans the changes of those parameters the data cannot see (the fit's null space,
 setup placements taken out): what a compensation's prediction cannot know (compensation.prediction). Both are
-optional (model files written before them have neither).
+optional (model files written before them have neither). `posterior_covariance_mm_rad` is the fit's posterior
+covariance (the data and the priors: finite along every direction a prior covers) and `priors_mm_rad` the priors
+the fit used; `--prior model.json` takes the values and the posterior covariance as the next fit's prior (optional
+too: without them a model file cannot be a prior).
 
 The machine file is read back only as a regular `.toml` file of at most 1 MB (MAX_MACHINE_BYTES), named by
 `machine.file` relative to the model file's folder, or the shipped machine of the same name; its SHA-256 must be
 `machine.sha256` before it is parsed. Anything else (an absolute path, `/dev/zero`, a FIFO, another file) is a
 one-line InputError saying which file and why.
 
-Effects (`fiveaxis.effects.families`: one interface for all kinds; each record is rebuilt from its id and evaluated through
-it). A polynomial effect `<param>:<var><deg>` adds c * u^deg to param, u = (var - centre) / half_range (model units:
+Effects (`fiveaxis.effects.families`: the registry of the families; each family reads and writes its records, and each
+record is rebuilt from its id and evaluated through its family). A polynomial effect `<param>:<var><deg>` adds c * u^deg to param, u = (var - centre) / half_range (model units:
 mm, rad, s); its coefficient c is the change of param at u = 1 (mm or rad). A reversal effect `<param>:<var>r` adds
 c * dir, dir = +1 when the axis approached its position moving in +, -1 moving in - (with no directions given it
 contributes its mean over both directions, 0). A periodic effect `<param>:<var>p<P>` adds c_sin sin(2 pi v / P) +
@@ -56,39 +62,20 @@ from pathlib import Path
 import numpy as np
 
 from ..effects import families as fx
+from ..effects.base import EffectRecord, split_id
 from ..exceptions import InputError
 from ..inputs import read_bytes, read_json
-from ..model.machine import MACHINES_DIR, MAX_MACHINE_BYTES, machine_from_text
+from ..model.machine import MACHINES_DIR, MAX_MACHINE_BYTES, check_made_for, machine_from_text
 from ..outputs import write_text
 from ..model import error_model
-from ..effects.custom import load_custom
 
 FORMAT = "fiveaxis fitted model"
 VERSION = 1
-POLICY = ("parameters not determined alone by the data carry the minimum-norm solution of the fit (least squares "
-          "with unit-norm design columns) and are listed under 'undetermined'; only the combinations the data "
-          "determines (and the tool-tip errors at the measured tool lengths) are meaningful for them")
-KINDS = ("polynomial", "reversal", "periodic", "thermal", "profile", "custom")
-_KIND_OF = {"poly": "polynomial", "reversal": "reversal", "periodic": "periodic", "thermal": "thermal",
-            "profile": "profile"}
-#: The key that holds the argument of an effect kind in the file (period, time constant, knot spacing).
-_ARG_KEY = {"periodic": "period", "thermal": "tau_s", "profile": "spacing"}
-_SCALE_UNIT = {"mm": "mm", "deg": "rad", "s": "s"}     # Scale.unit (interface) -> model unit of centre/half
-
-
-@dataclass(frozen=True)
-class EffectRecord:
-    """One added effect and its fitted coefficients (see the module docstring for the three kinds)."""
-    id: str
-    kind: str                       # polynomial | reversal | custom
-    param: str                      # error name, or L (tool length)
-    var: str | None                 # effect variable token (x, A, t), None for custom effects
-    deg: int | None                 # polynomial degree, None otherwise
-    names: tuple[str, ...]          # coefficient names (the fit's parameter names)
-    values: tuple[float, ...]       # coefficients, mm or rad (polynomial/reversal: at u = 1 or s = 1)
-    std: tuple[float | None, ...] = ()   # standard uncertainties (None where not determined alone)
-    arg: float | None = None        # period (var's unit) of a periodic effect, tau (s) of a thermal one, knot spacing
-                                    # (var's unit) of a profile
+POLICY = ("parameters not determined alone by the data carry the fit's maximum a posteriori value (their prior, "
+          "moved by the combinations the data determine; the minimum-norm solution of a fit without priors) and are "
+          "listed under 'undetermined'; the combinations the data determine (and the tool-tip errors at the "
+          "measured tool lengths) are what the data say of them")
+_SCALE_UNIT = {"mm": "mm", "deg": "rad", "s": "s", "degC": "degC"}   # Scale.unit (interface) -> unit of centre/half
 
 
 @dataclass
@@ -111,6 +98,8 @@ class FittedModel:
     covariance: np.ndarray | None = None    # (p, p) mm, rad: the fit's covariance (0 along undetermined directions)
     undetermined_basis: np.ndarray | None = None   # (k, p): orthonormal rows spanning the undetermined changes
     source: str = ""                # the model file this record was read from ("" for a fit's own record)
+    posterior: np.ndarray | None = None     # (p, p) mm, rad: the posterior covariance (data and priors)
+    priors: dict = field(default_factory=dict)    # name -> {"value", "std", "source"} the fit's priors (mm, rad)
 
     @property
     def effect_ids(self) -> tuple[str, ...]:
@@ -118,11 +107,11 @@ class FittedModel:
 
     @property
     def has_reversal(self) -> bool:
-        return any(e.kind == "reversal" for e in self.effects)
+        return any(fx.family(e.kind).NEEDS_DIRECTIONS for e in self.effects)
 
     def reversal_variables(self) -> set:
-        """Effect variable tokens (x, A) that have a reversal effect."""
-        return {e.var for e in self.effects if e.kind == "reversal"}
+        """Effect variable tokens (x, A) that have an effect of the approach direction (a reversal)."""
+        return {e.var for e in self.effects if fx.family(e.kind).NEEDS_DIRECTIONS}
 
     def save(self, path, force: bool = False) -> Path:
         """Write the model file (see the module function `save`)."""
@@ -167,11 +156,7 @@ def from_fit(res) -> FittedModel:
         idx = range(k, k + len(cnames))
         vals = tuple(float(theta[i]) for i in idx)
         sd = tuple(_finite(std[i]) if determined[i] else None for i in idx)
-        kind = _KIND_OF.get(getattr(eff, "kind", None), "custom")
-        var = getattr(eff, "var", None)
-        deg = eff.deg if kind == "polynomial" else None
-        arg = float(eff.arg) if kind in _ARG_KEY else None
-        effects.append(EffectRecord(eff.id, kind, eff.param, var, deg, cnames, vals, sd, arg))
+        effects.append(eff.record(vals, sd))
         k += len(cnames)
     n_machine = ne + sum(len(e.names) for e in prob.effects)
     combos = tuple({"formula": c.formula, "terms": dict(c.terms), "value_mm_rad": float(c.value),
@@ -184,14 +169,20 @@ def from_fit(res) -> FittedModel:
     noise = res.noise(0)
     if noise is not None:
         fit["noise_mm"] = float(noise)
-    cov = np.asarray(res.cov, dtype=float)[:n_machine, :n_machine]
+    data_cov = res.cov if getattr(res, "cov_data", None) is None else res.cov_data
+    cov = np.asarray(data_cov, dtype=float)[:n_machine, :n_machine]
+    post = np.asarray(res.cov, dtype=float)[:n_machine, :n_machine]
+    pr = prob.prior
+    priors = {} if pr is None else {n: {"value": float(pr.mean[i]), "std": _finite(pr.sd[i]), "source": pr.source[i]}
+                                    for i, n in enumerate(names[:n_machine])}
     return FittedModel(machine.name, str(Path(machine.path).resolve()), sha256(machine.path), model.convention,
                        errors, units,
                        tuple(n for i, n in enumerate(names[:n_machine]) if not determined[i]),
                        {n: float(std[i]) for i, n in enumerate(names[:n_machine])
                         if determined[i] and math.isfinite(std[i])},
                        tuple(effects), dict(prob.scales), combos, fit, POLICY, tuple(names[:n_machine]),
-                       np.where(np.isfinite(cov), cov, 0.0), undetermined_directions(res, n_machine))
+                       np.where(np.isfinite(cov), cov, 0.0), undetermined_directions(res, n_machine), "",
+                       None if res.posterior is None else np.where(np.isfinite(post), post, 0.0), priors)
 
 
 #: A direction of the machine's parameters whose length (relative to the largest) is below this is not one.
@@ -220,17 +211,17 @@ def undetermined_directions(res, n_machine: int) -> np.ndarray:
 # -- checks against a loaded model -------------------------------------------------------------------------------
 def check_model(fm: FittedModel, model, where: str = "model file") -> None:
     """InputError unless fm was fitted for this machine file (same name and SHA-256) and convention."""
-    machine = model.machine
-    sha = sha256(machine.path)
-    if fm.machine != machine.name or fm.machine_sha256 != sha:
-        raise InputError(f"{where}: fitted for machine '{fm.machine}' ({fm.machine_file}, sha256 "
-                         f"{fm.machine_sha256[:12]}...), not for '{machine.name}' ({machine.path}, sha256 "
-                         f"{sha[:12]}...)")
+    check_made_for(model.machine, fm.machine, fm.machine_sha256, where)
     if fm.convention != model.convention:
         raise InputError(f"{where}: fitted under convention '{fm.convention}', the model loaded uses "
                          f"'{model.convention}'")
     if set(fm.errors) != set(model.errors):
         raise InputError(f"{where}: errors_mm_rad: the error names differ from the model's")
+    for i, rec in enumerate(fm.effects):          # each effect rebuilt against this machine: its file named if bad
+        try:
+            effect_of(rec, model)
+        except InputError as exc:
+            raise InputError(f"{fm.source or where}: effects[{i}]: {exc}") from None
 
 
 def checked_machine_file(fm: FittedModel, where: str = "model file") -> Path:
@@ -264,7 +255,8 @@ def checked_machine_file(fm: FittedModel, where: str = "model file") -> Path:
             why.append(f"{path}: not the machine file the model was fitted for (its SHA-256 differs)")
             continue
         return path
-    raise InputError(f"{where}: machine.file: {'; '.join(why) or 'no machine file'}; give it as machine=...")
+    raise InputError(f"{where}: machine.file: {'; '.join(why) or 'no machine file'}; give it with machine=FILE",
+                     key="machine")
 
 
 def load_model(fm: FittedModel, where: str = "model file"):
@@ -301,42 +293,31 @@ def _directions(dirs, model, n) -> dict:
 
 
 def effect_of(rec: EffectRecord, model):
-    """The effect (fiveaxis.effects.families interface) of a record: the vocabulary's from its id, or the machine file's
-    custom effect."""
-    if rec.kind == "custom":
-        return load_custom(model.machine, rec.id)
-    eff = fx.parse(rec.id, model.machine, model.errors, "model file effect")
-    if len(eff.names) != len(rec.values):
-        raise InputError(f"model file effect '{rec.id}': {len(rec.values)} coefficients, but the machine file's "
-                         f"stroke gives it {len(eff.names)}")
-    return eff
+    """The effect of a record (`fiveaxis.effects.base.Effect`), rebuilt by its family."""
+    return fx.family(rec.kind).from_record(rec, model)
 
 
-def errors_at(fm: FittedModel, model, poses, t=None, dirs=None, L=None):
+def errors_at(fm: FittedModel, model, poses, t=None, dirs=None, L=None, temps=None):
     """Error values per pose E (n, n_errors; mm, rad) and tool-length change dL (n,; mm) of the fitted model.
 
     poses (n, nvar) in mm and rad (the positions the axes are at), t (n,) s or None (time effects at t = 0, where
     they are zero), dirs: approach directions for reversal effects, +1/-1 (see _directions; None: reversal effects
-    contribute their mean, 0). L is accepted for symmetry with the measurement (tool lengths, unused: effects depend
-    on the pose, the time and the directions)."""
+    contribute their mean, 0), temps: {temp_<name>: degC, a value or (n,)} (None or a channel left out: at its
+    reference, the temperature effects of that channel add nothing; with t, a history the lags run over; without
+    t, a steady state). L is accepted for symmetry with the measurement (tool lengths, unused: effects depend on
+    the pose, the time, the directions and the temperatures)."""
     poses = model.poses(poses)
     n = len(poses)
     E = np.tile(base_vector(fm, model), (n, 1))
     dL = np.zeros(n)
-    ctx = fx.context(model.machine, poses, t, _directions(dirs, model, n), sc=fm.scales)
+    temps = {k: np.broadcast_to(np.asarray(v, float), (n,)).copy() for k, v in (temps or {}).items()}
+    ctx = fx.context(model.machine, poses, t, _directions(dirs, model, n), sc=fm.scales, temps=temps,
+                     steady=t is None)
     for rec in fm.effects:
-        if t is None and rec.var == fx.TIME:
-            continue                          # no times: the state at t = 0
-        eff = effect_of(rec, model)
-        if rec.kind == "reversal":
-            col = ctx.scales[rec.var].column if rec.var in ctx.scales else None
-            if col not in ctx.dirs:
-                continue                      # no directions: the mean of both, 0
-        if t is None and rec.kind == "custom":
-            ctx_t = fx.context(model.machine, poses, np.zeros(n), ctx.dirs, sc=fm.scales)
-            dE, dl = fx.per_pose([eff], [rec.values], ctx_t, model.errors)
-        else:
-            dE, dl = fx.per_pose([eff], [rec.values], ctx, model.errors)
+        here = fx.family(rec.kind).evaluated_in(rec, ctx)
+        if here is None:
+            continue                          # no times: the state at t = 0; no directions: the mean of both, 0
+        dE, dl = fx.per_pose([effect_of(rec, model)], [rec.values], here, model.errors)
         E += dE
         dL += dl
     return E, dL
@@ -360,16 +341,11 @@ def to_json(fm: FittedModel, folder=None) -> dict:
     for tok, sc in fm.scales.items():
         unit = _SCALE_UNIT[sc.unit]
         scales[tok] = {"variable": sc.column if sc.column is not None else "t",
-                       f"centre_{unit}": float(sc.centre), f"half_range_{unit}": float(sc.half)}
+                       f"centre_{unit}": float(sc.centre), f"half_range_{unit}": float(sc.half),
+                       **({f"range_{unit}": [float(x) for x in sc.span]} if sc.span else {})}
     effects = []
     for e in fm.effects:
-        rec = {"id": e.id, "kind": e.kind, "param": e.param}
-        if e.var is not None:
-            rec["variable"] = e.var
-        if e.deg is not None:
-            rec["degree"] = e.deg
-        if e.arg is not None:
-            rec[_ARG_KEY[e.kind]] = e.arg
+        rec = {"id": e.id, "kind": e.kind, "param": e.param, **fx.family(e.kind).write_json(e)}
         rec["coefficients_mm_rad"] = dict(zip(e.names, e.values))
         sd = {n: v for n, v in zip(e.names, e.std) if v is not None}
         if sd:
@@ -388,6 +364,11 @@ def to_json(fm: FittedModel, folder=None) -> dict:
     if fm.undetermined_basis is not None:
         out["undetermined_directions_mm_rad"] = {"names": list(fm.parameter_names),
                                                  "basis": [[float(x) for x in row] for row in fm.undetermined_basis]}
+    if fm.posterior is not None:
+        out["posterior_covariance_mm_rad"] = {"names": list(fm.parameter_names),
+                                              "matrix": [[float(x) for x in row] for row in fm.posterior]}
+    if fm.priors:
+        out["priors_mm_rad"] = {n: dict(v) for n, v in fm.priors.items()}
     return _clean(out)
 
 
@@ -420,10 +401,38 @@ def _get(d, key, kind, where):
     return v
 
 
+#: The range of a period, time constant or knot spacing in a model file (the variable's unit: mm, deg or s): a
+#: period of 1e-300 mm or 1e300 mm is no machine's and must not reach a controller.
+ARG_RANGE = (1e-3, 1e6)
+
+
+def _check_id(ident, family, param, var, deg, arg, where) -> None:
+    """An effect's id must follow its family's grammar for its own variable and say what the entry's keys say
+    (parameter, degree, period / time constant / spacing), that argument within ARG_RANGE; InputError naming the
+    file, the entry and the key. Custom effects (no variable) are the machine file's: checked there."""
+    if var is None:
+        return
+    got = split_id(ident, [var], (family,))
+    if got is None or got[1][0] != param:
+        raise InputError(f"{where}: key 'id': {ident!r} is not a {family.NAME} effect of {param} along {var} "
+                         f"(expected <param>:<var>{family.GRAMMAR}, e.g. {family.EXAMPLE})")
+    said = got[1][2]
+    if deg is not None and said != deg:
+        raise InputError(f"{where}: key 'degree': {json.dumps(deg)} where the id {ident!r} says {said:g}")
+    key = getattr(family, "ARG_KEY", None)
+    if key:
+        if arg is not None and float(arg) != said:
+            raise InputError(f"{where}: key '{key}': {arg:g} where the id {ident!r} says {said:g}")
+        lo, hi = ARG_RANGE
+        if not lo <= said <= hi:
+            raise InputError(f"{where}: key '{key}': {said:g}: expected {lo:g} to {hi:g} (the variable's unit: mm, "
+                             f"deg or s)")
+
+
 def load(path) -> FittedModel:
     """Read a model file written by `save`; InputError naming the key for anything malformed."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise InputError(f"{path}: model file not found")
     data = read_json(path, "a fitted-model JSON file (`fiveaxis fit ... -o`)")
     w = str(path)
@@ -444,52 +453,44 @@ def load(path) -> FittedModel:
     for tok, sc in _get(data, "scales", "dict", w).items():
         where = f"{w}: scales.{tok}"
         var = _get(sc, "variable", "str", where)
-        unit = next((u for u in ("mm", "rad", "s") if f"centre_{u}" in sc), None)
+        unit = next((u for u in ("mm", "rad", "s", "degC") if f"centre_{u}" in sc), None)
         if unit is None:
-            raise InputError(f"{where}: missing key 'centre_mm', 'centre_rad' or 'centre_s'")
+            raise InputError(f"{where}: missing key 'centre_mm', 'centre_rad', 'centre_s' or 'centre_degC'")
         centre = float(_get(sc, f"centre_{unit}", "num", where))
         half = float(_get(sc, f"half_range_{unit}", "num", where))
-        if half <= 0:
+        if half <= 0 and not (unit == "degC" and half == 0):      # a channel that never changed: 0
             raise InputError(f"{where}: key 'half_range_{unit}': expected a positive number, got {half}")
-        iface, to_unit = {"mm": ("mm", 1.0), "rad": ("deg", 180.0 / math.pi), "s": ("s", 1.0)}[unit]
-        scales[tok] = fx.Scale(tok, None if var == "t" else var, centre, half, iface, to_unit)
+        iface, to_unit = {"mm": ("mm", 1.0), "rad": ("deg", 180.0 / math.pi), "s": ("s", 1.0),
+                          "degC": ("degC", 1.0)}[unit]
+        span = sc.get(f"range_{unit}")
+        if span is not None and not (isinstance(span, list) and len(span) == 2 and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in span)):
+            raise InputError(f"{where}: key 'range_{unit}': expected [lowest, highest] reading, got "
+                             f"{json.dumps(span)[:40]}")
+        scales[tok] = fx.Scale(tok, None if var == "t" else var, centre, half, iface, to_unit,
+                               tuple(float(x) for x in span) if span else None)
     effects = []
     for i, e in enumerate(_get(data, "effects", "list", w)):
         where = f"{w}: effects[{i}]"
         ident = _get(e, "id", "str", where)
         kind = _get(e, "kind", "str", where)
-        if kind not in KINDS:
-            raise InputError(f"{where}: key 'kind': expected one of {', '.join(KINDS)}, got {kind!r}")
+        if kind not in fx.FAMILIES:
+            raise InputError(f"{where}: key 'kind': expected one of {', '.join(fx.FAMILIES)}, got {kind!r}")
         coefs = _get(e, "coefficients_mm_rad", "dict", where)
         names = tuple(coefs)
         values = tuple(float(_get(coefs, n, "num", f"{where}: coefficients_mm_rad")) for n in names)
-        sd = e.get("std_mm_rad", {}) if isinstance(e.get("std_mm_rad", {}), dict) else {}
-        stds = tuple(float(sd[n]) if n in sd else None for n in names)
+        sd = _get(e, "std_mm_rad", "dict", where) if "std_mm_rad" in e else {}
+        stds = tuple(float(_get(sd, n, "num", f"{where}: std_mm_rad")) if n in sd else None for n in names)
         param = _get(e, "param", "str", where)
-        var = e.get("variable")
-        deg = e.get("degree")
-        if kind == "polynomial" and (not isinstance(var, str) or deg not in fx.DEGREES or var not in scales):
-            raise InputError(f"{where}: a polynomial effect needs 'variable' (one of {', '.join(scales)}) and "
-                             f"'degree' 1 to 3")
-        if kind in ("reversal", "periodic", "thermal", "profile") and not isinstance(var, str):
-            raise InputError(f"{where}: a {kind} effect needs 'variable'")
-        arg = e.get(_ARG_KEY[kind]) if kind in _ARG_KEY else None
-        if arg is not None and (isinstance(arg, bool) or not isinstance(arg, (int, float)) or not arg > 0):
-            raise InputError(f"{where}: expected a positive period, time constant or knot spacing, got "
-                             f"{json.dumps(arg)[:40]}")
-        expected = 2 if kind == "periodic" else 1
-        if kind == "profile" and len(values) < 2:
-            raise InputError(f"{where}: key 'coefficients_mm_rad': a profile has one coefficient per knot (at "
-                             f"least 2), got {len(values)}")
-        if kind not in ("custom", "profile") and len(values) != expected:
-            raise InputError(f"{where}: key 'coefficients_mm_rad': expected {expected} coefficient(s), got "
-                             f"{len(values)}")
+        var, deg, arg = fx.family(kind).read_json(e, values, scales, where)
+        _check_id(ident, fx.family(kind), param, var, deg, arg, where)
         effects.append(EffectRecord(ident, kind, param, var, deg, names, values, stds, arg))
     combos = tuple(c for c in data.get("combinations", []) if isinstance(c, dict))
     fit = data.get("fit", {}) if isinstance(data.get("fit", {}), dict) else {}
-    names, cov, basis = _uncertainty(data, w)
+    names, cov, basis, post = _uncertainty(data, w)
+    priors = data.get("priors_mm_rad", {}) if isinstance(data.get("priors_mm_rad", {}), dict) else {}
     return FittedModel(name, mfile, sha, conv, errors, units, undetermined, std, tuple(effects), scales, combos,
-                       fit, str(data.get("policy", POLICY)), names, cov, basis, str(path))
+                       fit, str(data.get("policy", POLICY)), names, cov, basis, str(path), post, priors)
 
 
 def _matrix(block, key, rows, cols, where) -> np.ndarray:
@@ -509,9 +510,10 @@ def _matrix(block, key, rows, cols, where) -> np.ndarray:
 
 
 def _uncertainty(data: dict, w: str):
-    """(parameter names, covariance, undetermined basis) of a model file; () / None where the keys are absent."""
-    names, cov, basis = (), None, None
-    for key in ("covariance_mm_rad", "undetermined_directions_mm_rad"):
+    """(parameter names, covariance, undetermined basis, posterior covariance) of a model file; () / None where the
+    keys are absent."""
+    names, cov, basis, post = (), None, None, None
+    for key in ("covariance_mm_rad", "undetermined_directions_mm_rad", "posterior_covariance_mm_rad"):
         if key not in data:
             continue
         block = _get(data, key, "dict", w)
@@ -521,6 +523,8 @@ def _uncertainty(data: dict, w: str):
         names = these
         if key == "covariance_mm_rad":
             cov = _matrix(block, "matrix", len(names), len(names), f"{w}: {key}")
+        elif key == "posterior_covariance_mm_rad":
+            post = _matrix(block, "matrix", len(names), len(names), f"{w}: {key}")
         else:
             basis = _matrix(block, "basis", None, len(names), f"{w}: {key}")
-    return names, cov, basis
+    return names, cov, basis, post

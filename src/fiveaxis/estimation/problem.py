@@ -23,6 +23,7 @@ from ..exceptions import InputError
 from ..measurement import observations as ob
 from ..measurement import setups as su
 from ..model import iso_names as iso
+from . import priors
 
 #: Initial weight of tool-axis readings (1/rad) relative to 1/mm for tip readings when neither has a sigma.
 ANGLE_WEIGHT0 = 100.0
@@ -44,6 +45,8 @@ class Problem:
     setups: su.SetupBlock
     fixed: dict = field(default_factory=dict)   # name -> value held fixed (mm, rad)
     known: np.ndarray = None   # (m,) bool: the row's sigma comes from the file
+    prior_spec: object = None  # what the user said of the priors (`priors.PriorSpec`; None: the defaults)
+    prior: object = None       # the prior of every parameter (`priors.Prior`), built from prior_spec
 
     @property
     def n_errors(self) -> int:
@@ -138,21 +141,28 @@ def resolve_effects(model, ids, where="--add"):
 
 
 def machine_effects(model) -> list[str]:
-    """Effects the machine file itself adds (`[model] effects = [...]`)."""
-    return list(model.machine.added_effects)
+    """Effects the machine file itself adds (`[model] effects = [...]`), each id checked by its family (InputError
+    naming the file and the key)."""
+    machine = model.machine
+    for i, ident in enumerate(machine.added_effects):
+        if ident not in machine.effects:
+            fx.parse(ident, machine, model.errors, f"{machine.path}: model.effects[{i}]")
+    return list(machine.added_effects)
 
 
-def build(model, meas, added=(), fixed=None) -> Problem:
-    """The problem of a model with added effects (ids or effect records) and held parameters at the readings."""
+def build(model, meas, added=(), fixed=None, prior=None) -> Problem:
+    """The problem of a model with added effects (ids or effect records) and held parameters at the readings;
+    prior: a `priors.PriorSpec` (None: every parameter's default prior)."""
     effects = resolve_effects(model, list(added))
     obs = ob.build(meas, model.machine)
     tip, tool_dir = model.ideal_tool(meas.poses, meas.L)
-    ctx = fx.context(model.machine, meas.poses, meas.t, meas.dirs)
+    ctx = fx.context(model.machine, meas.poses, meas.t, meas.dirs, temps=meas.temps)
     sb = su.block(obs, meas, model.machine, tip)
     names = list(model.errors) + [nm for e in effects for nm in e.names] + list(sb.names)
     w, known = initial_weights(obs)
     return Problem(model, meas, obs, effects, names, ctx, tool_dir, tip, w, obs.value, sb,
-                   check_fixed(model, names, fixed or {}), known)
+                   check_fixed(model, names, fixed or {}), known, prior,
+                   priors.build(model, names, effects, ctx, prior))
 
 
 def initial_weights(obs):
@@ -173,7 +183,8 @@ def with_effects(prob: Problem, added=()) -> Problem:
     names = list(prob.model.errors) + [nm for e in effects for nm in e.names] + list(prob.setups.names)
     w, known = initial_weights(prob.obs)
     return replace(prob, effects=effects, names=names, w=w, known=known,
-                   fixed=check_fixed(prob.model, names, prob.fixed))
+                   fixed=check_fixed(prob.model, names, prob.fixed),
+                   prior=priors.build(prob.model, names, effects, prob.ctx, prob.prior_spec))
 
 
 def check_fixed(model, names, fixed: dict) -> dict:

@@ -18,6 +18,7 @@ from ..measurement import observations as ob
 from ..measurement import setups as su
 from ..model import iso_names as iso
 from ..units import human
+from . import priors
 from .problem import Problem, unit as _unit
 from .solver import Identifiability, formula
 
@@ -27,6 +28,16 @@ K_EXPANDED = 2.0
 STRONG_CORRELATION = 0.95
 #: Probability that a fit flags any reading of a clean (Gaussian) data set as a gross outlier (Bonferroni).
 OUTLIER_ALPHA = 1e-3
+#: What no printed value of a machine's geometric error reaches (issue 29): beyond 1 mm or 10 mrad a value is not a
+#: result but the sign of a unit slip or of a model the data do not fit; the record marks it ("plausible": False)
+#: and the text says so instead of printing it as a result.
+PLAUSIBLE = {"mm": 1.0, "rad": 0.01}
+#: A parameter whose fitted value lies more than this many prior sizes from its prior is in conflict with it: the
+#: fit says so (the prior pulls what the data see weakly; state a wider one).
+PRIOR_CONFLICT_Z = 5.0
+#: A term of a printed combination whose coefficient, in the data's unit-norm coordinates relative to the lead, is
+#: below this is rounding dust, left out (value and uncertainty are those of what is printed).
+FORMULA_RTOL = 1e-3
 
 
 @dataclass
@@ -42,6 +53,7 @@ class Outliers:
     scale: float               # robust scale of the weighted residual (1 = the sigma column)
     readings: int              # readings of the data set, outliers included
     index: np.ndarray = None   # (k,) their indices among the readings (observation rows) of the data set
+    files: list = None         # (k,) the file of each (a joint set of files), or None
 
     @property
     def count(self) -> int:
@@ -54,9 +66,11 @@ class Outliers:
 
     def to_json(self) -> list[dict]:
         out = []
-        for r, lab, g, res, z in zip(self.rows, self.labels, self.group, self.residual, self.z):
+        for i, (r, lab, g, res, z) in enumerate(zip(self.rows, self.labels, self.group, self.residual, self.z)):
             unit = "rad" if g == ob.ANGLE else "mm"
             out.append({"row": int(r), "reading": str(lab), "residual": float(res), "unit": unit, "z": float(z)})
+            if self.files is not None:
+                out[-1]["file"] = self.files[i]
         return out
 
 
@@ -69,7 +83,7 @@ def no_outliers(readings: int) -> Outliers:
 class FitResult:
     """The fitted parameters with their identifiability, and the residual (readings: mm, rad)."""
     problem: Problem
-    theta: np.ndarray          # all parameter values (fixed ones included; minimum norm along undetermined ones)
+    theta: np.ndarray          # all parameter values (fixed ones included; the prior's along undetermined ones)
     cov: np.ndarray            # (p, p) covariance (zero rows and columns for fixed parameters)
     idf: Identifiability       # of the free parameters
     residual: np.ndarray       # (m,) of the model reported: exact, or first order (see `exact`)
@@ -85,6 +99,8 @@ class FitResult:
     design: object = None      # the design backend of the problem (`fiveaxis.estimation.design`)
     exact: bool = True         # the residual is the exact model's (False: the refinement fell back, see note)
     note: str = ""             # what the refinement said (one line), empty when nothing is worth saying
+    cov_data: np.ndarray = None   # (p, p) the data's covariance alone (zero along what they do not determine)
+    posterior: object = None   # `solver.Posterior` of the fit (None: least squares alone, no prior)
 
     @property
     def names(self):
@@ -148,74 +164,174 @@ def _entry(value, std, unit) -> dict:
 
 
 def _undetermined(unit, note) -> dict:
-    """A parameter the data does not determine alone: no number at all (never null or NaN), and why."""
+    """A parameter the data does not determine alone: no value of the data's (never null or NaN), and why; its
+    posterior (the prior moved by what the data determine) apart, under "posterior"."""
     return {"determined": False, "unit": unit, "note": note}
 
 
+def plausible(value: float, unit: str) -> bool:
+    """A value a machine tool's geometric error can have: within PLAUSIBLE (1 mm, 10 mrad); other units (effect
+    rates, scaled coefficients) are not judged here."""
+    limit = PLAUSIBLE.get(unit)
+    return limit is None or abs(value) <= limit
+
+
+def _judged(entry: dict) -> dict:
+    """The entry with "plausible": False where its value is beyond PLAUSIBLE (a unit slip, a model the data do not
+    fit): the text then says so instead of printing it as a result."""
+    if "value" in entry and not plausible(entry["value"], entry["unit"]):
+        entry["plausible"] = False
+    return entry
+
+
 def parameters(res: FitResult) -> dict:
-    """Per-parameter values in physical units (machine errors and effect coefficients; setups apart); an
-    undetermined parameter has value None and a note; a fixed one its value and std 0."""
+    """Per-parameter values in physical units (machine errors and effect coefficients; setups apart): a parameter
+    the data determine alone has its value and uncertainty; one they do not, no value of the data's, a note, and
+    its posterior (the prior moved by the combinations the data determine); a held one its value, std 0 and
+    "fixed". Each has its prior ({"value", "std", "source"}; std None: none) and who decided it (`decided_by`:
+    data, prior, data and prior; `data_share` = 1 - (posterior sd / prior sd)^2)."""
     prob, model = res.problem, res.problem.model
     std = res.std()
     out = {}
     in_group = {n: g for g in res.groups for n in g}
     fi = {n: i for i, n in enumerate(res.free_names)}
+    prior = prob.prior
+    has_post = res.posterior is not None
     for i, name in enumerate(prob.names):
         if su.is_setup_param(name):
             continue
+        unit = _unit(prob, name)
         if name in prob.fixed:
-            out[name] = {"determined": True, "value": prob.fixed[name], "std": 0.0, "unit": _unit(prob, name),
-                         "fixed": True}
-        elif name in in_group:
+            out[name] = {"determined": True, "value": prob.fixed[name], "std": 0.0, "unit": unit, "fixed": True,
+                         "decided_by": "held"}
+            continue
+        if name in in_group:
             if res.idf.norms[fi[name]] == 0:
                 note = "no effect on the measured readings at these poses"
             else:
                 forms = [c.formula for c in res.combinations if name in c.terms]
                 note = "not determined alone by this data" + (f"; see {'; '.join(forms)}" if forms else "")
-            out[name] = _undetermined(_unit(prob, name), note)
+            entry = _undetermined(unit, note)
+            if has_post:
+                entry["posterior"] = {"value": float(res.theta[i]), "std": float(std[i]),
+                                      "expanded_k2": K_EXPANDED * float(std[i])}
         else:
-            out[name] = _entry(float(res.theta[i]), float(std[i]), _unit(prob, name))
+            entry = _entry(float(res.theta[i]), float(std[i]), unit)
+        if prior is not None:
+            psd = float(prior.sd[i])
+            entry["prior"] = {"value": float(prior.mean[i]), "std": psd if math.isfinite(psd) else None,
+                              "source": prior.source[i]}
+            if has_post and math.isfinite(psd):
+                entry["decided_by"], entry["data_share"] = priors.decided_by(psd, float(std[i]))
+            else:
+                entry["decided_by"], entry["data_share"] = ("data", 1.0) if entry["determined"] else ("none", 0.0)
+        out[name] = _judged(entry)
     k = prob.n_errors
     for eff in prob.effects:
         idx = list(range(k, k + len(eff.names)))
         vals = eff.physical(model.machine, res.theta[idx], prob.scales)
         stds = eff.physical(model.machine, std[idx], prob.scales)
+        pm = eff.physical(model.machine, prior.mean[idx], prob.scales) if prior is not None else None
+        psd = prior.sd[idx] if prior is not None else None
+        pss = eff.physical(model.machine, np.where(np.isfinite(psd), psd, 0.0), prob.scales) \
+            if prior is not None else None
         for j, nm in enumerate(eff.names):
             entry = out[nm]
             if entry["determined"] and not entry.get("fixed"):
                 entry.update(_entry(vals[j][0], abs(stds[j][0]), vals[j][1]))
             else:
                 entry["unit"] = vals[j][1]
+            if "posterior" in entry:
+                entry["posterior"] = {"value": vals[j][0], "std": abs(stds[j][0]),
+                                      "expanded_k2": K_EXPANDED * abs(stds[j][0])}
+            if "prior" in entry:
+                entry["prior"]["value"] = pm[j][0]
+                if entry["prior"]["std"] is not None:
+                    entry["prior"]["std"] = abs(pss[j][0])
             entry["description"] = eff.describe(model.machine, res.theta[idx], prob.ctx)
+            entry.pop("plausible", None)
+            size = res.theta[k + j]                 # as fitted: in the parameter's unit (vocabulary effects)
+            if not eff.USER_WRITTEN and not plausible(size, _param_unit(prob, eff.param)):
+                entry["plausible"] = False
         k += len(eff.names)
     return out
 
 
+def _param_unit(prob, param: str) -> str:
+    """mm or rad: the unit of an error, or of the tool length."""
+    return "mm" if param == fx.TOOL else _unit(prob, param)
+
+
+def cleaned_terms(res: FitResult, c) -> dict:
+    """A combination's terms without those whose coefficient, in the data's unit-norm coordinates relative to the
+    lead, is below FORMULA_RTOL (rounding dust such as -1.464e-06*E_CA): {name: coefficient (parameter units)}."""
+    norms = dict(zip(res.free_names, res.idf.norms))
+    lead = next(iter(c.terms))
+    base = norms.get(lead) or 1.0
+    return {n: v for n, v in c.terms.items()
+            if n == lead or abs(v) * (norms.get(n) or 0.0) >= FORMULA_RTOL * base}
+
+
+def _value_std(res: FitResult, terms: dict) -> tuple[float, float]:
+    """The value and standard uncertainty of sum(coefficient * parameter) at the fit (its posterior)."""
+    idx = {n: i for i, n in enumerate(res.names)}
+    vec = np.zeros(len(res.names))
+    for n, v in terms.items():
+        vec[idx[n]] = v
+    return float(vec @ res.theta), float(math.sqrt(max(float(vec @ res.cov @ vec), 0.0)))
+
+
 def quantities(res: FitResult) -> list[dict]:
-    """The combinations the data determine, as the physical quantity each is led by (`solver.groups_and_
-    combinations`: a rotary axis's location, a squareness, an error motion), with what it is relative to: {"lead",
-    "iso", "quantity" (in words), "relative_to" (in words), "value", "std", "expanded_k2", "unit", "formula"}.
-    Combinations led by an artefact's placement are the placements' business (`setup_results`), not listed."""
+    """The combinations of the machine's parameters the data determine, as the physical quantity each is led by
+    (`solver.groups_and_combinations`: a rotary axis's location, a squareness, an error motion), printed as the
+    combination they are: {"lead", "iso", "quantity" (in words), "relative_to" (the other terms, ISO names; never
+    empty: a combination whose other terms are dust is its lead alone, "alone": True), "formula", "formula_iso",
+    "value", "std", "expanded_k2", "unit"}; terms below FORMULA_RTOL left out (value and uncertainty of what is
+    printed). Combinations with an artefact's placement in them are `not_separable`'s, those led by a placement
+    `setup_results`'s; a value beyond PLAUSIBLE has "plausible": False (said, not printed as a result)."""
     prob = res.problem
     machine = prob.model.machine.with_convention(prob.model.convention)
     out = []
     for c in res.combinations:
         lead = next(iter(c.terms))
-        if su.is_setup_param(lead):
+        if su.is_setup_param(lead) or any(su.is_setup_param(n) for n in c.terms):
             continue
-        errs = {n: v for n, v in c.terms.items() if n != lead and not su.is_setup_param(n)}
-        setups = sorted({n.split("[", 1)[1][:-1] for n in c.terms if su.is_setup_param(n)})
-        words = []
-        if errs:
-            words.append(formula({(iso.name(prob.model, n) or n): v for n, v in errs.items()}).lstrip("+ "))
-        if setups:
-            words.append(f"the placement of {', '.join(setups)}")
-        unit = combination_unit(prob, c.terms)
-        out.append({"lead": lead, "iso": iso.name(prob.model, lead),
-                    "quantity": fx.describe_param(machine, lead) if lead in prob.model.errors else lead,
-                    "relative_to": " and ".join(words), "value": c.value, "std": c.std,
-                    "expanded_k2": K_EXPANDED * c.std, "unit": unit, "formula": c.formula})
+        terms = cleaned_terms(res, c)
+        value, std = _value_std(res, terms)
+        others = {n: v for n, v in terms.items() if n != lead}
+        iso_terms = {(iso.name(prob.model, n) or n): v for n, v in terms.items()}
+        unit = combination_unit(prob, terms)
+        item = {"lead": lead, "iso": iso.name(prob.model, lead),
+                "quantity": fx.describe_param(machine, lead) if lead in prob.model.errors else lead,
+                "relative_to": formula({(iso.name(prob.model, n) or n): v for n, v in others.items()}).lstrip("+ ")
+                if others else "", "formula": formula(terms), "formula_iso": formula(iso_terms),
+                "value": value, "std": std, "expanded_k2": K_EXPANDED * std, "unit": unit}
+        if not others:
+            item["alone"] = True
+        out.append(_judged(item))
     return out
+
+
+def not_separable(res: FitResult) -> list[dict]:
+    """The machine's parameters the data determine only together with an artefact's placement (an R-test's C-axis
+    tilt against where the spheres lay): {"members", "members_iso", "setups"} per group; their values are the
+    posterior's (the prior's, where the placement takes up what the data see)."""
+    prob = res.problem
+    groups = []
+    for c in res.combinations:
+        setups = sorted({n.split("[", 1)[1][:-1] for n in c.terms if su.is_setup_param(n)})
+        members = [n for n in cleaned_terms(res, c) if not su.is_setup_param(n)]
+        if not setups or not members:
+            continue
+        for g in groups:
+            if set(g["setups"]) == set(setups):
+                g["members"] += [m for m in members if m not in g["members"]]
+                break
+        else:
+            groups.append({"members": members, "setups": setups})
+    for g in groups:
+        g["members_iso"] = [iso.name(prob.model, n) for n in g["members"]]
+    return groups
 
 
 def setup_results(res: FitResult) -> list[dict]:
@@ -303,10 +419,15 @@ def to_json(res: FitResult) -> dict:
                                  if set(c.terms) - set(prob.model.errors) - set(prob.setups.names) else {}))
                          for c in res.combinations],
         "quantities": quantities(res),
+        "not_separable": not_separable(res),
+        "prior": prior_summary(res),
+        "print_rules": PRINT_RULES,
         "correlations": [{"a": a, "b": b, "r": r} for a, b, r in res.correlations],
         "iterations": res.iterations,
         "residual_model": "exact" if res.exact else "first order",
     }
+    if prob.meas.sources:
+        out["files"] = files_json(res)
     if res.note:
         out["note"] = res.note
     if res.idf.resolution is not None:
@@ -318,6 +439,67 @@ def to_json(res: FitResult) -> dict:
         out["noise_rad"] = res.noise(ob.ANGLE)
     if out["noise_mm"] is None:
         del out["noise_mm"]
+    return out
+
+
+#: How the fit's numbers are printed, in text, report and JSON alike (issue 29: printouts that cannot mislead).
+PRINT_RULES = [
+    "first what the data determine alone, as physical quantities with their expanded uncertainty U (k = 2)",
+    "what the data determine only in combination is printed as that combination (formula = value +- U), never as "
+    "the value of one of its members",
+    f"terms of a combination whose coefficient is below {FORMULA_RTOL:g} (unit-norm coordinates) are left out",
+    "members of a combination with an artefact's placement are named, not valued by the data",
+    "values the data do not decide are the prior's, printed apart and marked so",
+    "held values (--fix, [fit] fixed) are printed as held",
+    f"a value beyond {PLAUSIBLE['mm']:g} mm or {PLAUSIBLE['rad'] * 1e6:,.0f} urad is not a machine's error: said, "
+    f"not printed as a result",
+]
+
+
+def prior_summary(res: FitResult) -> dict:
+    """What the priors did: whether the fit had any, their sources, and how many parameters the data, the prior or
+    both decided."""
+    prob = res.problem
+    pr = prob.prior
+    if pr is None or res.posterior is None:
+        return {"used": False, "note": "no prior: least squares, the minimum-norm solution along what the data do "
+                                       "not determine"}
+    counts = {"data": 0, "data and prior": 0, "prior": 0}
+    std = res.std()
+    sources = {}
+    conflicts = []
+    for i, n in enumerate(prob.names):
+        if su.is_setup_param(n) or n in prob.fixed:
+            continue
+        src = pr.source[i].split(" (")[0]
+        sources[src] = sources.get(src, 0) + 1
+        if math.isfinite(pr.sd[i]):
+            counts[priors.decided_by(float(pr.sd[i]), float(std[i]))[0]] += 1
+            z = (res.theta[i] - pr.mean[i]) / pr.sd[i]
+            if abs(z) > PRIOR_CONFLICT_Z:
+                conflicts.append({"name": n, "z": float(z)})
+    out = {"used": True, "sources": sources, "decided_by": counts, "variance_factor": res.posterior.sigma2}
+    if conflicts:
+        out["conflicts"] = sorted(conflicts, key=lambda c: -abs(c["z"]))
+    return out
+
+
+def files_json(res: FitResult) -> list[dict]:
+    """The files of a joint fit, each with its poses, readings, residual RMS and noise (its own variance
+    component): [{"file", "n", "readings", "rms_mm", "noise_mm", "rms_rad", "noise_rad", "sigma"}]."""
+    prob = res.problem
+    meas, obs = prob.meas, prob.obs
+    src = np.asarray(meas.source)[obs.row]
+    out = []
+    for k, path in enumerate(meas.sources):
+        item = {"file": str(path), "n": int(np.sum(meas.source == k)), "readings": int(np.sum(src == k))}
+        for g, unit in ((ob.LENGTH, "mm"), (ob.ANGLE, "rad")):
+            sel = (src == k) & (obs.group == g)
+            if sel.any():
+                item[f"rms_{unit}"] = float(np.sqrt(np.mean(res.residual[sel] ** 2)))
+                item[f"noise_{unit}"] = float(np.sqrt(res.sigma2 * np.mean(1.0 / prob.w[sel] ** 2)))
+        item["sigma"] = "sigma column" if prob.known[src == k].all() else "estimated from the residual"
+        out.append(item)
     return out
 
 

@@ -437,7 +437,7 @@ def diagnostics(model, meas, circles: list, max_rounds: int = 4) -> dict:
             item(f"straightness {ax} ({plane})", eid, *(est or (None, None)),
                  note=f"bow over the {2 * radius[plane]:g} mm diameter" if est else "not determined by these "
                                                                                   "circles")
-    periodic = [e for e in res.problem.effects if getattr(e, "kind", "") == "periodic"]
+    periodic = [e for e in res.problem.effects if isinstance(e, fx.Periodic)]
     for e in periodic:
         k = list(res.problem.names).index(e.names[0])
         amp = 1e3 * math.hypot(res.theta[k], res.theta[k + 1])
@@ -488,35 +488,3 @@ def to_json(circles: list, diagnostics: dict | None = None) -> dict:
     if diagnostics is not None:
         rec["diagnostics"] = diagnostics
     return rec
-
-
-def report(record: dict) -> str:
-    """The evaluation (a to_json record) as text, um."""
-    lines = []
-    for c in record["circles"]:
-        feed = f", feed {c['feed_mm_per_min']:g} mm/min" if "feed_mm_per_min" in c else ""
-        lines.append(f"ISO 230-4 circle {c['plane']} ({'+'.join(c['axes'])})"
-                     + (f", setup {c['setup']}" if c["setup"] not in (None, c["plane"]) else "")
-                     + f": radius {c['radius_mm']:.3f} mm, pivot {np.round(c['centre_mm'], 3).tolist()} mm{feed}")
-        lines.append(f"  {'direction':10s} {'points':>6s} {'arc':>6s} {'G (LSQ)':>9s} {'G (MZ)':>9s} {'F max':>9s} "
-                     f"{'F min':>9s}   centre offset (um)")
-        for r in c["runs"]:
-            lines.append(f"  {r['direction']:10s} {r['points']:6d} {r['arc_deg']:5.0f}d {r['G_um']:9.2f} "
-                         f"{r['G_mz_um']:9.2f} {r['F_max_um']:9.2f} {r['F_min_um']:9.2f}   "
-                         f"{r['centre_offset_um'][0]:+.2f}, {r['centre_offset_um'][1]:+.2f}")
-        if "H_um" in c:
-            lines.append(f"  circular hysteresis H ({' / '.join(c['H_pair'])}): {c['H_um']:.2f} um")
-        for n in c["notes"]:
-            lines.append(f"  note: {n}")
-    diag = record.get("diagnostics")
-    if diag:
-        lines.append("Ballbar diagnosis (from the fit and diagnosis of all circles; size with its standard "
-                     "uncertainty; * = accepted by the diagnosis' decision)")
-        for w in diag["warnings"]:
-            lines.append(f"  warning: {w}")
-        for d in diag["items"]:
-            size = "-" if "size" not in d else f"{d['size']:.3g} +- {d['std']:.2g} {d['unit']}"
-            star = "*" if d.get("found") else " "
-            lines.append(f"  {star} {d['term']:28s} {size:24s} {d['effect']}"
-                         + (f" ({d['iso']})" if d.get("iso") else "") + (f": {d['note']}" if d.get("note") else ""))
-    return "\n".join(lines)

@@ -150,7 +150,8 @@ def evaluate(meas, model, tolerance: float = TARGET_TOL_MM) -> list[Positioning]
     setup (or one for the whole file), from its 1-D readings; InputError when the data does not have the
     structure the standard needs. tolerance: positions of one target (mm)."""
     if not tolerance > 0:
-        raise InputError(f"target tolerance: expected a positive distance in mm, got {tolerance}")
+        raise InputError(f"target tolerance: expected a positive distance in mm, got {tolerance}",
+                         key="target tolerance")
     groups = line_groups(meas, "ISO 230-2 evaluates positional deviations read along one linear axis: du with "
                                "ux,uy,uz along it")
     return [_evaluate_group(meas, model, setup, idx, tolerance) for setup, idx in groups]
@@ -192,6 +193,10 @@ def _evaluate_group(meas, model, setup, idx, tolerance) -> Positioning:
                          f"spread over {spread[k]:.4g} mm from {pos[tlabel == k].min():.4f} to "
                          f"{pos[tlabel == k].max():.4f} mm (expected the same targets in every cycle, within "
                          f"{tolerance:g} mm)")
+    if len(targets) < 2 and np.ptp(pos) > TARGET_TOL_MM:
+        raise InputError(f"{rows_txt}: target tolerance: {tolerance:g} mm groups the positions of {axis} from "
+                         f"{pos.min():.4f} to {pos.max():.4f} mm into one target (expected a distance below the "
+                         f"targets' spacing; the default is {TARGET_TOL_MM:g} mm)", key="target tolerance")
     if len(targets) < 2:
         raise InputError(f"{rows_txt}: one target position only ({targets[0]:.4f} mm; ISO 230-2 needs targets "
                          f"over the travel, at least {MIN_TARGETS})")
@@ -252,75 +257,3 @@ def to_json(ev: Positioning, uncertainty: dict | None = None) -> dict:
         out["uncertainty"] = uncertainty
     out["notes"] = list(ev.notes)
     return out
-
-
-def _cells(values, width=8, digits=1) -> list[str]:
-    return [f"{v:{width}.{digits}f}" if v is not None else " " * (width - 1) + "-" for v in values]
-
-
-def report(ev: Positioning, uncertainty: dict | None = None, per_block: int = 5) -> str:
-    """The evaluation as text in the layout of the standard's table (targets across, each with its forward and
-    backward column; blocks of `per_block` targets), then the axis figures (um) with their expanded uncertainty."""
-    f = ev.figures
-    m = len(ev.targets)
-    head = f"ISO 230-2:2014 positioning of {ev.axis}" + (f" (setup {ev.setup})" if ev.setup else "") + \
-        f": {ev.path}, {m} targets over {ev.length_mm:g} mm, {ev.cycles} cycles, both directions (um)"
-    lines = [head]
-    ncyc = max(len(a) for dname in DIRECTIONS for a in ev.x[dname])
-    for start in range(0, m, per_block):
-        ks = range(start, min(m, start + per_block))
-        label_w = 22
-
-        def row(name, vals_f, vals_b, digits=1):
-            cells = []
-            for k in ks:
-                cells += _cells([vals_f[k], vals_b[k]], 8, digits)
-            return f"  {name:{label_w}s}" + " ".join(cells)
-
-        def row_bi(name, vals, digits=1):
-            cells = []
-            for k in ks:
-                cells += _cells([vals[k]], 17, digits)
-            return f"  {name:{label_w}s}" + " ".join(cells)
-        lines.append("")
-        lines.append(f"  {'target position i':{label_w}s}" + " ".join(f"{k + 1:>17d}" for k in ks))
-        lines.append(f"  {'P_i (mm)':{label_w}s}" + " ".join(f"{ev.targets[k]:17.3f}" for k in ks))
-        lines.append(f"  {'approach direction':{label_w}s}" + " ".join(f"{'fwd':>8s} {'bwd':>8s}" for _ in ks))
-        for j in range(ncyc):
-            vf = [1e3 * ev.x["fwd"][k][j] if j < len(ev.x["fwd"][k]) else None for k in range(m)]
-            vb = [1e3 * ev.x["bwd"][k][j] if j < len(ev.x["bwd"][k]) else None for k in range(m)]
-            lines.append(row(f"x_i{j + 1} (cycle {j + 1})", vf, vb))
-        um = {k: 1e3 * np.asarray(f[k]) for k in TARGET_KEYS}
-        lines.append(row("mean x_i", um["mean_fwd"], um["mean_bwd"]))
-        lines.append(row("s_i", um["s_fwd"], um["s_bwd"], 2))
-        lines.append(row("2 s_i", 2 * um["s_fwd"], 2 * um["s_bwd"], 2))
-        lines.append(row("mean x_i + 2 s_i", um["mean_fwd"] + 2 * um["s_fwd"], um["mean_bwd"] + 2 * um["s_bwd"]))
-        lines.append(row("mean x_i - 2 s_i", um["mean_fwd"] - 2 * um["s_fwd"], um["mean_bwd"] - 2 * um["s_bwd"]))
-        lines.append(row("R_i = 4 s_i", um["R_i_fwd"], um["R_i_bwd"]))
-        lines.append(row_bi("B_i", um["B_i"]))
-        lines.append(row_bi("mean x_i bidirectional", um["mean_bidirectional"]))
-        lines.append(row_bi("R_i bidirectional", um["R_i"]))
-    U = (uncertainty or {}).get("U_um", {})
-
-    def fig(name, key, what):
-        u = U.get(key)
-        tail = f"U (k=2) {u:6.2f}" if u is not None else ""
-        return f"  {name:9s} {1e3 * f[key]:9.2f}   {tail:14s}   {what}"
-    lines += ["", "  axis figures (um)"]
-    lines += [fig("E fwd", "E_fwd", "unidirectional systematic positional deviation, forward"),
-              fig("E bwd", "E_bwd", "unidirectional systematic positional deviation, backward"),
-              fig("E", "E", "bidirectional systematic positional deviation"),
-              fig("M", "M", "mean bidirectional systematic positional deviation"),
-              fig("B", "B", "reversal value (largest |B_i|)"),
-              fig("B mean", "B_mean", "mean reversal value"),
-              fig("R fwd", "R_fwd", "unidirectional repeatability, forward"),
-              fig("R bwd", "R_bwd", "unidirectional repeatability, backward"),
-              fig("R", "R", "bidirectional repeatability"),
-              fig("A fwd", "A_fwd", "unidirectional accuracy, forward"),
-              fig("A bwd", "A_bwd", "unidirectional accuracy, backward"),
-              fig("A", "A", "bidirectional accuracy")]
-    if uncertainty is not None:
-        lines.append(f"  uncertainty: {uncertainty['statement']}")
-    for note in ev.notes:
-        lines.append(f"  note: {note}")
-    return "\n".join(lines)

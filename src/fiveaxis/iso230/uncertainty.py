@@ -56,10 +56,11 @@ def check(st: Statement) -> Statement:
             continue
         if not math.isfinite(v) or (key != "temperature_deviation_K" and v < 0):
             raise InputError(f"{key}: expected a finite number{'' if key == 'temperature_deviation_K' else ' >= 0'}, "
-                             f"got {v}")
+                             f"got {v}", key=key)
     if (st.temperature_deviation_K is None) != (st.expansion_ppm_per_K is None):
         raise InputError("temperature_deviation_K and expansion_ppm_per_K: state both (the expansion of the machine "
-                         "over the temperature deviation is uncertain by the coefficient's uncertainty), or neither")
+                         "over the temperature deviation is uncertain by the coefficient's uncertainty), or neither",
+                         key=("temperature_deviation_K", "expansion_ppm_per_K"))
     return st
 
 

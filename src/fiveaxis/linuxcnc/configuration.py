@@ -33,6 +33,8 @@ import numpy as np
 
 from ..effects.families import hat_basis
 from ..exceptions import InputError
+from ..inputs import read_text
+from ..outputs import comment_text
 
 #: LinuxCNC reads at most this many lines of a compensation file (EMCMOT_COMP_SIZE).
 MAX_COMP_POINTS = 256
@@ -458,10 +460,7 @@ def read_comp_file(path) -> tuple:
     arrays; InputError naming the file and line when fewer than 2 lines are read or the nominals do not increase
     ("compensation values must increase")."""
     path = Path(path)
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except FileNotFoundError:
-        raise InputError(f"{path}: compensation file not found") from None
+    lines = read_text(path, "a LinuxCNC compensation file").splitlines()
     rows = []
     for line in lines:
         parts = line.split()
@@ -486,12 +485,16 @@ def read_comp_file(path) -> tuple:
 def ini_text(lc: LinuxCNCCompensation, source: str = "") -> str:
     """The INI lines: kinematics, the workpiece origin, the compensation files per joint (merge into the machine's
     INI; the comments say what an integrator must know)."""
-    lines = [f"# fiveaxis compensate: LinuxCNC 2.9 settings for machine {lc.machine}" + (f" ({source})" if source
-                                                                                         else ""),
+    lines = [f"# fiveaxis compensate: LinuxCNC 2.9 settings for machine {lc.machine}"
+             + (f" ({comment_text(source)})" if source else ""),
              "# Joints in the order " + " ".join(lc.variables) + "; files in machine units (mm, degrees).",
              "# Where the files go: this folder's files next to the machine's INI (COMP_FILE and HALFILE paths are",
-             "# relative to the INI's folder). The pins, G54 and the comp files were fitted together: never use the",
-             "# comp files without the pins and G54 (alone they can leave more error than no compensation).",
+             "# relative to the INI's folder)."
+             + (" The pins, G54 and the comp files were fitted together: never use the" if lc.trt is not None
+                else ""),
+             "# comp files without the pins and G54 (alone they can leave more error than no compensation)."
+             if lc.trt is not None else
+             "# This machine has no trunnion kinematics: the comp files alone are what LinuxCNC takes.",
              "# For the whole model use volumetric/ (the kinematics module) instead of these files, not with them."]
     if lc.trt is not None:
         lines += ["", "[KINS]", f"KINEMATICS = {lc.trt.component}",

@@ -1,12 +1,19 @@
-"""The LinuxCNC kinematics module fiveaxis generates (`fiveaxis_kins.comp`): its source, its values, its reference.
+"""The LinuxCNC kinematics module fiveaxis generates (`<machine>_kins.comp`): its source, its values, its reference.
 
 The module (derive/kins.py through templates/linuxcnc/fiveaxis_kins.comp.j2) holds the exact chain of a machine
-with every error as a symbol; the error values and the position-dependent effects are HAL pins:
-- `fiveaxis_kins.error.<name>`: base error values (mm, rad);
-- `fiveaxis_kins.effect.<k>.*` (SLOTS slots): param (error index, n_errors for the tool length L), kind (KINDS),
+with every error as a symbol. It is named after its machine and convention (`kins_component`: `li2018_kins`,
+`li2018__printed_kins`; the machine file's checked name, so that the modules of two machines install side by side);
+the error values and the position-dependent effects are HAL pins (`<component>.` before each):
+- `error.<name>`: base error values (mm, rad);
+- `effect.<k>.*` (SLOTS slots): param (error index, n_errors for the tool length L), kind (KINDS),
   joint (the effect's variable, a joint index), degree, period (mm or rad), centre and half-range (mm or rad: the
-  polynomial's u = (q - centre) / half-range), coef-0, coef-1 (mm or rad; a periodic effect: sine, cosine);
-- `fiveaxis_kins.tool-length` (mm), `fiveaxis_kins.tool-offset` (mm, from motion.tooloffset.z), `damping`.
+  polynomial's u = (q - centre) / half-range), coef-0, coef-1 (mm or rad; a periodic effect: sine, cosine); a
+  temperature slot: channel (the sensor), reference (degC), lag (s), coef-0 (mm or rad per degC), joint -1 or the
+  axis of a scale effect (u as a polynomial's); OUT temperature (degC: the lagged reading it uses);
+- `temp.<c>` (TEMPS sensors, degC): the sensors' readings; unconnected, the HAL file sets each to its reference,
+  so that nothing thermal is applied; a reading outside the plausible range is taken as the reference
+  (OUT `temp-fault`);
+- `tool-length` (mm), `tool-offset` (mm, from motion.tooloffset.z), `damping`.
 So one compiled module serves every calibration of its machine (and convention): a recalibration writes a new
 HAL file. Effects of a rotary axis whose stroke is a full turn are evaluated at the angle wrapped into the stroke
 (`wrap_positions`), as the axis is mechanically.
@@ -34,20 +41,27 @@ from pathlib import Path
 
 import numpy as np
 
+from ..effects import families as fx
 from ..exceptions import InputError
 from ..model import provenance
+from ..model.columns import TEMPERATURE_RANGE_DEGC
 from ..model.inverse import iterate, linear_for_tip
-from ..model.machine import data_dir, module_name
+from ..model.machine import data_dir, kins_component, module_name
 from .configuration import _tip_jacobian
 from ..model.error_model import cache_dir
-from ..outputs import write_text
+from ..outputs import comment_text, write_text
 
 #: Effect slots of the module (must equal fiveaxis_derive.kins.SLOTS: a test checks the generated files).
 SLOTS = 16
-#: Effect kinds of the slots (the `kind` pin). Profiles (`<param>:<var>k<spacing>`) will be kind 3.
-KINDS = {"none": 0, "polynomial": 1, "periodic": 2}
-#: The component's name: the file name halcompile requires, the prefix of its pins.
-COMPONENT = "fiveaxis_kins"
+#: Temperature sensors the module reads (`temp.<c>`, degC; must equal fiveaxis_derive.kins.TEMPS).
+TEMPS = 8
+#: Effect kinds of the slots (the `kind` pin): each family that the module carries gives its number
+#: (`MODULE_KIND`, the template's FA_KIND_* constants).
+KINDS = {"none": 0, **{name: f.MODULE_KIND for name, f in fx.FAMILIES.items() if f.MODULE_KIND}}
+#: HAL's longest name of a pin (LinuxCNC 2.9 hal.h: HAL_NAME_LEN); a longer one fails the module's setup.
+HAL_NAME_LEN = 47
+#: The longest pin name's part after the component and a dot (the error pins are checked by name).
+_LONGEST_PIN = f"effect.{SLOTS - 1}.temperature"
 #: The reference inverse's limits (the module's: FA_MAX_ITER, FA_TOL_MM, FA_TOL_RAD).
 MAX_ITER = 12
 TOL_MM = 1e-9
@@ -56,8 +70,9 @@ TOL_RAD = 1e-10
 
 # -- the source ------------------------------------------------------------------------------------------------
 def file_name(machine_name: str, convention: str = "equations") -> str:
-    """The generated file of a machine and convention (as fiveaxis_derive.kins.file_name)."""
-    return f"{module_name(machine_name, convention)}_kins.comp"
+    """The module's source file of a machine and convention (generated/ and the compensation folder; as
+    fiveaxis_derive.kins.file_name): its component (kins_component) and .comp, as halcompile requires."""
+    return f"{kins_component(machine_name, convention)}.comp"
 
 
 def _header_is_current(text: str, machine, convention: str) -> bool:
@@ -69,8 +84,9 @@ def _header_is_current(text: str, machine, convention: str) -> bool:
     return head.get("source sha256") == sha and (expected is None or head.get("kins hash") == expected)
 
 
-def unsupported(machine) -> str | None:
-    """Why the module cannot describe this machine (one line), or None (as fiveaxis_derive.kins.supported)."""
+def unsupported(machine, convention: str = "equations") -> str | None:
+    """Why the module cannot describe this machine (one line), or None: it needs 3 linear and 2 rotary axes, the
+    rotary ones named A, B or C (LinuxCNC's world coordinates), and pin names within HAL's HAL_NAME_LEN."""
     lin = [a.name for a in machine.axes if a.type == "linear"]
     rot = [a.name for a in machine.axes if a.type == "rotary"]
     if len(lin) != 3 or len(rot) != 2:
@@ -80,6 +96,11 @@ def unsupported(machine) -> str | None:
     if bad:
         return (f"machine {machine.name}: rotary axes must be named A, B or C for LinuxCNC's world coordinates, "
                 f"got {', '.join(bad)}")
+    name = kins_component(machine.name, convention)
+    longest = max([f"{name}.{_LONGEST_PIN}"] + [f"{name}.error.{e}" for e in machine.error_names], key=len)
+    if len(longest) > HAL_NAME_LEN:
+        return (f"machine {machine.name}: the kinematics module's pin {longest} has {len(longest)} characters, HAL "
+                f"allows at most {HAL_NAME_LEN} (a shorter machine or error name)")
     return None
 
 
@@ -88,7 +109,7 @@ def source(model) -> str:
     of generated/ when it is current, else derived once into the model cache folder (needs SymPy then).
     InputError when the module cannot describe the machine."""
     machine, conv = model.machine, model.convention
-    why = unsupported(machine)
+    why = unsupported(machine, conv)
     if why:
         raise InputError(why)
     committed = data_dir("fiveaxis_generated") / file_name(machine.name, conv)
@@ -127,6 +148,9 @@ class Slot:
     c0: float = 0.0
     c1: float = 0.0
     id: str = ""                       # the effect id it holds (for the HAL file's comments)
+    channel: int = -1                  # temperature: the sensor's index (temp.<channel>), -1 for other kinds
+    reference: float = 0.0             # temperature: degC
+    lag: float = 0.0                   # temperature: s (0: none)
 
 
 @dataclass
@@ -140,18 +164,48 @@ class ModuleValues:
     tool_length: float = 0.0           # mm: the tool the world coordinates refer to without a tool offset
     damping: float = 0.2
     left_out: tuple = field(default_factory=tuple)   # one line per effect the module does not hold, and why
+    convention: str = "equations"
+    channels: tuple = ()               # temperature sensors in pin order (temp.<c>): their column names
+    references: tuple = ()             # their reference temperatures (degC): the pins' values when unconnected
+
+    @property
+    def component(self) -> str:
+        """The module's name (fiveaxis.model.machine.kins_component), the prefix of its pins."""
+        return kins_component(self.machine, self.convention)
 
     def pins(self) -> list[tuple[str, object, str]]:
         """(pin, value, comment) for every pin the values set, in HAL order."""
-        out = [(f"{COMPONENT}.tool-length", self.tool_length, "mm"), (f"{COMPONENT}.damping", self.damping, "")]
-        out += [(f"{COMPONENT}.error.{n}", float(v), u) for n, v, u in zip(self.error_names, self.errors, self.units)]
+        name = self.component
+        out = [(f"{name}.tool-length", self.tool_length, "mm"), (f"{name}.damping", self.damping, "")]
+        out += [(f"{name}.error.{n}", float(v), u) for n, v, u in zip(self.error_names, self.errors, self.units)]
         for k, s in enumerate(self.slots):
-            base = f"{COMPONENT}.effect.{k}"
+            base = f"{name}.effect.{k}"
             out += [(f"{base}.param", s.param, s.id), (f"{base}.kind", KINDS[s.kind], s.kind),
                     (f"{base}.joint", s.joint, ""), (f"{base}.degree", s.degree, ""),
                     (f"{base}.period", s.period, ""), (f"{base}.centre", s.centre, ""),
                     (f"{base}.half-range", s.half, ""), (f"{base}.coef-0", s.c0, ""), (f"{base}.coef-1", s.c1, "")]
+            if s.channel >= 0:
+                out += [(f"{base}.channel", s.channel, self.channels[s.channel]),
+                        (f"{base}.reference", s.reference, "degC"), (f"{base}.lag", s.lag, "s")]
+        for c, (channel, ref) in enumerate(zip(self.channels, self.references)):
+            out.append((f"{name}.temp.{c}", ref, f"{channel} degC: its reference"))
         return out
+
+
+def sensor_lines(values: ModuleValues) -> list[str]:
+    """Comment lines of a HAL file saying how to connect the temperature sensors (channel names are checked
+    identifiers: temp_<name>), or none without temperature effects."""
+    if not values.channels:
+        return []
+    name = values.component
+    lo, hi = TEMPERATURE_RANGE_DEGC
+    return ["# temperature sensors (degC): connect each sensor's HAL pin to the module's input below; until it is",
+            "# connected (a net line after the setp lines below) an input holds its reference and the module applies",
+            "# no thermal correction;",
+            f"# a reading outside {lo:g} to {hi:g} degC (or not a number) is taken as the reference and sets "
+            f"{name}.temp-fault.",
+            *[f"#   net {c} <the sensor's pin> => {name}.temp.{k}" for k, c in enumerate(values.channels)],
+            f"# what each temperature effect uses (lagged where it has a lag): {name}.effect.K.temperature (degC)"]
 
 
 def setp_lines(values: ModuleValues) -> list[str]:
@@ -159,7 +213,7 @@ def setp_lines(values: ModuleValues) -> list[str]:
     lines = []
     for pin, value, note in values.pins():
         text = str(value) if isinstance(value, (int, np.integer)) else f"{float(value):.12g}"
-        lines.append(f"setp {pin} {text}" + (f"    # {note}" if note else ""))
+        lines.append(f"setp {pin} {text}" + (f"    # {comment_text(note)}" if note else ""))
     return lines
 
 

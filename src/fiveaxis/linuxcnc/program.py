@@ -146,6 +146,7 @@ class Writer:
         self.letters = letters(model, mode)
         self.q = None                      # current pose: unknown at the start
         self.L = None
+        self.strokes = None                # where the axes may go (the measuring programs set it)
         self.lines = ["%", comment(title),
                       comment(f"fiveaxis: program instrument={instrument} machine={model.machine.name} "
                               f"kinematics={mode}")]
@@ -186,6 +187,24 @@ class Writer:
         """G1 to a pose at feed (mm/min), or G0 with feed None."""
         self.lines.append(f"G0 {self.words(pose)}" if feed is None else f"G1 {self.words(pose)} F{_num(feed)}")
         self.q = np.asarray(pose, float)
+
+    def machine_move(self, letter: str, value: float) -> None:
+        """G0 of one axis word in machine coordinates (G53: no work offset; in joint mode the axis position itself,
+        mm or degrees); the current pose keeps the axis' new position where it is known (joint mode)."""
+        self.lines.append(f"G53 G0 {letter}{_num(value)}")
+        if self.q is not None and self.mode == "joint":
+            i = self.letters.index(letter)
+            self.q = self.q.copy()
+            self.q[i] = np.radians(value) if _rotary(self.model)[i] else value
+        else:
+            self.q = None
+
+    def traverse_words(self, pose, which) -> None:
+        """G0 of some of a pose's words (letters `which`, in the program's order): from wherever the machine is,
+        so the current pose stays unknown."""
+        c = coordinates(self.model, np.asarray(pose, float)[None, :], self.L, self.mode)[0]
+        self.lines.append("G0 " + " ".join(f"{a}{_num(x)}" for a, x in zip(self.letters, c) if a in which))
+        self.q = None
 
     def probe(self, pose, feed: float) -> None:
         """G38.2 (probe towards the pose, stop on contact, error if none) at feed (mm/min). The position after it is

@@ -64,6 +64,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..exceptions import InputError
+from ..inputs import MAX_PROGRAM_BYTES, read_text
 from .inert import inert, split_lines
 
 #: The standalone interpreter of LinuxCNC (Debian package linuxcnc-uspace).
@@ -260,10 +261,7 @@ def run(path, rs274: str = RS274, var_file=None, limits: Limits = LIMITS) -> tup
     if not available(rs274):
         raise InputError(f"{path}: G-code needs LinuxCNC's interpreter {rs274} (Debian package linuxcnc-uspace: "
                          f"apt-get install linuxcnc-uspace)")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a UTF-8 text file (expected a G-code program)") from None
+    text = read_text(path, "a G-code program", MAX_PROGRAM_BYTES)
     program = inert(text, path)
     lines = split_lines(text)
     cpu_s = limits.cpu_s(len(lines))

@@ -1,12 +1,13 @@
 """The folder `compensate` writes for the volumetric kinematics module: a complete simulated LinuxCNC 2.9
-configuration around fiveaxis_kins, which an integrator adapts to the real machine's HAL.
+configuration around the module `<machine>_kins` (fiveaxis.model.machine.kins_component: named after the machine, so that
+two machines' modules install side by side), which an integrator adapts to the real machine's HAL.
 
-Files (`files`): fiveaxis_kins.comp (the module's source, linuxcnc.kinematics.source), fiveaxis.ini, fiveaxis.hal
+Files (`files`): <component>.comp (the module's source, linuxcnc.kinematics.source), fiveaxis.ini, fiveaxis.hal
 (the simulated machine: motion, joints looped back, the kinematics' pins with the identified values),
 fiveaxis.tbl (the tool table: the model's tool as T1, length 0 relative to it), README.txt (what the folder is and
 the shell commands, each on a line beginning with `$ `).
 
-The configuration: 5 joints in the machine's variable order; [KINS] KINEMATICS = fiveaxis_kins; world coordinates
+The configuration: 5 joints in the machine's variable order; [KINS] KINEMATICS = <component>; world coordinates
 the tool tip in the workpiece frame (no G54, no touch-off: the model's workpiece origin is the origin) and the
 rotary angles; axis limits that admit the tip over the whole workspace (WORLD_MARGIN_MM beyond the largest tip
 coordinate of random poses within the strokes, and the tool length on z); the simulated joints' limits wider
@@ -14,6 +15,9 @@ than the strokes (`joint_limits`: a straight tool-tip path in workpiece coordina
 moves the linear joints along curves that leave the strokes between two poses inside them; the real machine's
 limits are its strokes, and its programs must keep the joints inside); fast axes (LINEAR_VELOCITY,
 ROTARY_VELOCITY) so that a test of tens of poses takes a minute; immediate homing at 0.
+
+User text (the fitted model's path: `source`) appears in comments only, reduced to a safe alphabet
+(outputs.comment_text): a line feed in a path must not become a HAL command, an INI section or a README command.
 """
 from __future__ import annotations
 
@@ -21,7 +25,9 @@ import math
 
 import numpy as np
 
-from .kinematics import COMPONENT, ModuleValues, setp_lines
+from ..exceptions import one_line
+from ..outputs import comment_text
+from .kinematics import ModuleValues, sensor_lines, setp_lines
 
 WORLD_MARGIN_MM = 50.0
 JOINT_MARGIN_DEG = 1.0
@@ -66,8 +72,9 @@ def ini_text(model, values: ModuleValues, source: str = "") -> str:
     rot = [v for v in variables if machine.axis(v).type == "rotary"]
     coords = "X Y Z " + " ".join(rot)
     lines = [f"# fiveaxis compensate: a simulated LinuxCNC 2.9 configuration with the volumetric kinematics of machine "
-             f"{machine.name}" + (f" ({source})" if source else ""),
-             "# (the module fiveaxis_kins: build and install it first, see README.txt). World coordinates: the tool",
+             f"{machine.name}" + (f" ({comment_text(source)})" if source else ""),
+             f"# (the module {values.component}: build and install it first, see README.txt). World coordinates: the "
+             f"tool",
              "# tip in the workpiece frame of the model (mm; no G54 or touch-off needed) and the rotary angles",
              "# (degrees).",
              f"# Joints in the machine's order: {' '.join(variables)}. For the real machine, keep [KINS], the joints' "
@@ -76,7 +83,7 @@ def ini_text(model, values: ModuleValues, source: str = "") -> str:
              "", "[EMC]", "VERSION = 1.1", f"MACHINE = fiveaxis {machine.name} (volumetric kinematics)", "DEBUG = 0",
              "", "[DISPLAY]", "DISPLAY = axis", "POSITION_OFFSET = RELATIVE", "POSITION_FEEDBACK = ACTUAL",
              "CYCLE_TIME = 0.100", "MAX_LINEAR_VELOCITY = 1000", "",
-             "[KINS]", f"KINEMATICS = {COMPONENT}", f"JOINTS = {len(variables)}", "",
+             "[KINS]", f"KINEMATICS = {values.component}", f"JOINTS = {len(variables)}", "",
              "[RS274NGC]", "PARAMETER_FILE = fiveaxis.var", "",
              "[EMCMOT]", "EMCMOT = motmod", "COMM_TIMEOUT = 2.0", "SERVO_PERIOD = 1000000", "",
              "[TASK]", "TASK = milltask", "CYCLE_TIME = 0.010", "",
@@ -123,8 +130,9 @@ def hal_text(model, values: ModuleValues, source: str = "") -> str:
     """fiveaxis.hal: motion with the kinematics, simulated joints (feedback = command), the estop and tool-change
     loops, the tool offset to the kinematics, and the identified values on the kinematics' pins."""
     n = len(model.machine.variables)
+    name = values.component
     lines = [f"# fiveaxis compensate: HAL of the simulated configuration fiveaxis.ini (machine {model.machine.name})"
-             + (f", {source}" if source else ""),
+             + (f", {comment_text(source)}" if source else ""),
              "loadrt [KINS]KINEMATICS",
              "loadrt [EMCMOT]EMCMOT servo_period_nsec=[EMCMOT]SERVO_PERIOD num_joints=[KINS]JOINTS",
              "addf motion-command-handler servo-thread", "addf motion-controller servo-thread", "",
@@ -135,23 +143,24 @@ def hal_text(model, values: ModuleValues, source: str = "") -> str:
               "net tool-change-loop iocontrol.0.tool-change => iocontrol.0.tool-changed", "",
               "# G43 gives the kinematics the tool table's length: the chain's tool is tool-length + tool-offset (mm),",
               "# and the world z carries the offset as LinuxCNC adds it",
-              f"net fiveaxis-tool-offset motion.tooloffset.z => {COMPONENT}.tool-offset", "",
+              f"net fiveaxis-tool-offset motion.tooloffset.z => {name}.tool-offset", "",
               f"# the identified machine: error values (mm, rad) and effects; a recalibration replaces these lines",
               f"# only (the same module serves every calibration of machine {model.machine.name}). Nothing after this",
-              f"# file (HALCMD lines, POSTGUI_HALFILE) may set {COMPONENT}.* pins again."]
+              f"# file (HALCMD lines, POSTGUI_HALFILE) may set {name}.* pins again."]
+    lines += sensor_lines(values)
     lines += setp_lines(values)
     return "\n".join(lines) + "\n"
 
 
-def tool_table_text(model) -> str:
+def tool_table_text(model, values: ModuleValues) -> str:
     """fiveaxis.tbl: tool 1 is the model's tool (offset 0: the kinematics' tool-length is its length)."""
-    return (f"T1 P1 Z0 D10 ;the model's tool, {model.machine.tool_length:g} mm (fiveaxis_kins.tool-length); "
+    return (f"T1 P1 Z0 D10 ;the model's tool, {model.machine.tool_length:g} mm ({values.component}.tool-length); "
             f"other tools: their length minus it\n")
 
 
 README = """fiveaxis compensate: the volumetric kinematics module for LinuxCNC 2.9 (machine {machine})
 
-What this folder is: a LinuxCNC kinematics module, fiveaxis_kins, holding the exact kinematic chain of the
+What this folder is: a LinuxCNC kinematics module, {component}, holding the exact kinematic chain of the
 machine with every identified error, and a complete simulated configuration around it.
 The identified machine: {n_errors} error values{effects}.
 kinematicsForward is the machine with its errors; kinematicsInverse finds the joints (Newton, at most {max_iter}
@@ -159,30 +168,32 @@ steps) that put the tool tip and the tool axis where the program wants them. The
 fiveaxis.hal: a recalibration of this machine replaces the setp lines there, no recompilation.
 {left_out}
 Files:
-  fiveaxis_kins.comp  the module's source (halcompile; generated by fiveaxis from {source})
+  {component}.comp
+                      the module's source (halcompile; generated by fiveaxis from {source})
   fiveaxis.ini        the simulated configuration: joints {joints} (the machine's axis order); world
                       coordinates: the tool tip in the workpiece frame of the model (mm; no G54 or touch-off) and
                       the rotary angles (degrees); axis limits over the whole workspace
   fiveaxis.hal        motion, simulated joints, the tool offset to the kinematics, the identified values
-  fiveaxis.tbl        the tool table: T1 is the model's tool ({tool_length:g} mm = fiveaxis_kins.tool-length);
+  fiveaxis.tbl        the tool table: T1 is the model's tool ({tool_length:g} mm = {component}.tool-length);
                       give other tools their length minus that (G43 adds it to the chain's tool)
 
 Build and install the module (Debian: the package linuxcnc-uspace-dev provides halcompile; as root or with sudo),
 from this folder:
 $ sudo apt-get install linuxcnc-uspace-dev
-$ sudo halcompile --install fiveaxis_kins.comp
+$ sudo halcompile --install {component}.comp
 
 Start the simulated configuration (AXIS display), from this folder:
 $ linuxcnc fiveaxis.ini
 
 While it runs, the values the module uses and the Newton iterations of the last inverse:
-$ halcmd show pin fiveaxis_kins
+$ halcmd show pin {component}
 
 On the real machine: keep [KINS], the joint order, and fiveaxis.hal's kinematics lines (loadrt, the tool-offset
 net, the setp lines); replace the simulated joint loops (net jN-pos ...) by the drives' HAL and the limits by the
 machine's. Do not also load xyzac-trt-kins parameters or compensation files made for it (../fiveaxis.ini,
 ../joint*.comp): they correct what this module corrects already. Nothing that runs after fiveaxis.hal (HALCMD
-lines, POSTGUI_HALFILE) may set fiveaxis_kins.* pins.
+lines, POSTGUI_HALFILE) may set {component}.* pins. The module is named after its machine: another machine's
+module installs beside it.
 """
 
 
@@ -191,14 +202,16 @@ def readme_text(model, values: ModuleValues, source: str = "", max_iter: int = 1
                if values.slots else "")
     left = ""
     if values.left_out:
-        left = "\nNot in the module (said in ../summary.json too):\n" + "".join(f"  - {m}\n" for m in values.left_out)
+        left = "\nNot in the module (said in ../summary.json too):\n" + "".join(f"  - {one_line(m)}\n"
+                                                                          for m in values.left_out)
     return README.format(machine=model.machine.name, n_errors=len(values.errors), effects=effects,
-                         max_iter=max_iter, left_out=left, source=source or f"machine {model.machine.name}",
+                         max_iter=max_iter, left_out=left, component=values.component,
+                         source=comment_text(source) if source else f"machine {model.machine.name}",
                          joints=" ".join(model.machine.variables), tool_length=values.tool_length)
 
 
 def files(model, values: ModuleValues, comp_source: str, source: str = "") -> dict:
     """File name -> text of the folder (see the module docstring)."""
-    return {f"{COMPONENT}.comp": comp_source, "fiveaxis.ini": ini_text(model, values, source),
-            "fiveaxis.hal": hal_text(model, values, source), "fiveaxis.tbl": tool_table_text(model),
+    return {f"{values.component}.comp": comp_source, "fiveaxis.ini": ini_text(model, values, source),
+            "fiveaxis.hal": hal_text(model, values, source), "fiveaxis.tbl": tool_table_text(model, values),
             "README.txt": readme_text(model, values, source)}

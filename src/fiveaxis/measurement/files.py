@@ -10,7 +10,8 @@ What a row holds (units in brackets; every column but the pose variables is opti
   - `du` [mm] along the unit direction `ux, uy, uz` (1-D instruments: ballbar, interferometer, tracker);
 - how well: `sigma` [mm] of each of dx, dy, dz and du of the row, `sigma_axis` [rad] of each of di, dj, dk;
 - which artefact placement: `setup` (any text), with optional `setup_kind` (point, rigid, planar) and
-  `setup_frame` (workpiece, machine), constant within a setup.
+  `setup_frame` (workpiece, machine), constant within a setup;
+- temperatures: `temp_<name>` [degC] per sensor (name: a-z, 0-9, _; a blank cell: not read in that row).
 Deviations and directions are in the workpiece frame unless the file is read with frame="machine" (probe cycles,
 bed-mounted trackers); see `fiveaxis.measurement.observations`. Any bad cell is an InputError naming the file, the data row
 (1-based, as a spreadsheet numbers data rows under the header) with its line in a CSV file, and the column.
@@ -19,15 +20,17 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from dataclasses import dataclass, field, replace
+from decimal import Decimal
 from pathlib import Path
 
 import numpy as np
 
 from ..exceptions import InputError
 from ..model.columns import (AXIS_DEVIATIONS, BY_NAME, COLUMNS, DEVIATIONS, DIRECTION, DIRECTION_PREFIX, FRAMES, LINE,
-                             READINGS, SETUP_KINDS)
-from ..inputs import regular_file
+                             READINGS, SETUP_KINDS, TEMPERATURE_PREFIX, TEMPERATURE_RE, temperature_column)
+from ..inputs import MAX_TABLE_BYTES, open_file
 from .column_names import check as check_columns
 
 #: A rotary column "looks like radians" when every |value| is at most this (degrees would be tiny angles) while
@@ -63,6 +66,10 @@ class Measurements:
     frame: str = "workpiece"            # frame of d, dv, u
     quantum: dict | None = None         # resolution of the file's numbers: "poses" (n, nvar), "L" (n,), "u" (n, 3)
     #                                     model units, half a unit of the last digit (None: full precision)
+    temps: dict = field(default_factory=dict)         # temp_<name> -> (n,) degC, NaN where not read
+    source: np.ndarray | None = None    # (n,) index into `sources` of each row's file (None: one file)
+    sources: tuple = ()                 # the files of a joint set (`join`), in order
+    columns: tuple = ()                 # the file's column names (as read)
 
     def __post_init__(self):
         n = len(self.poses)
@@ -91,6 +98,7 @@ class Measurements:
                        sigma=pick(self.sigma), dv=pick(self.dv), du=pick(self.du), u=pick(self.u),
                        sigma_axis=pick(self.sigma_axis), setup=pick(self.setup),
                        dirs={k: v[rows] for k, v in self.dirs.items()}, rows=self.rows[rows], warnings=[],
+                       temps={k: v[rows] for k, v in self.temps.items()}, source=pick(self.source),
                        quantum=None if self.quantum is None else {k: pick(v) for k, v in self.quantum.items()})
 
     def with_poses(self, poses, L=None) -> "Measurements":
@@ -113,7 +121,71 @@ def concat(a: Measurements, b: Measurements) -> Measurements:
                    sigma_axis=cat(a.sigma_axis, b.sigma_axis), setup=cat(a.setup, b.setup),
                    setup_kind={**a.setup_kind, **b.setup_kind}, setup_frame={**a.setup_frame, **b.setup_frame},
                    dirs=dirs, rows=np.concatenate([a.rows, b.rows + (a.rows.max() if len(a.rows) else 0)]),
-                   warnings=[], quantum=_concat_quantum(a, b))
+                   warnings=[], quantum=_concat_quantum(a, b),
+                   temps={k: np.concatenate([a.temps[k], b.temps[k]]) for k in a.temps if k in b.temps})
+
+
+def join(sets: list, machine) -> Measurements:
+    """Measurement files of one machine as one set, each file with its own instrument, setups and noise (`fiveaxis
+    fit a.csv b.csv`): readings a file does not have are blank in its rows (NaN), sigma unknown where a file gives
+    none (its own variance component: `source` says which file each row is from), files in the machine frame
+    turned into the workpiece frame, a setup id two files share named after its file (`rt.csv:sphere1`), approach
+    directions 0 (unknown) in the rows of a file without them, times and temperature channels kept only when every
+    file has them (else a warning). Rows keep their file's numbering."""
+    sets = [in_frame(m, machine, "workpiece") if m.frame != "workpiece" else m for m in sets]
+    if len(sets) == 1:
+        return sets[0]
+    n = [m.n for m in sets]
+    warnings = [w for m in sets for w in m.warnings]
+    names = [Path(m.path).name for m in sets]
+
+    def stack(get, width=None):
+        parts = [get(m) for m in sets]
+        if all(p is None for p in parts):
+            return None
+        return np.concatenate([p if p is not None else np.full((k, width) if width else k, np.nan)
+                               for p, k in zip(parts, n)])
+    ids = [m.setups for m in sets]
+    shared = {s for i, a in enumerate(ids) for b in ids[i + 1:] for s in set(a) & set(b)}
+
+    def sid(m, name, x):
+        return None if x is None else (f"{name}:{x}" if x in shared else x)
+    setup = None
+    if any(m.setup is not None for m in sets):
+        setup = np.concatenate([np.array([sid(m, nm, x) for x in m.setup], dtype=object) if m.setup is not None
+                                else np.full(m.n, None, dtype=object) for m, nm in zip(sets, names)])
+    kinds, frames_ = {}, {}
+    for m, nm in zip(sets, names):
+        kinds.update({sid(m, nm, k): v for k, v in m.setup_kind.items()})
+        frames_.update({sid(m, nm, k): v for k, v in m.setup_frame.items()})
+    dirs = {}
+    for v in dict.fromkeys(k for m in sets for k in m.dirs):
+        dirs[v] = np.concatenate([m.dirs.get(v, np.zeros(m.n)) for m in sets])
+    t = None
+    if all(m.t is not None for m in sets):
+        t = np.concatenate([m.t for m in sets])
+    elif any(m.t is not None for m in sets):
+        warnings.append(f"{', '.join(names)}: times (t) are left out: not every file has them")
+    temps = {k: np.concatenate([m.temps[k] for m in sets]) for k in sets[0].temps if all(k in m.temps for m in sets)}
+    dropped = sorted({k for m in sets for k in m.temps} - set(temps))
+    if dropped:
+        warnings.append(f"{', '.join(names)}: temperature channel(s) {', '.join(dropped)} left out: not in every file")
+    quantum = None
+    if any(m.quantum is not None for m in sets):
+        qs = [m.quantum or {"poses": np.zeros_like(m.poses), "L": np.zeros(m.n), "u": None} for m in sets]
+        quantum = {"poses": np.vstack([q["poses"] for q in qs]), "L": np.concatenate([q["L"] for q in qs]),
+                   "u": None if all(q.get("u") is None for q in qs) else np.concatenate(
+                       [q["u"] if q.get("u") is not None else np.zeros((m.n, 3)) for q, m in zip(qs, sets)])}
+    return Measurements(path=Path(" + ".join(str(m.path) for m in sets)), variables=sets[0].variables,
+                        poses=np.vstack([m.poses for m in sets]), L=np.concatenate([m.L for m in sets]),
+                        d=stack(lambda m: m.d, 3), t=t, sigma=stack(lambda m: m.sigma),
+                        dv=stack(lambda m: m.dv, 3), has_L=any(m.has_L for m in sets), warnings=warnings,
+                        du=stack(lambda m: m.du), u=stack(lambda m: m.u, 3),
+                        sigma_axis=stack(lambda m: m.sigma_axis), setup=setup, setup_kind=kinds,
+                        setup_frame=frames_, dirs=dirs, rows=np.concatenate([m.rows for m in sets]),
+                        frame="workpiece", quantum=quantum, temps=temps,
+                        source=np.repeat(np.arange(len(sets)), n), sources=tuple(Path(m.path) for m in sets),
+                        columns=tuple(dict.fromkeys(c for m in sets for c in m.columns)))
 
 
 def _concat_quantum(a: Measurements, b: Measurements) -> dict | None:
@@ -129,35 +201,66 @@ def _concat_quantum(a: Measurements, b: Measurements) -> dict | None:
 MAX_DIGITS = 17
 
 
-def quantum(values: np.ndarray) -> np.ndarray:
-    """The resolution of a column of numbers as a file gives them: half a unit of the last digit of each (0.0005
-    for 12.345 in a column written to 0.001; 5e-5 for 214.2245 in a column of 7 significant digits). From the
-    column's decimals (the most any value needs: a fixed-point column) and significant digits (the most any value
-    needs: a column of significant digits), each value's resolution is the coarser of the two at its magnitude;
-    full double precision comes out near 1e-16 of the value. A column of one value (A = 0 in every row, a beam
-    along x: 1, 0, 0) is exact: its rounding, if any, is one offset shared by every row (a constant error the model
-    holds), not a perturbation from row to row. NaN where the value is NaN."""
+_SCI = re.compile(r"^(\d*)\.?(\d*)[eE]([+-]?\d+)$")
+
+
+def written_digits(cells) -> tuple[int, int] | None:
+    """What the text of a column's cells says of its resolution: (decimals, significant digits), the most any
+    cell writes ('200.000': 3 decimals and 6 digits; '0.00123': 5 and 3; '1.5e-05': 6 and 2), trailing zeros
+    counted as written. None when no cell is text (numbers of a binary file say nothing of their resolution) or
+    when no cell writes a decimal point or an exponent: a column of whole numbers holds nominal values (commanded
+    angles 0, 30, 60; a beam along x: 1, 0, 0; tools of 200 and 300 mm), exact; a controller that rounds writes its
+    decimals (0.001 mm, 0.0001 deg)."""
+    if isinstance(cells, np.ndarray):
+        return None
+    a = np.array([str(c) for c in cells if isinstance(c, (str, Decimal))])
+    if not a.size:
+        return None
+    a = np.char.lstrip(np.char.strip(a), "+-")       # vectorised: 10^6 cells in about 2 s
+    a = a[np.char.str_len(a) > 0]
+    if not a.size:
+        return None
+    sci = (np.char.find(a, "e") >= 0) | (np.char.find(a, "E") >= 0)
+    dot = np.char.find(a, ".")
+    if not (sci.any() or (dot >= 0).any()):
+        return None
+    decimals, digits = [], []
+    plain, pdot = a[~sci], dot[~sci]
+    if plain.size:
+        decimals.append(int(np.max(np.where(pdot >= 0, np.char.str_len(plain) - pdot - 1, 0))))
+        digits.append(int(np.max(np.char.str_len(np.char.lstrip(np.char.replace(plain, ".", ""), "0")))))
+    for cell in a[sci]:
+        m = _SCI.match(str(cell))
+        if m:
+            decimals.append(len(m.group(2)) - int(m.group(3)))
+            digits.append(len((m.group(1) + m.group(2)).lstrip("0")))
+    return (max(decimals), min(max(digits), MAX_DIGITS)) if decimals else None
+
+
+def quantum(values: np.ndarray, written: tuple[int, int] | None = None, step: float | None = None) -> np.ndarray:
+    """The resolution of a column of numbers (n,): half a unit of the last digit its text writes (0.0005 for
+    200.000 in a column written to 0.001; 5e-5 for 214.2245 in a column of 7 significant digits), from the most
+    decimals any cell writes (a fixed-point column) and the most significant digits (a column of significant
+    digits: the decimals of a value are those its magnitude leaves), each value's resolution the coarser of the
+    two; `written` is `written_digits` of its cells; or half of a stated step (the file's units); neither: full
+    precision, the resolution is 0. A column of one value (A = 0 in every row, a beam along x: 1, 0, 0) is exact:
+    its rounding, if any, is one offset shared by every row (a constant error the model holds), not a perturbation
+    from row to row. NaN where the value is NaN."""
     v = np.asarray(values, dtype=float)
     out = np.full(v.shape, np.nan)
     ok = np.isfinite(v)
     if not ok.any():
         return out
-    if np.all(v[ok] == v[ok][0]):
+    if (written is None and not step) or np.all(v[ok] == v[ok][0]):
         out[ok] = 0.0
         return out
+    if step:
+        out[ok] = 0.5 * float(step)
+        return out
+    decimals, digits = written
     x = np.abs(v[ok])
     e = np.floor(np.log10(np.where(x > 0, x, 1.0)))
-    k = np.full(x.shape, MAX_DIGITS)
-    for digits in range(MAX_DIGITS - 1, 0, -1):       # fewest significant digits that read back as the value
-        scale = 10.0 ** (digits - 1 - e)
-        y = x * scale
-        exact = np.abs(np.round(y) - y) <= 4 * np.finfo(float).eps * np.maximum(y, 1.0)
-        k = np.where(exact, digits, k)
-    k = np.where(x > 0, k, 1)
-    decimals = np.where(x > 0, k - 1 - e, -np.inf)
-    K = int(k.max())
-    d_max = float(decimals.max()) if np.isfinite(decimals).any() else 0.0
-    out[ok] = 0.5 * np.maximum(10.0 ** (-d_max), np.where(x > 0, 10.0 ** (e - K + 1), 0.0))
+    out[ok] = 0.5 * np.maximum(10.0 ** (-decimals), np.where(x > 0, 10.0 ** (e - max(digits, 1) + 1), 0.0))
     return out
 
 
@@ -183,7 +286,10 @@ def _read_table(path: Path):
     if suffix in (".parquet", ".pq"):
         import pyarrow.parquet as pq   # optional heavy dependency: only for Parquet files
         try:
-            table = pq.read_table(path)
+            with open_file(path, "a measurement file", MAX_TABLE_BYTES) as fh:
+                table = pq.read_table(fh)
+        except InputError:
+            raise
         except Exception as exc:  # pyarrow raises several types for damaged files
             raise InputError(f"{path}: not a readable Parquet file ({str(exc).splitlines()[0][:120]})") from None
         names = list(table.column_names)
@@ -201,7 +307,8 @@ def _read_table(path: Path):
         raise InputError(f"{path}: unknown file type '{suffix}' (expected .csv or .parquet)")
     rows, lines = [], []
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
+        with open_file(path, "a measurement file", MAX_TABLE_BYTES, text=True, encoding="utf-8-sig",
+                       newline="") as fh:
             reader = csv.reader(fh)
             try:
                 header = next(reader, None)
@@ -210,6 +317,7 @@ def _read_table(path: Path):
             if not header or all(not h.strip() for h in header):
                 raise InputError(f"{path}: empty file (expected a header line such as X,Y,Z,A,B,dx,dy,dz)")
             names = [h.strip() for h in header]
+            _separated_otherwise(path, names, fh)
             _duplicates(path, names)
             while True:
                 try:
@@ -229,11 +337,21 @@ def _read_table(path: Path):
                 lines.append(reader.line_num)
     except UnicodeDecodeError:
         raise InputError(f"{path}: not a UTF-8 text file") from None
-    if len(names) == 1 and any(sep in names[0] for sep in ";\t"):
-        raise InputError(f"{path}: header: one column '{names[0][:40]}' (expected comma-separated columns; "
-                         f"is the file separated by ';' or tabs?)")
     cols = {n: [r[i] for r in rows] for i, n in enumerate(names)}
     return names, cols, lines, None
+
+
+def _separated_otherwise(path, names, fh) -> None:
+    """A header of one column holding ';' or tabs: a file separated otherwise (a spreadsheet's export with decimal
+    commas, often); said before its rows are read (their comma count would make a vague message)."""
+    if len(names) != 1 or not any(sep in names[0] for sep in ";\t"):
+        return
+    sep = "';'" if ";" in names[0] else "tabs"
+    line = fh.readline()
+    commas = bool(re.search(r"\d,\d", line))
+    raise InputError(f"{path}: header: one column '{names[0][:40]}' (expected comma-separated columns): the file is "
+                     f"separated by {sep}" + (" and has decimal commas" if commas else "") + "; save it as CSV with "
+                     f"',' between columns and '.' in numbers")
 
 
 def _duplicates(path, names):
@@ -343,25 +461,33 @@ def _range_check(path, name, values, keep, lines, lo, hi, what):
 
 
 def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind: str | None = None,
-         setup_frame: str | None = None, readings_required: bool = True) -> Measurements:
+         setup_frame: str | None = None, readings_required: bool = True,
+         resolution: dict | None = None, resolution_strict: bool = True) -> Measurements:
     """Read and check a measurement file for a machine.
 
     min_rows: the least number of measured values (readings) accepted; frame: "workpiece" (default) or "machine",
     the frame of dx, dy, dz, di, dj, dk and ux, uy, uz; setup_kind / setup_frame: defaults for setups whose rows
     do not say (columns setup_kind, setup_frame win); readings_required=False reads a file of poses only (a plan
-    to simulate or to measure). The columns are checked against their table (`fiveaxis.model.columns`) in one
-    loop; then the rules that join columns and rows (RULES)."""
+    to simulate or to measure); resolution: {column: step} in the file's units (mm, deg), the resolution of
+    numbers the file does not write as text (Parquet) or states otherwise (a controller's 0.001 mm); else a
+    CSV column's resolution is read from the digits its cells write (`written_digits`) and binary numbers count as
+    full precision (never a guess from the values); resolution_strict=False: columns of `resolution` the file does
+    not have are passed over (one of several files of a joint fit). The columns are checked against their table
+    (`fiveaxis.model.columns`) in one loop; then the rules that join columns and rows (RULES)."""
     path = Path(path)
     if frame is not None and frame not in FRAMES:
         raise InputError(f"unknown frame '{frame}' (expected one of: {', '.join(FRAMES)})")
     for what, value, allowed in (("setup kind", setup_kind, SETUP_KINDS), ("setup frame", setup_frame, FRAMES)):
         if value is not None and value not in allowed:
             raise InputError(f"unknown {what} '{value}' (expected one of: {', '.join(allowed)})")
-    names, cols, lines, types = _read_table(regular_file(path, "a measurement file") if path.exists() else path)
+    names, cols, lines, types = _read_table(path)
     variables = tuple(machine.variables)
     warnings = check_columns(path, names, variables, tuple(c.name for c in COLUMNS))     # misspelled columns
-    _check_header(path, cols, variables, readings_required)
     nrows = len(cols[names[0]]) if names else 0
+    along = _one_axis_line(path, machine, cols, frame)
+    if along is not None:                                 # blank until the rows are known (blank rows stay blank)
+        cols.update({n: np.full(nrows, np.nan) for n in LINE_DIRECTION})
+    _check_header(path, cols, variables, readings_required)
     # Rows that are entirely empty (blank lines) are skipped; row numbers stay those of the file.
     filled = np.zeros(nrows, bool)
     for c in cols.values():
@@ -370,7 +496,14 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
     keep = np.flatnonzero(filled)
     if not len(keep):
         raise InputError(f"{path}: no data rows (expected one row per measured pose under the header)")
-    f = _File(path, cols, lines, types, keep, machine, variables, readings_required, warnings, {})
+    if along is not None:
+        u, note = along
+        for n, value in zip(LINE_DIRECTION, u):
+            cols[n] = np.where(filled, value, np.nan)
+        warnings.append(note)
+    f = _File(path, cols, lines, types, keep, machine, variables, readings_required, warnings, {},
+              resolution=_check_resolution(path, resolution if resolution_strict else
+                                           {k: v for k, v in (resolution or {}).items() if k in names}, names))
     for column in COLUMNS:                               # the table's columns, one loop
         if column.name in cols:
             f.data[column.name] = f.cells(column)
@@ -378,14 +511,53 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
         f.data[v] = f.numbers(v)
     for c in (c for c in cols if c.startswith(DIRECTION_PREFIX)):
         f.data[c] = f.numbers(c)
+    for c in (c for c in cols if c.startswith(TEMPERATURE_PREFIX)):    # degC within the plausible range
+        f.data[c] = f.cells(temperature_column(c))
     for rule in RULES:
         rule(f, frame, setup_kind, setup_frame, min_rows)
     return f.measurements()
 
 
+#: The columns of the direction of du.
+LINE_DIRECTION = ("ux", "uy", "uz")
+
+
+def _one_axis_line(path, machine, cols, frame):
+    """A laser file of a one-axis machine (`X,dir_X,du`) needs no ux,uy,uz: du is read along the axis. Returns
+    (the direction in the file's frame, a note) for such a file, else None. The direction is the axis' own in the
+    machine frame; in the workpiece frame the tip moves against a workpiece-chain axis' direction."""
+    if "du" not in cols or any(n in cols for n in LINE_DIRECTION) or len(machine.axes) != 1:
+        return None
+    ax = machine.axes[0]
+    if ax.type != "linear":
+        return None
+    sign = -1.0 if ax in machine.workpiece_chain and (frame or "workpiece") == "workpiece" else 1.0
+    u = tuple(sign * float(c) for c in ax.direction)
+    return u, (f"{path}: no ux,uy,uz columns: du read along the machine's one axis {ax.name}, ux,uy,uz = "
+               f"{', '.join(f'{c:g}' for c in u)} ({frame or 'workpiece'} frame)")
+
+
+def _check_resolution(path, resolution, names) -> dict:
+    """A stated resolution {column: step (mm, deg)} checked against the file's columns."""
+    out = {}
+    for name, step in (resolution or {}).items():
+        if name not in names:
+            raise InputError(f"{path}: resolution of column {name}: no such column in the file (columns: "
+                             f"{', '.join(names)})")
+        if isinstance(step, bool) or not isinstance(step, (int, float)) or not (0 < step < math.inf):
+            raise InputError(f"{path}: resolution of column {name}: expected a positive step (mm or deg), got "
+                             f"{step!r}")
+        out[name] = float(step)
+    return out
+
+
 def _check_header(path, cols, variables, readings_required):
     """The header: the pose columns, readings (unless a plan), dir_ columns of known axes, what columns need."""
     for c in cols:
+        if c.startswith(TEMPERATURE_PREFIX) and not re.fullmatch(TEMPERATURE_RE, c):
+            raise InputError(f"{path}: header: column {str(c)[:40]!r}: a temperature channel is named temp_ followed "
+                             f"by a lower-case letter and up to 31 lower-case letters, digits or _ (e.g. "
+                             f"temp_spindle)")
         if c.startswith(DIRECTION_PREFIX) and c[len(DIRECTION_PREFIX):] not in variables:
             raise InputError(f"{path}: header: column {c}: unknown axis '{c[len(DIRECTION_PREFIX):]}' (expected dir_ "
                              f"followed by one of {', '.join(variables)})")
@@ -422,10 +594,20 @@ class _File:
     setup_kind: dict = field(default_factory=dict)
     setup_frame: dict = field(default_factory=dict)
     has_line: np.ndarray | None = None
+    resolution: dict = field(default_factory=dict)      # column -> stated step (mm, deg)
 
     @property
     def n(self) -> int:
         return len(self.keep)
+
+    def quantum(self, name: str, values: np.ndarray) -> np.ndarray:
+        """The resolution of a column's kept values (file units): stated, or from the digits its text writes."""
+        if name in self.resolution:
+            return quantum(values, step=self.resolution[name])
+        cells = self.cols[name]
+        if not isinstance(cells, np.ndarray) and len(self.keep) != len(cells):
+            cells = [cells[i] for i in self.keep]
+        return quantum(values, written_digits(cells))
 
     def where(self, i: int) -> str:
         """'file: data row 3 (line 4)' of the i-th kept row."""
@@ -459,8 +641,8 @@ class _File:
         d = self.data
         n = self.n
         L = d["L"] if "L" in d else np.full(n, self.machine.tool_length)
-        resolution = {"poses": d["_pose_quantum"], "L": quantum(L) if "L" in d else np.zeros(n),
-                      "u": None if self.u is None else np.column_stack([quantum(d[c]) for c in DIRECTION])}
+        resolution = {"poses": d["_pose_quantum"], "L": self.quantum("L", L) if "L" in d else np.zeros(n),
+                      "u": None if self.u is None else np.column_stack([self.quantum(c, d[c]) for c in DIRECTION])}
 
         def cols3(names):
             return np.column_stack([d[c] if c in d else np.full(n, np.nan) for c in names])
@@ -470,7 +652,8 @@ class _File:
                             has_L="L" in d, warnings=self.warnings, du=d.get(LINE), u=self.u,
                             sigma_axis=d.get("sigma_axis"), setup=self.setup, setup_kind=self.setup_kind,
                             setup_frame=self.setup_frame, dirs=d["_dirs"], rows=np.asarray(self.keep) + 1,
-                            frame=self.frame, quantum=resolution)
+                            frame=self.frame, quantum=resolution, temps=d.get("_temps", {}),
+                            columns=tuple(self.cols))
 
 
 # -- the rules that join columns and rows -----------------------------------------------------------------------
@@ -577,7 +760,7 @@ def _rule_poses(f: _File, *_):
             f.warnings.append(f"{f.path}: column {v}: all {n} angles are within +-{RADIAN_MAX:.4g} while the stroke "
                               f"is [{lo:g}, {hi:g}] deg: are they radians? (angles are read as degrees)")
         poses[:, i] = vals * to
-        pq[:, i] = quantum(vals) * to
+        pq[:, i] = f.quantum(v, vals) * to
     if outside:
         detail = ", ".join(f"{v}: {k}" for v, k in outside.items())
         f.warnings.append(f"{f.path}: {int(np.sum(any_out))} of {n} poses outside the strokes of the machine file "
@@ -615,9 +798,25 @@ def _rule_setups(f: _File, frame, setup_kind, setup_frame, min_rows):
                 target.setdefault(s, default or allowed[0])
 
 
+def _rule_temperatures(f: _File, *_):
+    """Every temperature channel has a reading; one that never changes is named (no effect of it can be fitted)."""
+    temps = {}
+    for c in (c for c in f.cols if c.startswith(TEMPERATURE_PREFIX)):
+        v = f.data[c]
+        read = v[~np.isnan(v)]
+        if not len(read):
+            raise InputError(f"{f.path}: column {c}: no reading in any row (expected temperatures in degC; a blank "
+                             f"cell is a row where the sensor was not read)")
+        if np.all(read == read[0]):
+            f.warnings.append(f"{f.path}: column {c}: the temperature never changes ({read[0]:g} degC in all "
+                              f"{len(read)} readings): no effect of it can be fitted from this file")
+        temps[c] = v
+    f.data["_temps"] = temps
+
+
 #: The rules, in the order a file is checked (the first broken one is the error).
 RULES = (_rule_frame, _rule_one_kind_per_row, _rule_directions, _rule_sigmas, _rule_enough, _rule_poses,
-         _rule_setups)
+         _rule_setups, _rule_temperatures)
 
 
 def in_frame(meas: Measurements, machine, target: str) -> Measurements:
@@ -658,6 +857,8 @@ def frame(meas: Measurements, machine):
         cols["t"] = meas.t
     for v, vals in meas.dirs.items():
         cols[f"dir_{v}"] = vals.astype(int)
+    for c, vals in meas.temps.items():
+        cols[c] = vals
     if not np.all(np.isnan(meas.d)):
         for j, c in enumerate(DEVIATIONS):
             cols[c] = meas.d[:, j]

@@ -18,6 +18,7 @@ from ..effects import families as fx
 from . import instruments as ins
 from . import observations as ob
 from . import setups as su
+from . import temperatures as heat
 from ..exceptions import InputError
 from .files import Measurements, frame
 from ..effects.custom import load_custom
@@ -25,9 +26,6 @@ from ..effects.custom import load_custom
 #: Standard deviations of the random base errors: a few um and tens of urad.
 BASE_LINEAR_MM = 3e-3
 BASE_ANGULAR_RAD = 20e-6
-#: Default size of a hidden effect: its change at the end of the scaled range (u = 1), or its amplitude.
-EFFECT_LINEAR_MM = 10e-3
-EFFECT_ANGULAR_RAD = 20e-6
 #: Standard deviations of random setup placements: offsets and length offsets (mm), rotations (rad, ~0.03 deg).
 SETUP_OFFSET_MM = 0.02
 SETUP_ROTATION_RAD = 5e-4
@@ -47,51 +45,37 @@ class Simulation:
     noise_axis: float = 0.0    # rad
     coefficients: dict = field(default_factory=dict)   # effect coefficient name -> value as the fit reports it
     notes: list = field(default_factory=list)
+    temperatures: dict = field(default_factory=dict)   # temp_<name> -> its profile (heat.Channel.to_json)
+    true_temps: dict = field(default_factory=dict)     # temp_<name> -> (n,) the true temperature (degC)
 
     def truth_json(self, model, seed=None) -> dict:
         """The truth as a JSON record (mm, rad): what a fit of this set should recover."""
         return {"machine": model.machine.name, "convention": model.convention, "instrument": self.instrument,
                 "frame": self.meas.frame, "seed": seed, "noise_mm": self.noise, "noise_axis_rad": self.noise_axis,
                 "base_errors_mm_rad": self.base_errors, "effects": self.effects,
-                "effect_coefficients": self.coefficients, "setups": self.setups, "notes": self.notes}
+                "effect_coefficients": self.coefficients, "setups": self.setups, "notes": self.notes,
+                **({"temperatures_degC": self.temperatures} if self.temperatures else {})}
 
 
 def parse_effect(spec: str, model):
     """`ex_x:x1` (default size) or `ex_x:x1=2e-5` (the change at the end of the stroke, mm or rad; for a periodic
     effect `=a` or `=a,b`: sine and cosine amplitudes; for a profile `dx_x:xk100=v1,...,vk`: its value at each
-    knot); custom effects: `name=p1,p2,...`."""
+    knot); custom effects: `name=p1,p2,...`. Each family says what its values are (`simulated`)."""
     ident, _, value = spec.partition("=")
     if ident in model.machine.effects:
         eff = load_custom(model.machine, ident)
-        vals = _floats(spec, value) if value else None
-        if vals is not None and len(vals) != len(eff.names):
-            raise InputError(f"effect value {spec}: expected {len(eff.names)} values ({', '.join(eff.params)})")
-        return eff, (np.array(vals) if vals else np.full(len(eff.names), EFFECT_LINEAR_MM))
-    eff = fx.parse(ident, model.machine, model.errors, "--effect")
-    k = len(eff.names)
-    if eff.kind == "profile" and (not value or len(_floats(spec, value)) != k):
-        knots = ", ".join(f"{x:g}" for x in eff.knots)
-        raise InputError(f"effect value {spec}: a profile needs its value at each of its {k} knots ({knots}), "
-                         f"mm or rad, e.g. {ident}=" + ",".join(["0.001"] * min(k, 3)) + (",..." if k > 3 else ""))
-    if value:
-        vals = _floats(spec, value)
-        if len(vals) == 1 and k > 1:
-            vals = vals + [0.0] * (k - 1)
-        if len(vals) != k:
-            raise InputError(f"effect value {spec}: expected {k} value(s) after '='")
     else:
-        angular = eff.param != fx.TOOL and model.machine.is_angular(eff.param)
-        vals = [EFFECT_ANGULAR_RAD if angular else EFFECT_LINEAR_MM] + [0.0] * (k - 1)
-    return eff, np.array(vals, dtype=float)
+        eff = fx.parse(ident, model.machine, model.errors, "--effect")
+    return eff, eff.simulated(_floats(spec, value) if value else None, model.machine, spec)
 
 
 def _floats(spec, text):
     try:
         vals = [float(x) for x in text.split(",")]
     except ValueError:
-        raise InputError(f"effect value {spec}: expected numbers after '=', got {text!r}") from None
+        raise InputError(f"effect value {spec}: expected numbers after '=', got {text!r}", key="effect value") from None
     if not all(np.isfinite(vals)):
-        raise InputError(f"effect value {spec}: expected finite numbers after '=', got {text!r}")
+        raise InputError(f"effect value {spec}: expected finite numbers after '=', got {text!r}", key="effect value")
     return vals
 
 
@@ -114,8 +98,10 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
              path="simulated", instrument: str = "tip", with_axis: bool = False,
              noise_axis: float = NOISE_AXIS_RAD, plan: ins.Plan | None = None, setup_scale: float = 1.0,
              options: dict | None = None, errors: dict | None = None,
-             setup_kind: str | None = None, placements: dict | None = None, commands=None) -> Simulation:
-    """A simulated measurement set. effects: specs (`ex_x:x1=2e-5`) or (effect, values) pairs.
+             setup_kind: str | None = None, placements: dict | None = None, commands=None,
+             temperatures: dict | None = None, chain=None) -> Simulation:
+    """A simulated measurement set. effects: specs (`ex_x:x1=2e-5`; a temperature effect's value: mm or rad per
+    degC) or (effect, values) pairs.
 
     instrument: a plan of `fiveaxis.measurement.instruments` (n: about how many poses), or `plan` given; tool_lengths: None
     (the machine's L0, no L column) or (min, max) mm for a random L per pose (tip plans); duration: s over which the
@@ -127,15 +113,19 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
     placements: {setup id: {"c_mm": [3], "l_mm": x, "w_rad": [3]}} set instead of drawn (any key may be left out);
     commands: None, or a function of the poses (n, nvar; mm, rad), their tool lengths (n,; mm) and approach
     directions ({axis: (n,) +1/-1}) giving the positions the axes are actually sent to (a compensation); the readings are then those of the machine there
-    against the nominal tool of the poses."""
+    against the nominal tool of the poses; temperatures: {name: `KIND[:key=value,...]` or a temperatures.Channel}
+    (`fiveaxis.measurement.temperatures`, in order: a mix reads earlier ones): the sensors' histories over t (a
+    temp_<name> column each, read with noise and resolution); the effects are driven by the true temperatures;
+    chain: None (the model's kernels), or a function (poses, E (n, n_errors in the model's order), L) -> (P_err,
+    V_err) computing the true machine's tool errors elsewhere (an independent chain: `fiveaxis.model.htm`)."""
     _check(n, noise, noise_axis, duration, tool_lengths)
     rng = np.random.default_rng(seed)
     machine = model.machine
     parsed = [parse_effect(e, model) if isinstance(e, str) else e for e in effects]
     if plan is None:
         opts = dict(options or {})
-        if instrument == "tip":
-            opts.update(with_axis=with_axis, tool_lengths=tool_lengths)
+        opts.update({k: v for k, v in (("with_axis", with_axis), ("tool_lengths", tool_lengths))
+                     if k in ins.get(instrument).plan_options})
         plan = ins.plan(instrument, model, n, rng, **opts)
     if setup_kind is not None:
         plan.setup_kind = {s: setup_kind for s in plan.setup_kind}
@@ -153,18 +143,32 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
         if name not in model.errors:
             raise InputError(f"error '{name}': unknown error name (expected one of {', '.join(model.errors[:3])} ...)")
         base[list(model.errors).index(name)] = float(value)
+    channels = [c if isinstance(c, heat.Channel) else heat.parse(name, c) for name, c in (temperatures or {}).items()]
+    if channels and t is None:
+        raise InputError("temperatures need times: a duration (s) over which the poses are measured")
+    true_temps = heat.history(channels, t) if channels else {}
+    read_temps = heat.readings(channels, true_temps, np.random.default_rng([seed, 31])) if channels else {}
     at = plan.poses if commands is None else commands(plan.poses, plan.L, plan.dirs)    # where the axes go
-    ctx = fx.context(machine, at, t, plan.dirs)
+    ctx = fx.context(machine, at, t, plan.dirs, temps=true_temps,
+                     sc=fx.scales(machine, t, temps=read_temps) if channels else None)
     E = np.tile(base, (m, 1))
     dL = np.zeros(m)
     truth, coefficients = {}, {}
     for eff, vals in parsed:
         dE, dl = fx.per_pose([eff], [vals], ctx, model.errors)
+        bad = ~(np.all(np.isfinite(dE), axis=1) & np.isfinite(dl))
+        if bad.any():                        # an expression undefined there: no reading, not a blank cell
+            i = int(np.argmax(bad))
+            what = f" of {machine.path} ({eff.param} += {eff.expr})" if getattr(eff, "expr", None) else ""
+            raise InputError(f"effect '{eff.id}'{what}: not finite at pose {i + 1} ("
+                             + ", ".join(f"{v}={x:.6g}" for v, x in zip(model.variables, at[i])) + " mm, rad): "
+                             f"an expression undefined there (log or sqrt of a negative value?)", key="effect")
         truth[eff.id] = float(vals[0]) if len(vals) == 1 else [float(x) for x in vals]
         coefficients.update({nm: float(v) for nm, v in zip(eff.names, vals)})
         E += dE
         dL += dl
-    P, V = model.tool_errors(at, np.ascontiguousarray(E), plan.L + dL, exact=True)
+    P, V = (model.tool_errors(at, np.ascontiguousarray(E), plan.L + dL, exact=True) if chain is None
+            else chain(at, E, plan.L + dL))
     tip0, V0 = model.ideal_tool(plan.poses, plan.L)
     if commands is not None:                      # the machine sent elsewhere: against the nominal tool of the poses
         tip_at, V_at = model.ideal_tool(at, plan.L)
@@ -179,7 +183,7 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
                         du=np.zeros(m) if plan.reads == "line" else None,
                         u=plan.u if plan.reads == "line" else None, setup=plan.setup,
                         setup_kind=dict(plan.setup_kind), setup_frame=dict(plan.setup_frame), dirs=dict(plan.dirs),
-                        frame=plan.frame)
+                        frame=plan.frame, temps=read_temps)
     if plan.reads == "tip-plane":
         meas.d[:, 2] = np.nan                 # measured in the plane only: dz not read
     obs = ob.build(meas, machine)
@@ -208,7 +212,8 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
         if dv is not None:
             meas.sigma_axis = np.full(m, noise_axis)
     return Simulation(meas, dict(zip(model.errors, base.tolist())), truth, noise, setup_truth, plan.instrument,
-                      noise_axis if dv is not None else 0.0, coefficients, list(plan.notes))
+                      noise_axis if dv is not None else 0.0, coefficients, list(plan.notes),
+                      {c.name: c.to_json() for c in channels}, true_temps)
 
 
 def to_frame(sim: Simulation, model):

@@ -3,8 +3,9 @@
 One table for the two readers that need it: the measurement reader validates a file against it in one loop
 (`fiveaxis.measurement.files.read`), and the machine-file reader refuses an axis named like one of its columns
 (`fiveaxis.model.machine`). Beside the table's columns a file has the machine's pose variables (mm for linear axes,
-degrees for rotary ones) and `dir_<VAR>` (+1 or -1: the direction in which that axis last moved).
-Units: mm, degrees in files; rad for tool-axis readings and their sigma; s for time.
+degrees for rotary ones), `dir_<VAR>` (+1 or -1: the direction in which that axis last moved) and temperature
+channels `temp_<name>` (degC, one reading per row, blank: not read; `temperature_column`).
+Units: mm, degrees in files; rad for tool-axis readings and their sigma; s for time; degC for temperatures.
 """
 from __future__ import annotations
 
@@ -16,11 +17,20 @@ SETUP_KINDS = ("point", "rigid", "planar")
 MAX_DEVIATION_MM = 1000.0          # a deviation above a metre
 MAX_AXIS_DEVIATION = 2.0           # difference of two unit vectors
 MAX_TOOL_LENGTH_MM = 1e5
+#: The least step between two tool lengths (mm): a controller's resolution (100 and 100.0000000001 are one tool).
+MIN_LENGTH_STEP_MM = 1e-3
 MAX_TIME_S = 1e9
 SIGMA_RANGE_MM = (1e-9, 1e3)
 SIGMA_AXIS_RANGE_RAD = (1e-12, 1.0)
 #: Prefix of the approach-direction columns (dir_X).
 DIRECTION_PREFIX = "dir_"
+#: Prefix of the temperature channels (temp_spindle, degC).
+TEMPERATURE_PREFIX = "temp_"
+#: A temperature column's whole name: the prefix and a checked identifier (it names a kinematics-module input and a
+#: HAL signal in the files a controller reads).
+TEMPERATURE_RE = r"temp_[a-z][a-z0-9_]{0,31}"
+#: Temperatures a machine tool's sensors read (degC): beyond them a value is not a temperature reading.
+TEMPERATURE_RANGE_DEGC = (-50.0, 200.0)
 
 
 @dataclass(frozen=True)
@@ -81,6 +91,15 @@ COLUMNS = (
            values=FRAMES),
 )
 BY_NAME = {c.name: c for c in COLUMNS}
+
+
+def temperature_column(name: str) -> Column:
+    """The column of a temperature channel `temp_<name>` (degC; a blank cell: not read in that row)."""
+    lo, hi = TEMPERATURE_RANGE_DEGC
+    return Column(name, "degC", f"temperature of the sensor {name[len(TEMPERATURE_PREFIX):]} (degC; blank: not read)",
+                  bound=TEMPERATURE_RANGE_DEGC,
+                  bound_text=f"expected a temperature from {lo:g} to {hi:g} degC (a sensor's reading in degrees "
+                             f"Celsius)", group="temperature")
 #: Names of the readings, by kind.
 DEVIATIONS = tuple(c.name for c in COLUMNS if c.group == "tip")
 AXIS_DEVIATIONS = tuple(c.name for c in COLUMNS if c.group == "axis")

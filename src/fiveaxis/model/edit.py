@@ -47,7 +47,7 @@ def write_model_effects(machine: Machine, effects, output=None, force: bool = Fa
     source = Path(machine.path)
     text = read_text(source, "a machine file (TOML)", MAX_MACHINE_BYTES)
     if output is not None and Path(output).resolve() == source.resolve():
-        raise InputError(f"{output}: is the machine file itself (in_place=True rewrites it)")
+        raise InputError(f"{output}: is the machine file itself (in_place=True rewrites it)", key="in_place")
     target = source if output is None else Path(output)
     new = with_model_effects(text, source, effects)
     parse_machine(tomllib.loads(new), target)          # the new file must read back

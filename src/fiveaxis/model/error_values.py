@@ -21,7 +21,6 @@ an InputError naming the file and the line or key.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from dataclasses import dataclass, field
@@ -29,6 +28,7 @@ from pathlib import Path
 
 from ..exceptions import InputError
 from . import iso_names as iso
+from .machine import check_made_for
 from ..inputs import read_text
 
 
@@ -92,7 +92,8 @@ class _Reader:
             return
         path = Path(spec)
         if not path.exists():
-            raise InputError(f"{spec}: not NAME=VALUE and no such file")
+            raise InputError(f"errors {spec!r}: not NAME=VALUE and no such file (expected NAME=VALUE, e.g. "
+                             f"ex_x=1e-5, or a file of them, a JSON object or a fitted model file)", key="errors")
         text = read_text(path, "NAME=VALUE lines, a JSON object or a fitted model file")
         if not text.strip():
             raise InputError(f"{path}: empty (expected NAME=VALUE lines, a JSON object or a fitted model file)")
@@ -170,17 +171,7 @@ class _Reader:
 
     def fitted_machine(self, path, machine: dict):
         """The "machine" record of a `fit -o` model file must name this machine file (name and SHA-256)."""
-        machine_now = self.model.machine
-        name, sha = machine.get("name"), machine.get("sha256")
-        if name != machine_now.name:
-            raise InputError(f"{path}: key machine.name: a model of {_short(name)!r}, not of {machine_now.name}")
-        if not isinstance(sha, str):
-            raise InputError(f"{path}: key machine.sha256: expected the SHA-256 of the machine file (a string)")
-        now = hashlib.sha256(Path(machine_now.path).read_bytes()).hexdigest()
-        if sha != now:
-            raise InputError(f"{path}: key machine.sha256: fitted for another version of the machine file "
-                             f"({_short(machine.get('file'))}, sha256 {sha[:12]}...), not for {machine_now.path} "
-                             f"(sha256 {now[:12]}...)")
+        check_made_for(self.model.machine, machine.get("name"), machine.get("sha256"), str(path))
 
 
 def read(model, specs=()) -> ErrorValues:

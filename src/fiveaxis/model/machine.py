@@ -6,6 +6,7 @@ This module is the only part of the runtime that the derivation (`fiveaxis_deriv
 """
 from __future__ import annotations
 
+import hashlib
 import keyword
 import math
 import re
@@ -59,7 +60,7 @@ _WORKPIECE_KEYS = {"pige", "offset", "description"}
 _ERROR_KEYS = {"linear", "angular", "values"}
 _CONVENTION_KEYS = {"description", "move"}
 _MODEL_KEYS = {"effects"}
-_FIT_KEYS = {"fixed"}
+_FIT_KEYS = {"fixed", "prior"}
 _EFFECT_KEYS = {"error", "expr", "description"}
 _NAME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9]*$")
 #: Machine and convention names become Python module names (`li2018`, `li2018__printed` in fiveaxis_generated):
@@ -139,6 +140,7 @@ class Machine:
     pige_order: tuple = ()                            # PIGE names as first declared: stable across conventions
     added_effects: tuple = ()                         # effects the model includes: ids (ex_x:x1) or custom names
     fixed: dict = field(default_factory=dict)         # [fit] fixed: parameters held at known values (mm, rad)
+    prior: dict = field(default_factory=dict)         # [fit] prior: class or name -> size or [value, size]
     tool_end: ChainEnd = ChainEnd("tool")             # the spindle after the last tool-chain joint
     workpiece_end: ChainEnd = ChainEnd("workpiece")   # the workpiece holder after the last workpiece-chain joint
     workspace: dict = field(default_factory=dict)     # [workspace]: axis -> (lo, hi, count), mm or degrees
@@ -256,6 +258,28 @@ class Machine:
 def module_name(machine_name: str, convention: str = "equations") -> str:
     """Python module name of a machine model's generated kernels: `li2018`, `li2018__printed`."""
     return machine_name if convention in (None, "", "equations") else f"{machine_name}__{convention}"
+
+
+def check_made_for(machine: Machine, name, sha, where: str, what: str = "fitted") -> None:
+    """InputError unless a file made for a machine (a fitted model, a compensation) names this machine file: its
+    `machine.name` is the machine's and its `machine.sha256` the SHA-256 of the machine file now. where: the file
+    (or "model file"); what: how it was made for the machine ("fitted", "compensation"). The one check of this
+    kind: model files (`compensate`, `gsa --errors`) and compensation folders (`simulate --compensation`) use it."""
+    if name != machine.name:
+        raise InputError(f"{where}: key machine.name: {what} for machine {_short(name)!r}, not for "
+                         f"'{machine.name}' ({machine.path})")
+    now = hashlib.sha256(Path(machine.path).read_bytes()).hexdigest()
+    if sha != now:
+        raise InputError(f"{where}: key machine.sha256: {what} for another version of the machine file (sha256 "
+                         f"{_short(sha, 12)}...), not for {machine.path} (sha256 {now[:12]}...)")
+
+
+def kins_component(machine_name: str, convention: str = "equations") -> str:
+    """The LinuxCNC kinematics module of a machine model: `li2018_kins`, `li2018__printed_kins`; the component
+    halcompile builds, its file name (without .comp) and its pins' prefix. Made of checked names only (the machine's
+    and the convention's: letters, digits, single underscores), so that it is a C and HAL identifier and the
+    modules of two machines install side by side."""
+    return f"{module_name(machine_name, convention)}_kins"
 
 
 def resolve(name_or_path: str | Path) -> Path:
@@ -615,8 +639,8 @@ def parse_machine(data: dict, path: Path) -> Machine:
     for i, ident in enumerate(added):
         if isinstance(ident, str) and ident in effects:
             continue
-        m = effect_ids.split(ident, tokens)
-        if m is None or m.param not in seen_errors | {"L"}:
+        m = effect_ids.envelope(ident)         # the families check the suffix where the effects are resolved
+        if m is None or m[0] not in seen_errors | {"L"} or not any(m[1].startswith(t) for t in tokens):
             _fail(path, f"model.effects[{i}]", f"expected an effect id {effect_ids.expected(sorted(tokens))} with an "
                                                f"error name of this machine or L, or a custom effect name, "
                                                f"got {ident!r}")
@@ -633,6 +657,10 @@ def parse_machine(data: dict, path: Path) -> Machine:
         if k not in seen_errors:
             _fail(path, f"fit.fixed.{k}", "unknown error name")
         _number(path, f"fit.fixed.{k}", v)
+    prior = fitd.get("prior", {})
+    if not isinstance(prior, dict):
+        _fail(path, "fit.prior", "expected a table of error name or class = size or [value, size] (mm or rad), e.g. "
+                                 "{ rotary_location_rad = 2e-5, dXOC = [0.012, 0.002] } (docs/machine-files.md)")
     workspace = _parse_workspace(path, data.get("workspace", {}), {a.name: a for c in chains.values() for a in c})
     return Machine(name=name, path=Path(path), title=str(data.get("title", name)),
                    tool_chain=chains["tool_chain"], workpiece_chain=chains["workpiece_chain"],
@@ -643,7 +671,7 @@ def parse_machine(data: dict, path: Path) -> Machine:
                                + tuple(n for a in chains["workpiece_chain"] for n in a.pige)
                                + tuple(workpiece_end.pige)),
                    added_effects=tuple(added), tool_end=tool_end, workpiece_end=workpiece_end,
-                   fixed={k: float(v) for k, v in fixed.items()}, workspace=workspace)
+                   fixed={k: float(v) for k, v in fixed.items()}, workspace=workspace, prior=dict(prior))
 
 
 def _parse_workspace(path, table, axes: dict) -> dict:

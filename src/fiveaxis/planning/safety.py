@@ -8,8 +8,8 @@ tcp mode linear in world coordinates; G2/G3 on their circle, the other axes line
 arc_points`), at least MIN_SAMPLES points per move and one every STEP_MM mm / STEP_DEG deg of the program's
 coordinates (SPARSE times fewer where nothing is mounted); tcp samples become joints by the nominal inverse
 kinematics. At every sample the nominal chain
-gives the tool tip and axis (workpiece frame), and the instrument's quantities are compared with its limits
-(`LIMITS`, a table per instrument; the geometry is `fiveaxis.measurement.instruments`'s).
+gives the tool tip and axis (workpiece frame), and the instrument's quantities are compared with its limits (its
+record's `limits`, `fiveaxis.measurement.instruments`).
 
 What the instrument is, and when, comes from the program's machine-readable comments (fiveaxis.planning.motion
 writes them):
@@ -39,11 +39,12 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError
+from ..inputs import MAX_PROGRAM_BYTES, read_text
 from ..linuxcnc import rs274
 from ..linuxcnc.program import KINEMATICS, check_mode, poses_of
 from ..linuxcnc.program import letters as program_letters
 from ..measurement import instruments as ins
-from ..model import frames
+from ..measurement.instruments.base import numbers
 from ..sensitivity.toolpath import arc_points, move_samples
 
 #: Sampling of the moves: at most this far apart in the program's linear (mm) and rotary (deg) coordinates, and at
@@ -62,85 +63,12 @@ POSE_TOL_DEG = 1e-6
 PROBE_LINE_TOL_MM = 5e-4
 #: Violations listed in the report, at most.
 MAX_LISTED = 20
-
-
-@dataclass(frozen=True)
-class Limit:
-    """One limit of an instrument: a quantity (key of QUANTITIES) that must stay at or below (bound "max") or at or
-    above ("min") a value, at the samples `when` selects: "mounted" (the instrument mounted, outside probing
-    moves), "rotary" (those of moves that turn a rotary axis), "rapid" (those of G0 moves), "probing" (probing
-    moves and their retracts)."""
-    name: str
-    quantity: str
-    bound: str
-    limit: float
-    unit: str
-    when: str
-
-
-_P = ins.PROBE
-LIMITS = {
-    "tip": (),
-    "rtest": (Limit("tip distance from the sphere centre", "centre_distance", "max", ins.RTEST.limit_mm, "mm",
-                    "mounted"),),
-    "ballbar": (Limit("bar length change", "bar_change", "max", ins.BALLBAR.limit_mm, "mm", "mounted"),),
-    "probe-sphere": (
-        Limit("stylus clearance outside probing moves", "clearance", "min", _P.clearance_limit_mm, "mm", "mounted"),
-        Limit("stylus clearance while a rotary axis moves", "clearance", "min", _P.near_mm, "mm", "rotary"),
-        Limit("stylus clearance on G0 rapids", "clearance", "min", _P.near_mm, "mm", "rapid"),
-        Limit("rotary motion during probing", "probe_rotation", "max", 1e-3, "deg", "probing")),
-    "interferometer": (
-        Limit("reflector off the beam line", "beam_offset", "max", ins.INTERFEROMETER.limit_mm, "mm", "mounted"),
-        Limit("rotary motion with the beam set up", "beam_rotation", "max", ins.INTERFEROMETER.rotary_limit_deg,
-              "deg", "mounted")),
-    "tracker": (Limit("line of sight off the reflector's axis", "sight_angle", "max", ins.TRACKER.limit_deg, "deg",
-                      "mounted"),),
-}
-#: What a mount comment must give, per instrument: key -> number of values.
-MOUNT_KEYS = {"rtest": {"centre": 3}, "probe-sphere": {"centre": 3}, "ballbar": {"pivot": 3, "length": 1},
-              "interferometer": {"axis": 0}, "tracker": {"station": 3}, "tip": {}}
-
-
-# -- geometry -----------------------------------------------------------------------------------------------------
-def _point_segment(p, a, b) -> np.ndarray:
-    """Distances (n,) of points p (n, 3) from segments a-b (n, 3 or 3)."""
-    d = b - a
-    t = np.clip(np.sum((p - a) * d, axis=-1) / np.maximum(np.sum(d * d, axis=-1), 1e-300), 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[..., None] * d), axis=-1)
-
-
-def _segment_segment(p0, p1, q0, q1) -> np.ndarray:
-    """Distances (n,) between segments p0-p1 and q0-q1 (each (n, 3) or (3,)): the closest points' distance, by
-    minimising over one parameter and clipping (Ericson, Real-Time Collision Detection 5.1.9)."""
-    p0, p1, q0, q1 = np.broadcast_arrays(*(np.asarray(x, float) for x in (p0, p1, q0, q1)))
-    d1, d2, r = p1 - p0, q1 - q0, p0 - q0
-    a, e = np.sum(d1 * d1, -1), np.sum(d2 * d2, -1)
-    f, c, b = np.sum(d2 * r, -1), np.sum(d1 * r, -1), np.sum(d1 * d2, -1)
-    den = a * e - b * b
-    s = np.where(den > 1e-12 * np.maximum(a * e, 1e-300), np.clip((b * f - c * e) / np.where(den > 0, den, 1), 0, 1),
-                 0.0)
-    t = (b * s + f) / np.maximum(e, 1e-300)
-    s = np.where(t < 0, np.clip(-c / np.maximum(a, 1e-300), 0, 1), np.where(t > 1, np.clip((b - c) /
-                                                                                          np.maximum(a, 1e-300), 0, 1),
-                                                                             s))
-    t = np.clip(t, 0, 1)
-    return np.linalg.norm((p0 + s[..., None] * d1) - (q0 + t[..., None] * d2), axis=-1)
-
-
-def stylus_clearance(tip, axis, centre) -> np.ndarray:
-    """Clearance (n,) mm between the probe's stylus (ball at the tip, shank from it towards the spindle along the
-    tool axis) and the sphere with its stem (from the centre down, -z of the workpiece frame), all in the
-    workpiece frame: the least of ball-sphere, shank-sphere, ball-stem and shank-stem."""
-    g = ins.PROBE
-    tip = np.atleast_2d(tip)
-    shank_end = tip - g.shank_length_mm * np.atleast_2d(axis)
-    c = np.asarray(centre, float)
-    stem_end = c - np.array([0.0, 0.0, g.stem_length_mm])
-    return np.min(np.stack([
-        np.linalg.norm(tip - c, axis=1) - g.sphere_radius_mm - g.ball_radius_mm,
-        _point_segment(np.broadcast_to(c, tip.shape), tip, shank_end) - g.sphere_radius_mm - g.shank_radius_mm,
-        _point_segment(tip, c, stem_end) - g.stem_radius_mm - g.ball_radius_mm,
-        _segment_segment(tip, shank_end, c, stem_end) - g.stem_radius_mm - g.shank_radius_mm]), axis=0)
+#: A sample keeps the margin from a stroke end to this (mm or deg: the words' rounding through the inverse
+#: kinematics); an exit retract is the length its comment states to this (mm).
+MARGIN_TOL = 1e-3
+RETRACT_LENGTH_TOL_MM = 1e-3
+#: Axis words of a line (after its comments are dropped).
+_WORD = re.compile(r"([XYZABCUVW])\s*[-+]?[.\d]")
 
 
 # -- what the program says ----------------------------------------------------------------------------------------
@@ -160,23 +88,10 @@ def parse_tag(text: str):
     return m.group(1).lower(), values
 
 
-def _numbers(text: str, count: int, where: str, key: str) -> np.ndarray:
-    try:
-        vals = np.array([float(x) for x in text.split(",")])
-    except ValueError:
-        vals = np.array([])
-    if len(vals) != count or not np.all(np.isfinite(vals)):
-        raise InputError(f"{where}: {key}={text}: expected {count} number(s) separated by commas")
-    return vals
-
-
 def header(path) -> dict:
     """The `(fiveaxis: program ...)` values of a program file (instrument, machine, kinematics), read from its text
     (empty when it has none)."""
-    try:
-        text = Path(path).read_text(encoding="utf-8", errors="replace")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read the program ({exc.strerror})") from None
+    text = read_text(path, "a G-code program", MAX_PROGRAM_BYTES, errors="replace")
     for line in text.splitlines():
         for comment in re.findall(r"\(([^()]*)\)", line):
             tag = parse_tag(comment)
@@ -189,7 +104,7 @@ def header(path) -> dict:
 @dataclass
 class Worst:
     """The worst value of one limit over the samples it applies to (None when none does), and where."""
-    limit: Limit
+    limit: ins.Limit
     value: float | None = None
     line: int = 0
     samples: int = 0
@@ -215,6 +130,12 @@ class CheckResult:
     stroke_unit: str = "mm"
     stroke_line: int = 0
     stroke_violations: int = 0
+    margin_mm: float = ins.MARGIN_MM                     # every sample must keep this from the stroke ends (mm, deg)
+    margin_deg: float = ins.MARGIN_DEG
+    margin_violations: int = 0                           # moves with a sample within the margin (inside the stroke)
+    start_lines: list = field(default_factory=list)      # moves from wherever the machine is: not every word known
+    start_first: str = ""                                # the text of the first of them
+    retracts: list = field(default_factory=list)         # exit retracts: {line, stated, measured} (mm)
     setup_changes: int = 0
     problems: list = field(default_factory=list)         # (line, text): rules broken and limits exceeded
     poses: dict = field(default_factory=dict)            # pose number -> (line, pose (nvar,), extra)
@@ -224,19 +145,21 @@ class CheckResult:
 
     @property
     def ok(self) -> bool:
-        return not self.problems and self.stroke_violations == 0 and all(w.ok for w in self.worst) and \
-            (self.pose_check is None or self.pose_check["ok"])
+        return not self.problems and self.stroke_violations == 0 and self.margin_violations == 0 and \
+            all(w.ok for w in self.worst) and (self.pose_check is None or self.pose_check["ok"])
 
 
 def check(path, model, instrument: str, kinematics: str | None = None, tool_length: float | None = None,
-          plan_poses=None, plan_L=None) -> CheckResult:
+          plan_poses=None, plan_L=None, strokes=None) -> CheckResult:
     """Check a program (see the module docstring) for an instrument on a model's nominal machine. kinematics: the
     mode the program runs in (default: its header's); tool_length (mm): the tool length of a joint-mode program
     that does not state it (default: its `tool` comments, else the machine's L0); plan_poses (n, nvar; mm, rad)
-    and plan_L (n,): a plan's poses, compared with the program's measuring poses."""
+    and plan_L (n,): a plan's poses, compared with the program's measuring poses; strokes: the strokes less the
+    margins every sample keeps (`instruments.Strokes`; default the default margins)."""
     path = Path(path)
-    if instrument not in LIMITS:
-        raise InputError(f"instrument '{instrument}': expected one of {', '.join(LIMITS)}")
+    if instrument not in ins.planners():
+        raise InputError(f"instrument '{instrument}': expected one of {', '.join(ins.planners())}")
+    rec = ins.REGISTRY[instrument]
     head = header(path)
     if head.get("instrument") and head["instrument"] != instrument:
         raise InputError(f"{path}: the program is for instrument {head['instrument']}, not {instrument}")
@@ -248,26 +171,32 @@ def check(path, model, instrument: str, kinematics: str | None = None, tool_leng
         source = "the program's header"
         if kinematics is None:
             raise InputError(f"{path}: the program does not say its kinematics mode (no `(fiveaxis: program ... "
-                             f"kinematics=...)` comment); give the kinematics ({' or '.join(KINEMATICS)})")
+                             f"kinematics=...)` comment); give the kinematics ({' or '.join(KINEMATICS)})",
+                             key="the kinematics")
     if kinematics not in KINEMATICS:
         raise InputError(f"{path}: kinematics mode '{kinematics}': expected one of {', '.join(KINEMATICS)}")
     check_mode(model.machine, kinematics)
+    strokes = ins.Strokes.of(model.machine) if strokes is None else strokes
     prog = rs274.interpret(path, probes=True)
     res = CheckResult(path, model.machine.name, instrument, kinematics, source,
-                      worst=[Worst(lim) for lim in LIMITS[instrument]], program=prog)
-    _run(prog, model, instrument, kinematics, tool_length, res)
+                      worst=[Worst(lim) for lim in rec.limits], program=prog, margin_mm=strokes.margin_mm,
+                      margin_deg=strokes.margin_deg)
+    text = read_text(path, "a G-code program", MAX_PROGRAM_BYTES, errors="replace")
+    _run(prog, model, rec, kinematics, tool_length, res, _words(text))
+    if res.start_lines:
+        res.start_first = text.splitlines()[res.start_lines[0] - 1].strip()
     if plan_poses is not None:
-        res.pose_check = compare_poses(res, model, instrument, np.asarray(plan_poses, float), plan_L)
+        res.pose_check = compare_poses(res, model, rec, np.asarray(plan_poses, float), plan_L)
     return res
 
 
 def check_text(text: str, model, instrument: str, plan_poses=None, plan_L=None, name: str = "program.ngc",
-               kinematics: str | None = None) -> CheckResult:
+               kinematics: str | None = None, strokes=None) -> CheckResult:
     """Check a program given as text (before it is written; `check` on a temporary copy), reported as `name`."""
     with tempfile.TemporaryDirectory(prefix="fiveaxis-check-") as tmp:
         path = Path(tmp) / "program.ngc"
         path.write_text(text, encoding="utf-8")
-        res = check(path, model, instrument, kinematics, None, plan_poses, plan_L)
+        res = check(path, model, instrument, kinematics, None, plan_poses, plan_L, strokes)
     res.path = Path(name)
     return res
 
@@ -283,9 +212,20 @@ class _Segment:
     moving: bool               # a rotary axis turns
 
 
-def _run(prog, model, instrument, mode, tool_length, res):
+def _words(text: str) -> dict:
+    """line number -> the axis letters its words give (comments dropped)."""
+    out = {}
+    for k, line in enumerate(text.splitlines(), 1):
+        code = re.sub(r"\([^)]*\)", " ", line).split(";")[0].upper()
+        out[k] = set(_WORD.findall(code))
+    return out
+
+
+def _run(prog, model, rec, mode, tool_length, res, words):
     """Walk the program (events, moves) into segments of samples, then evaluate every sample on the nominal chain at
-    once and account the strokes and the limits per move."""
+    once and account the strokes and the limits per move. Moves before every axis word has been given start from
+    wherever the machine is: they are not sampled (`res.start_lines`); in joint mode the words they give are
+    checked against the strokes less the margins."""
     machine = model.machine
     letters = program_letters(model, mode)
     rot_letters = [a for a in letters if machine.axis(a).type == "rotary"] if mode == "joint" else letters[3:]
@@ -294,7 +234,8 @@ def _run(prog, model, instrument, mode, tool_length, res):
     segs: list[_Segment] = []
     refs: list[dict] = []
     marks = []                             # (pose number, line, segment index)
-    state = {"mounted": None, "pending": None, "message": False, "L": tool_length}
+    state = {"mounted": None, "pending": None, "message": False, "L": tool_length, "retract": None}
+    known = set()
     events = {}
     for ev in prog.events:
         events.setdefault(ev.at, []).append(ev)
@@ -319,6 +260,8 @@ def _run(prog, model, instrument, mode, tool_length, res):
         if ev.kind == "message":
             state["message"] = True
             return
+        if ev.kind in ("comment", "dwell"):
+            _close_retract(state, segs, res)
         tag = parse_tag(ev.text) if ev.kind == "comment" else None
         if tag is None:
             return
@@ -333,7 +276,7 @@ def _run(prog, model, instrument, mode, tool_length, res):
         if name == "tool":
             if "length" not in vals:
                 raise InputError(f"{where}: a tool comment without length=")
-            L_new = float(_numbers(vals["length"], 1, where, "length")[0])
+            L_new = float(numbers(vals["length"], 1, where, "length")[0])
             if state["mounted"] is not None:
                 res.problems.append((ev.line, "tool change with the instrument mounted"))
             if tool_length is None:
@@ -345,14 +288,7 @@ def _run(prog, model, instrument, mode, tool_length, res):
             if not segs:                   # its reference pose: the first move's end
                 res.problems.append((ev.line, "mounted before any move: the first move starts wherever the machine "
                                               "is, its path unknown"))
-            ref = {"line": ev.line, "at": max(len(segs) - 1, 0)}
-            for key, count in MOUNT_KEYS[instrument].items():
-                if key not in vals:
-                    raise InputError(f"{where}: a {instrument} mount comment without {key}=")
-                ref[key] = vals[key].upper() if count == 0 else _numbers(vals[key], count, where, key)
-            if instrument == "interferometer" and (ref["axis"] not in model.variables or
-                                                   machine.axis(ref["axis"]).type != "linear"):
-                raise InputError(f"{where}: axis={ref['axis']}: expected a linear axis of {machine.name}")
+            ref = {"line": ev.line, "at": max(len(segs) - 1, 0), **rec.read_mount(vals, machine, where)}
             refs.append(ref)
             state["mounted"] = ref
             if segs:
@@ -361,6 +297,14 @@ def _run(prog, model, instrument, mode, tool_length, res):
             if state["mounted"] is None:
                 res.problems.append((ev.line, "removed without being mounted"))
             state["mounted"] = None
+        elif name == "retract":
+            if "length" not in vals:
+                raise InputError(f"{where}: a retract comment without length=")
+            stated = float(numbers(vals["length"], 1, where, "length")[0])
+            if state["mounted"] is not None:
+                res.problems.append((ev.line, "an exit retract with the instrument mounted"))
+            state["retract"] = {"line": ev.line, "stated": stated, "first": len(segs), "last": None}
+            res.retracts.append(state["retract"])
         elif name == "pose" and "n" in vals and segs:
             try:
                 marks.append((int(vals["n"]), ev.line, len(segs) - 1))
@@ -381,6 +325,16 @@ def _run(prog, model, instrument, mode, tool_length, res):
         L_last = L = length(mv)
         end_c = coords(mv.end, mv)
         kind = mv.kind
+        if kind != "feed":
+            _close_retract(state, segs, res)
+        if len(known) < len(letters):                     # wherever the machine is: only the given words known
+            given = words.get(mv.line, set()) & set(letters)
+            known |= given
+            if len(known) < len(letters):
+                res.start_lines.append(mv.line)
+                if mode == "joint":
+                    _check_words(res, model, mv.line, {a: end_c[letters.index(a)] for a in given})
+                continue
         if prev is None:                                  # the first move: from wherever the machine is
             pts = end_c[None, :]
         else:
@@ -416,15 +370,42 @@ def _run(prog, model, instrument, mode, tool_length, res):
         if mv.kind == "probe":
             probe = (coords(prev, mv) if prev is not None else end_c, end_c, mv.line)
         prev = mv.end
+    _close_retract(state, segs, res)
     if state["pending"] is not None:
         res.problems.append((state["pending"][0], f"{state['pending'][1]} without an operator message and M0"))
     if state["mounted"] is not None:
         res.problems.append((state["mounted"]["line"], "mounted and never removed"))
     if segs:
-        _evaluate(res, model, instrument, mode, segs, refs, marks)
+        _evaluate(res, model, mode, segs, refs, marks)
 
 
-def _evaluate(res, model, instrument, mode, segs, refs, marks):
+def _close_retract(state, segs, res) -> None:
+    """An exit retract's moves end (the feed moves after its comment): the last of them."""
+    r = state["retract"]
+    if r is not None:
+        r["last"] = len(segs) - 1
+        state["retract"] = None
+
+
+def _check_words(res, model, line: int, given: dict) -> None:
+    """Joint mode, a move from wherever the machine is: the axis positions its words give (mm, deg) within the
+    strokes less the margins."""
+    machine = model.machine
+    for a, x in given.items():
+        ax = machine.axis(a)
+        lo, hi = ax.model_stroke
+        rotary = ax.type == "rotary"
+        left = min(x - (math.degrees(lo) if rotary else lo), (math.degrees(hi) if rotary else hi) - x)
+        margin, unit = (res.margin_deg, "deg") if rotary else (res.margin_mm, "mm")
+        if left < 0:
+            res.stroke_violations += 1
+            res.problems.append((line, f"{a} {-left:.4g} {unit} outside its stroke"))
+        elif left < margin - MARGIN_TOL:
+            res.margin_violations += 1
+            res.problems.append((line, f"{a} {left:.4g} {unit} from the end of its stroke (margin {margin:g} {unit})"))
+
+
+def _evaluate(res, model, mode, segs, refs, marks):
     """Every sample on the nominal chain at once; the strokes and each limit, worst per move."""
     machine = model.machine
     sizes = np.array([len(sg.pts) for sg in segs])
@@ -436,14 +417,9 @@ def _evaluate(res, model, instrument, mode, segs, refs, marks):
     res.samples = len(q)
     lines = np.array([sg.line for sg in segs])
     seg_of = np.repeat(np.arange(len(segs)), sizes)
-    for ref in refs:                                       # what a mount fixed: the pose, tip, beam direction
+    for ref in refs:                                       # what a mount fixed: the pose and tool tip
         j = starts[ref["at"]] + sizes[ref["at"]] - 1
         ref["q"], ref["tip"] = q[j], tip[j]
-        if instrument == "interferometer":
-            d = np.asarray(machine.axis(ref["axis"]).direction, float)
-            d = d / np.linalg.norm(d)
-            ref["u"] = frames.to_workpiece(machine, q[j][None, :], d[None, :])[0] \
-                if frames.has_workpiece_rotation(machine) else d
     for n, line, k in marks:
         res.poses.setdefault(n, (line, q[starts[k] + sizes[k] - 1], segs[k].L))
     # strokes
@@ -465,6 +441,34 @@ def _evaluate(res, model, instrument, mode, segs, refs, marks):
             j = starts[k] + int(np.argmax(worst[starts[k]:starts[k] + sizes[k]]))
             res.problems.append((int(lines[k]), f"{model.variables[worst_axis[j]]} {float(worst[j]):.4g} "
                                                 f"{'deg' if deg[worst_axis[j]] else 'mm'} outside its stroke"))
+    # the margins: every sample at least the margin from the ends (moves outside a stroke counted above)
+    need = np.where(deg, res.margin_deg, res.margin_mm)
+    inner = excess + need[None, :]
+    inner_axis = np.argmax(inner, axis=1)
+    inner_worst = inner[np.arange(len(q)), inner_axis]
+    for k in np.flatnonzero((np.maximum.reduceat(inner_worst, starts) > MARGIN_TOL) & (per_seg <= 1e-6)):
+        res.margin_violations += 1
+        if res.margin_violations <= MAX_LISTED:
+            j = starts[k] + int(np.argmax(inner_worst[starts[k]:starts[k] + sizes[k]]))
+            a = inner_axis[j]
+            unit = "deg" if deg[a] else "mm"
+            res.problems.append((int(lines[k]), f"{model.variables[a]} {float(-excess[j, a]):.4g} {unit} from the "
+                                                f"end of its stroke (margin {need[a]:g} {unit})"))
+    # the exit retracts: the tool tip along the tool axis by the stated length, the rotary axes still
+    rot = np.flatnonzero(deg)
+    for r in res.retracts:
+        if r["last"] is None or r["last"] < r["first"]:
+            r["measured"] = 0.0
+        else:
+            a, b = starts[r["first"]], starts[r["last"]] + sizes[r["last"]] - 1
+            d = tip[b] - tip[a]
+            r["measured"] = float(np.linalg.norm(d))
+            along = float(d @ -axis[a]) / max(r["measured"], 1e-300)
+            if len(rot) and np.max(np.abs(q[b, rot] - q[a, rot])) > 1e-9 or (r["measured"] > 0 and along < 1 - 1e-6):
+                res.problems.append((r["line"], "the exit retract does not move the tool tip along the tool axis"))
+        if abs(r["measured"] - r["stated"]) > RETRACT_LENGTH_TOL_MM:
+            res.problems.append((r["line"], f"the exit retract is {r['measured']:.4g} mm, not the {r['stated']:g} mm "
+                                            f"its comment states"))
     # the limits
     kinds = np.array([sg.kind for sg in segs])
     mounted = np.array([sg.ref is not None for sg in segs])
@@ -489,7 +493,7 @@ def _evaluate(res, model, instrument, mode, segs, refs, marks):
         if lim.when != "probing":
             for ks in groups.values():
                 idx = np.concatenate([np.arange(starts[k], starts[k] + sizes[k]) for k in ks])
-                vals[idx] = _quantities(lim.quantity, model, q[idx], tip[idx], axis[idx], segs[ks[0]].ref)
+                vals[idx] = lim.measure(model, q[idx], tip[idx], axis[idx], segs[ks[0]].ref)
         for k in np.flatnonzero(use):
             v = vals[starts[k]:starts[k] + sizes[k]]
             w.samples += len(v)
@@ -510,35 +514,8 @@ def _point_line(p, a, d) -> float:
     return float(np.linalg.norm(np.cross(p - a, d / nd)))
 
 
-def _quantities(name, model, q, tip, axis, ref) -> np.ndarray:
-    """The quantity `name` at samples (tips, axes in the workpiece frame) for the mounted reference ref."""
-    if name == "centre_distance":
-        return np.linalg.norm(tip - ref["centre"], axis=1)
-    if name == "bar_change":
-        return np.abs(np.linalg.norm(tip - ref["pivot"], axis=1) - ref["length"][0])
-    if name == "clearance":
-        return stylus_clearance(tip, axis, ref["centre"])
-    if name == "beam_offset":
-        u = ref["u"]
-        r = tip - ref["tip"]
-        return np.linalg.norm(r - (r @ u)[:, None] * u[None, :], axis=1)
-    if name == "beam_rotation":
-        rot = [i for i, v in enumerate(model.variables) if model.machine.axis(v).type == "rotary"]
-        return np.degrees(np.max(np.abs(q[:, rot] - ref["q"][rot]), axis=1)) if rot else np.zeros(len(q))
-    if name == "sight_angle":
-        machine = model.machine
-        if frames.has_workpiece_rotation(machine):
-            tip_m, axis_m = frames.to_machine(machine, q, tip), frames.to_machine(machine, q, axis)
-        else:
-            tip_m, axis_m = tip, axis
-        los = ref["station"] - tip_m
-        c = np.sum(los * axis_m, axis=1) / np.linalg.norm(los, axis=1) / np.linalg.norm(axis_m, axis=1)
-        return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
-    raise ValueError(name)
-
-
 # -- the measuring poses against a plan ---------------------------------------------------------------------------
-def compare_poses(res: CheckResult, model, instrument: str, poses: np.ndarray, L=None) -> dict:
+def compare_poses(res: CheckResult, model, rec, poses: np.ndarray, L=None) -> dict:
     """The program's measuring poses (its `pose` markers) against a plan's: every plan pose marked exactly once,
     the largest difference of the linear axes (mm) and rotary axes (deg). probe-sphere: the plan's pose is the
     sphere centre at the rotary positions, which the program never visits; it is compared with the five probing
@@ -555,18 +532,18 @@ def compare_poses(res: CheckResult, model, instrument: str, poses: np.ndarray, L
         if not 1 <= k <= n:
             continue
         line, q, Lk = res.poses[k]
-        if instrument == "probe-sphere":
+        if rec.probes:
             continue
         d = np.abs(q - poses[k - 1])
         d_mm = max(d_mm, float(np.max(d[~rot], initial=0.0)))
         d_deg = max(d_deg, float(np.degrees(np.max(d[rot], initial=0.0))))
     out = {"poses": n, "marked": len(marked), "missing": missing[:MAX_LISTED], "extra": extra[:MAX_LISTED],
            "max_linear_mm": d_mm, "max_rotary_deg": d_deg}
-    if instrument == "probe-sphere":
+    if rec.probes:
         out.update(_probe_poses(res, model, poses, L))
         d_mm, d_deg = out["max_line_offset_mm"], out["max_rotary_deg"]
-    out["ok"] = not missing and not extra and d_mm <= (PROBE_LINE_TOL_MM if instrument == "probe-sphere" else
-                                                       POSE_TOL_MM) and d_deg <= POSE_TOL_DEG
+    out["ok"] = not missing and not extra and d_mm <= (PROBE_LINE_TOL_MM if rec.probes else POSE_TOL_MM) and \
+        d_deg <= POSE_TOL_DEG
     return out
 
 
@@ -603,7 +580,7 @@ def _probe_poses(res, model, poses, L) -> dict:
     return {"max_line_offset_mm": off, "max_rotary_deg": deg, "without_five_probes": short[:MAX_LISTED]}
 
 
-# -- reports --------------------------------------------------------------------------------------------------------
+# -- records --------------------------------------------------------------------------------------------------------
 def to_json(res: CheckResult) -> dict:
     """The check as a record (mm, degrees)."""
     fin = (lambda x: None if x is None or not math.isfinite(x) else x)
@@ -615,51 +592,15 @@ def to_json(res: CheckResult) -> dict:
                         "worst": fin(w.value), "line": w.line, "samples": w.samples, "violations": w.violations}
                        for w in res.worst],
             "strokes": {"largest_excess": fin(res.stroke_excess), "axis": res.stroke_axis, "line": res.stroke_line,
-                        "moves_outside": res.stroke_violations,
+                        "moves_outside": res.stroke_violations, "margin_mm": res.margin_mm,
+                        "margin_deg": res.margin_deg, "moves_within_margin": res.margin_violations,
                         "note": "excess beyond a stroke end, mm or deg; negative: the smallest margin"},
+            "start_lines": res.start_lines, "start_first": res.start_first,
+            "exit_retracts": [{"line": r["line"], "stated_mm": r["stated"], "measured_mm": r.get("measured", 0.0)}
+                              for r in res.retracts],
             "setup_changes": res.setup_changes, "tool_lengths_mm": res.tool_lengths,
             "problems": [{"line": ln, "what": t} for ln, t in res.problems[:MAX_LISTED]],
             "poses": res.pose_check, "ok": res.ok}
-
-
-def report(res: CheckResult) -> str:
-    """The check for people: the kinematics assumed, the worst value of each limit and where, the strokes, the
-    setup changes, the measuring poses, the verdict."""
-    out = [f"[[Check]] {res.path}: {res.instrument} on {res.machine}, {res.kinematics} kinematics (from "
-           f"{res.kinematics_source}); {res.moves} moves sampled at {res.samples} points (every {STEP_MM:g} mm / "
-           f"{STEP_DEG:g} deg, {SPARSE * STEP_MM:g} mm / {SPARSE * STEP_DEG:g} deg with nothing mounted, at least "
-           f"{MIN_SAMPLES} per move) on the nominal chain"]
-    for w in res.worst:
-        lim = w.limit
-        rel = "at most" if lim.bound == "max" else "at least"
-        if w.value is None:
-            out.append(f"    {lim.name}: no sample applies (limit: {rel} {lim.limit:g} {lim.unit})")
-        else:
-            out.append(f"    {lim.name}: worst {w.value:.4g} {lim.unit} at line {w.line} (limit: {rel} "
-                       f"{lim.limit:g} {lim.unit}){'' if w.ok else f'  EXCEEDED in {w.violations} move(s)'}")
-    if res.stroke_excess <= 1e-6:
-        out.append(f"    strokes: every sample within; smallest margin {max(0.0, -res.stroke_excess):.4g} "
-                   f"{res.stroke_unit} ({res.stroke_axis}, line {res.stroke_line})")
-    else:
-        out.append(f"    strokes: {res.stroke_violations} move(s) outside; worst {res.stroke_axis} "
-                   f"{res.stroke_excess:.4g} {res.stroke_unit} beyond its stroke at line {res.stroke_line}")
-    out.append(f"    setup changes: {res.setup_changes} (tool, mount, unmount)")
-    pc = res.pose_check
-    if pc is not None:
-        if res.instrument == "probe-sphere":
-            out.append(f"    measuring poses: {pc['marked']} of {pc['poses']} marked; probing lines within "
-                       f"{pc['max_line_offset_mm']:.2g} mm of the planned sphere centres, rotary axes within "
-                       f"{pc['max_rotary_deg']:.2g} deg of the plan")
-        else:
-            out.append(f"    measuring poses: {pc['marked']} of {pc['poses']} marked; largest difference from the "
-                       f"plan {pc['max_linear_mm']:.2g} mm, {pc['max_rotary_deg']:.2g} deg")
-        if pc["missing"]:
-            out.append(f"    not measured: pose(s) {', '.join(map(str, pc['missing']))}")
-    for ln, text in res.problems[:MAX_LISTED]:
-        out.append(f"    line {ln}: {text}")
-    out.append("    verdict: " + ("every move keeps the instrument within its limits and the axes within their "
-                                  "strokes" if res.ok else "REFUSED"))
-    return "\n".join(out)
 
 
 def first_problem(res: CheckResult) -> str:

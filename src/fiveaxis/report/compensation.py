@@ -1,5 +1,5 @@
 """What a compensation run (`fiveaxis compensate MODEL -o DIR`) leaves for the report: DIR/summary.json, written by
-`fiveaxis.compensation.table.summary`, and the map PNG beside it.
+`fiveaxis.compensation.record.summary`, and the map PNG beside it.
 
 The report reads from summary.json: the machine (`machine.name`, must match the report's), the predicted tool-tip
 error over the workspace (`predicted_tip_error_mm`: `before`, `after_linuxcnc`, `after_kinematics_module`,
@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ..compensation.table import read_summary
+from ..compensation.folder import read_summary
 from ..exceptions import InputError
 
 SUMMARY = "summary.json"
@@ -82,7 +82,7 @@ def _uncertainty(unc: dict) -> dict:
 #: The stages of summary.json's predicted_tip_error_mm the report shows, in order, with their labels.
 STAGES = (("before", "before compensation"), ("after_linuxcnc", "after what LinuxCNC takes (comp files, trunnion "
                                                                  "kinematics)"),
-          ("after_kinematics_module", "after LinuxCNC with the kinematics module fiveaxis_kins"),
+          ("after_kinematics_module", "after LinuxCNC with the kinematics module"),
           ("after_table", "after the volumetric table"))
 MAP = ("error_map.png", "predicted tool-tip error over the workspace before and after the table (um)")
 

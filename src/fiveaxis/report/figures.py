@@ -32,9 +32,12 @@ def _interface(model, meas, name):
     return x, ax.stroke, "mm"
 
 
-def coverage(model, meas) -> bytes:
-    """Where the measured poses lie: pairs of linear axes, the rotary axes, and tool length / time."""
+def coverage(model, meas) -> tuple[bytes, str]:
+    """Where the measured poses lie, and the caption that says what the figure shows: pairs of linear axes and the
+    rotary axes as dots against the strokes; when at most one axis moves (a laser run along one axis), the poses
+    along that axis as bars; tool length or time as bars."""
     plt = _pyplot()
+    moving = [v for v in meas.variables if np.ptp(meas.poses[:, list(meas.variables).index(v)]) > 0]
     linear = [v for v in meas.variables if model.machine.axis(v).type == "linear"]
     rotary = [v for v in meas.variables if model.machine.axis(v).type == "rotary"]
     pairs = list(itertools.combinations(linear, 2))[:3]
@@ -42,11 +45,19 @@ def coverage(model, meas) -> bytes:
         pairs.append((rotary[0], rotary[1]))
     elif rotary:
         pairs.append((linear[0] if linear else rotary[0], rotary[0]))
+    one = moving[0] if len(moving) == 1 else None
+    if len(moving) <= 1:
+        pairs = []
     extra = "L" if meas.has_L else ("t" if meas.t is not None else None)
-    n = len(pairs) + (extra is not None)
+    n = len(pairs) + (one is not None) + (extra is not None)
+    if n == 0:
+        extra = "none"
+        n = 1
     fig, axes = plt.subplots(1, n, figsize=(3.3 * n, 3.5), squeeze=False, layout="constrained")
-    for k, (a, b) in enumerate(pairs):
+    k = 0
+    for a, b in pairs:
         ax = axes[0, k]
+        k += 1
         xa, (lo_a, hi_a), ua = _interface(model, meas, a)
         xb, (lo_b, hi_b), ub = _interface(model, meas, b)
         ax.scatter(xa, xb, s=3, color="tab:blue", alpha=0.6, rasterized=True, label="measured pose")
@@ -56,19 +67,47 @@ def coverage(model, meas) -> bytes:
         ax.set_ylabel(f"{b} ({ub})", fontsize=9)
         ax.set_title(f"poses in {a}-{b}", fontsize=9)
         ax.tick_params(labelsize=8)
-    if extra is not None:
-        ax = axes[0, -1]
+    if one is not None:
+        ax = axes[0, k]
+        k += 1
+        x, (lo, hi), u = _interface(model, meas, one)
+        ax.hist(x, bins=min(60, max(10, len(np.unique(x)) * 3)), color="tab:blue", alpha=0.8, label="measured pose")
+        for end in (lo, hi):
+            ax.axvline(end, ls="--", color="0.3", lw=0.8, label="stroke" if end == lo else None)
+        ax.set_xlabel(f"{one} ({u})", fontsize=9)
+        ax.set_ylabel("poses", fontsize=9)
+        ax.set_title(f"poses along {one}", fontsize=9)
+        ax.tick_params(labelsize=8)
+    if extra in ("L", "t"):
+        ax = axes[0, k]
         vals, label = (meas.L, "tool length L (mm)") if extra == "L" else (meas.t, "time t (s)")
         ax.hist(vals, bins=30, color="tab:blue", alpha=0.8)
         ax.set_xlabel(label, fontsize=9)
         ax.set_ylabel("poses", fontsize=9)
         ax.set_title(f"poses over {label.split(' (')[0]}", fontsize=9)
         ax.tick_params(labelsize=8)
+    elif extra == "none":
+        axes[0, 0].text(0.5, 0.5, "all poses at one position", ha="center", va="center", fontsize=9)
+        axes[0, 0].set_axis_off()
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncol=2, fontsize=8, frameon=False, markerscale=3)
+    if handles:
+        fig.legend(handles, labels, loc="outside lower center", ncol=2, fontsize=8, frameon=False, markerscale=3)
     fig.suptitle(f"Coverage of the workspace by the {meas.n} measured poses (dashed: the machine's strokes)",
                  fontsize=10)
-    return png(fig)
+    parts = []
+    if pairs:
+        parts.append("Each dot is a measured pose, projected on two axes "
+                     f"({', '.join(f'{a}-{b}' for a, b in pairs)}); the dashed box is the stroke of the machine file.")
+    if one is not None:
+        parts.append(f"Only {one} moves in this file: the bars count the measured poses along {one}; the dashed "
+                     f"lines are its stroke.")
+    elif not moving:
+        parts.append("All poses lie at one position of the axes.")
+    if extra in ("L", "t"):
+        parts.append(f"The bars of the last panel count the poses over the "
+                     f"{'tool length' if extra == 'L' else 'time of the measurement'}.")
+    parts.append("Errors that change along an axis can only be found where the poses spread along it.")
+    return png(fig), " ".join(parts)
 
 
 def rounds(rows: list[dict]) -> bytes:

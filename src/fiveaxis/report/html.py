@@ -34,7 +34,8 @@ nav a { margin-right: 14px; color: #1f5aa6; text-decoration: none; }
 table { border-collapse: collapse; margin: 8px 0 14px; font-size: 0.9em; }
 th, td { border-bottom: 1px solid var(--line); padding: 4px 9px; text-align: left; vertical-align: top; }
 th { background: var(--bg-soft); font-weight: 600; }
-td.num, th.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
+td.num, th.num { text-align: right; font-variant-numeric: tabular-nums; }
+td.num { white-space: nowrap; }
 td.code, span.code { font-family: ui-monospace, "DejaVu Sans Mono", monospace; font-size: 0.95em; white-space: nowrap; }
 tr.undetermined td { color: var(--muted); }
 figure { margin: 12px 0 20px; }
@@ -45,12 +46,22 @@ dl.glossary dt { font-weight: 600; }
 dl.glossary dd { margin: 0; }
 .note { color: var(--muted); font-size: 0.9em; }
 .placeholder { border: 1px dashed var(--line); background: var(--bg-soft); padding: 10px 14px; border-radius: 4px; }
+.kind { font-size: 1.25em; font-weight: 600; letter-spacing: 0.04em; text-transform: uppercase; margin: 4px 0 10px; }
+dl.admin { display: grid; grid-template-columns: 14em 1fr; gap: 5px 16px; margin: 8px 0 14px; }
+dl.admin dt { font-weight: 600; }
+dl.admin dd { margin: 0; }
+.signatures { display: flex; flex-wrap: wrap; gap: 20px 60px; margin: 30px 0 10px; }
+.sign { min-width: 260px; }
+.sign .role { font-weight: 600; margin: 0 0 38px; }
+.sign .line { border-bottom: 1px solid var(--ink); width: 260px; margin-bottom: 4px; }
 footer { margin-top: 40px; color: var(--muted); font-size: 0.85em; border-top: 1px solid var(--line); padding-top: 8px; }
 @media print {
   body { max-width: none; padding: 0; font-size: 11pt; }
   nav { display: none; }
   h2 { break-after: avoid; }
-  figure, table, .verdict { break-inside: avoid; }
+  figure, table, .verdict, .signatures, dl.admin { break-inside: avoid; }
+  table { font-size: 8.5pt; }
+  th, td { padding: 3px 5px; }
 }
 @page { size: A4; margin: 14mm 12mm; }
 """
@@ -70,8 +81,24 @@ def _unit(unit: str) -> str:
     return unit.replace("urad", "\u00b5rad").replace("um", "\u00b5m") if unit else ""
 
 
-def _num(value, digits: int = 4) -> str:
-    return "&ndash;" if value is None else f"{value:.{digits}g}"
+def _get(rec: dict, key: str):
+    """The value at a dotted key of the record ("fit.parameters.3.value": list items by index)."""
+    obj = rec
+    for part in key.split("."):
+        obj = obj[int(part)] if isinstance(obj, list) else obj[part]
+    return obj
+
+
+def _v(rec: dict, key: str, fmt: str = ".4g", scale: float = 1.0) -> str:
+    """A number of the record for people: `<data value="the record's value" data-k="its key" data-f="format">` around
+    the value (times scale: 1e3 for mm -> um, 100 for a share in %) formatted; an en dash for None. Every number
+    the page shows from the record goes through here, so a test can check each against the JSON record."""
+    value = _get(rec, key)
+    if value is None:
+        return "&ndash;"
+    x = f' data-x="{scale!r}"' if scale != 1.0 else ""
+    return (f'<data value="{float(value)!r}" data-k="{_e(key)}" data-f="{fmt}"{x}>'
+            f"{format(value * scale if scale != 1.0 else value, fmt)}</data>")
 
 
 def _name(name: str, iso_name) -> str:
@@ -103,19 +130,30 @@ def _table(head: list[str], rows: list[list[str]], table_id: str = "", numeric=(
 def _verdict(rec: dict) -> str:
     v = rec["verdict"]
     cls = "verdict ok" if v["explained"] else "verdict"
-    ratio = "&ndash;" if v["ratio"] is None else f"{v['ratio']:.3g}"
+    params = {p["name"]: i for i, p in enumerate(rec["fit"]["parameters"])}
     out = [f'<section id="verdict" class="{cls}"><p class="headline">{_t(v["headline"])}</p>',
            '<div class="numbers">',
-           f"<div><b>{_num(v['rms_first_um'], 3)} &rarr; {_num(v['rms_um'], 3)} \u00b5m</b>"
+           f"<div><b>{_v(rec, 'verdict.rms_first_um', '.3g')} &rarr; {_v(rec, 'verdict.rms_um', '.3g')} \u00b5m</b>"
            f"<span>residual RMS: geometric model &rarr; final model</span></div>",
-           f"<div><b>{_num(v['noise_um'], 3)} \u00b5m</b><span>noise ({_e(v['noise_source'])})</span></div>",
-           f"<div><b>{ratio}</b><span>residual / noise (1 = explained to the noise)</span></div>",
+           f"<div><b>{_v(rec, 'verdict.noise_um', '.3g')} \u00b5m</b><span>noise ({_e(v['noise_source'])})</span></div>",
+           f"<div><b>{_v(rec, 'verdict.ratio', '.3g')}</b><span>residual / noise (1 = explained to the noise)</span>"
+           f"</div>",
            f"<div><b>{len(v['effects_found'])}</b><span>effects found beyond the geometric errors</span></div>",
            "</div>"]
     if v["effects_found"]:
-        out.append("<p><b>Effects found</b> (each lowered the residual and passed the decision test):</p><ul>")
+        out.append("<p><b>Effects found</b> (each lowered the residual and passed the decision test; the sizes are "
+                   "the final model's, as in the fitted errors below):</p><ul>")
         for f in v["effects_found"]:
-            out.append(f"<li>{_name(f['id'], f['iso'])}: {_e(f['description'])}</li>")
+            size = ""
+            if len(f["parameters"]) == 1:
+                i = params[f["parameters"][0]]
+                if rec["fit"]["parameters"][i]["determined"]:
+                    size = (f" Fitted: {_v(rec, f'fit.parameters.{i}.value')} &plusmn; "
+                            f"{_v(rec, f'fit.parameters.{i}.u_k2', '.2g')} "
+                            f"{_e(_unit(rec['fit']['parameters'][i]['unit']))} (U, k = 2).")
+            elif f["parameters"]:
+                size = f" Fitted as {len(f['parameters'])} parameters (see the fitted errors)."
+            out.append(f"<li>{_name(f['id'], f['iso'])}: {_t(f['description'])}.{size}</li>")
         out.append("</ul>")
     else:
         out.append("<p><b>Effects found:</b> none beyond the model's geometric errors"
@@ -165,24 +203,23 @@ def _glossary() -> str:
 
 def _data(rec: dict, figs: dict) -> str:
     d = rec["data"]
-    rows = [[_e(r["variable"]), _e(r["unit"]), _num(r["min"], 5), _num(r["max"], 5),
-             f"{_num(r['stroke'][0], 5)} to {_num(r['stroke'][1], 5)}", f"{100 * r['coverage']:.0f} %"]
-            for r in d["ranges"]]
-    extra = [f"Tool length {_num(d['tool_length_mm'][0], 5)}"
-             + (f" to {_num(d['tool_length_mm'][1], 5)}" if d["tool_length_mm"][1] != d["tool_length_mm"][0] else "")
-             + " mm"]
+    rows = [[_e(r["variable"]), _e(r["unit"]), _v(rec, f"data.ranges.{i}.min", ".5g"),
+             _v(rec, f"data.ranges.{i}.max", ".5g"),
+             f"{_v(rec, f'data.ranges.{i}.stroke.0', '.5g')} to {_v(rec, f'data.ranges.{i}.stroke.1', '.5g')}",
+             f"{_v(rec, f'data.ranges.{i}.coverage', '.0f', 100.0)} %"]
+            for i, r in enumerate(d["ranges"])]
+    extra = [f"Tool length {_v(rec, 'data.tool_length_mm.0', '.5g')}"
+             + (f" to {_v(rec, 'data.tool_length_mm.1', '.5g')}" if d["tool_length_mm"][1] != d["tool_length_mm"][0]
+                else "") + " mm"]
     if d["time_s"] is not None:
-        extra.append(f"time {_num(d['time_s'][0], 4)} to {_num(d['time_s'][1], 4)} s")
-    extra.append("measurement uncertainty (sigma column) " + (f"{_num(d['sigma_um'], 3)} \u00b5m" if d["sigma_um"]
-                                                               is not None else "not given"))
-    return (f'<section id="data"><h2>The data</h2><p>{d["n"]} measured poses from <span class="code">'
-            f"{_e(d['file'])}</span>. Instrument: {_e(d['instrument'])}. {_e('; '.join(extra))}.</p>"
+        extra.append(f"time {_v(rec, 'data.time_s.0')} to {_v(rec, 'data.time_s.1')} s")
+    extra.append("measurement uncertainty (sigma column) " + (f"{_v(rec, 'data.sigma_um', '.3g')} \u00b5m"
+                                                               if d["sigma_um"] is not None else "not given"))
+    return (f'<section id="data"><h2>The data</h2><p>{_v(rec, "data.n", "d")} measured poses from <span class="code">'
+            f"{_e(d['file'])}</span>. Instrument: {_e(d['instrument'])}. {'; '.join(extra)}.</p>"
             + _table(["axis", "unit", "lowest", "highest", "stroke", "stroke covered"], rows, "ranges",
-                     numeric=(2, 3, 5))
-            + _figure(figs, "coverage", "pose coverage",
-                      "Each dot is a measured pose, projected on two axes; the dashed box is the stroke of the "
-                      "machine file. Errors that change along an axis can only be found where the poses spread "
-                      "along it.")
+                     numeric=(2, 3, 4, 5))
+            + _figure(figs, "coverage", "pose coverage", _e(d["coverage_caption"]))
             + "</section>")
 
 
@@ -190,20 +227,20 @@ def _fit(rec: dict) -> str:
     f = rec["fit"]
     effects = ", ".join(f"{e} ({i})" if i else e for e, i in zip(f["effects"], f["effects_iso"])) or "none"
     out = ['<section id="fit"><h2>The fitted errors</h2>',
-           f"<p>The final model (geometric errors + effects: {_e(effects)}) fitted by weighted least squares on "
-           f"the exact kinematic chain: residual RMS {_num(f['rms_um'], 4)} \u00b5m; {f['n_parameters']} "
-           f"parameters, of which the data determines {f['rank']} independent directions (condition number "
-           f"{_num(f['condition'], 3)}). Uncertainty scale: {_e(f['sigma'])}"
-           + (f", reduced chi\u00b2 {_num(f['reduced_chi2'], 3)}" if f["reduced_chi2"] is not None else "")
+           f"<p>The final model (geometric errors + effects: {_e(effects)}) fitted by weighted least squares with "
+           f"every error's prior (maximum a posteriori) on the exact kinematic chain: residual RMS {_v(rec, 'fit.rms_um')} \u00b5m; {_v(rec, 'fit.n_parameters', 'd')} "
+           f"parameters, of which the data determines {_v(rec, 'fit.rank', 'd')} independent directions (condition "
+           f"number {_v(rec, 'fit.condition', '.3g')}). Uncertainty scale: {_e(f['sigma'])}"
+           + (f", reduced chi\u00b2 {_v(rec, 'fit.reduced_chi2', '.3g')}" if f["reduced_chi2"] is not None else "")
            + ". Values with an expanded uncertainty U (k = 2): first what the data determine alone, then what they "
              "determine relative to what they cannot separate it from; the parameters the data cannot determine "
              "alone are listed after, with the measurement that would separate them.</p>"]
     rows = []
-    for p in f["parameters"]:
+    for i, p in enumerate(f["parameters"]):
         if p["determined"]:
             rows.append([f'<span class="code">{_e(p["name"])}</span>', _e(p["iso"] or "\u2013"),
-                         _e(p["description"]), _num(p["value"], 4), _num(p["u_k2"], 2), _e(_unit(p["unit"])),
-                         _e(p["note"])])
+                         _e(p["description"]), _v(rec, f"fit.parameters.{i}.value"),
+                         _v(rec, f"fit.parameters.{i}.u_k2", ".2g"), _e(_unit(p["unit"])), _e(p["note"])])
     if rows:
         out.append(_table(["parameter", "ISO 230", "meaning", "value", "U (k = 2)", "unit", "note"], rows,
                           "parameters", numeric=(3, 4)))
@@ -211,11 +248,13 @@ def _fit(rec: dict) -> str:
         out.append("<h3>Determined relative to what the data cannot separate</h3><p>Each quantity is determined "
                    "together with the others named beside it (the locations of the rotary axes relative to the "
                    "axes' zero offsets, an axis's tilt relative to the artefacts' placement); the exact formula "
-                   "is one click away.</p>")
+                   "is one click away. Each of them is also a member of a group below: alone, the data cannot "
+                   "determine it; relative to the others named, they can.</p>")
         rows = [[f'<span class="code">{_e(q["name"])}</span>', _e(q["iso"] or "\u2013"), _e(q["quantity"]),
-                 _num(q["value"], 4), _num(q["u_k2"], 2), _e(_unit(q["unit"])),
+                 _v(rec, f"fit.quantities.{i}.value"), _v(rec, f"fit.quantities.{i}.u_k2", ".2g"),
+                 _e(_unit(q["unit"])),
                  f'relative to {_e(q["relative_to"])}<details><summary>formula</summary>'
-                 f'<span class="code">{_e(q["formula"])}</span></details>'] for q in f["quantities"]]
+                 f'<span class="code">{_e(q["formula"])}</span></details>'] for i, q in enumerate(f["quantities"])]
         out.append(_table(["quantity", "ISO 230", "meaning", "value", "U (k = 2)", "unit", "relative to"], rows,
                           "quantities", numeric=(3, 4)))
     if f.get("setups"):
@@ -223,10 +262,11 @@ def _fit(rec: dict) -> str:
                    "(offsets c, a length offset l of 1-D readings, rotations w), fitted beside the machine's errors; "
                    "these are not errors of the machine.</p>")
         rows, classes = [], []
-        for p in f["setups"]:
+        for i, p in enumerate(f["setups"]):
             rows.append([_e(p["setup"]), f'<span class="code">{_e(p["name"])}</span>', _e(p["kind"]),
-                         _num(p["value"], 4) if p["determined"] else "not determined",
-                         _num(p["u_k2"], 2) if p["determined"] else "", _e(_unit(p["unit"])), _e(p["note"])])
+                         _v(rec, f"fit.setups.{i}.value") if p["determined"] else "not determined",
+                         _v(rec, f"fit.setups.{i}.u_k2", ".2g") if p["determined"] else "", _e(_unit(p["unit"])),
+                         _e(p["note"])])
             classes.append("" if p["determined"] else "undetermined")
         out.append(_table(["setup", "unknown", "kind", "value", "U (k = 2)", "unit", "note"], rows, "setups",
                           numeric=(3, 4), row_class=classes))
@@ -234,22 +274,29 @@ def _fit(rec: dict) -> str:
             out.append(f"<p>{_e(text)}.</p>")
     if f["combinations"]:
         rows = [[f'<span class="code">{_e(c["formula"])}</span>', f'<span class="code">{_e(c["formula_iso"])}</span>',
-                 _num(c["value"], 4), _num(c["u_k2"], 2), _e(_unit(c["unit"]))] for c in f["combinations"]]
+                 _v(rec, f"fit.combinations.{i}.value"), _v(rec, f"fit.combinations.{i}.u_k2", ".2g"),
+                 _e(_unit(c["unit"]))] for i, c in enumerate(f["combinations"])]
         out.append(f"<details><summary>Every combination the data determine, as formulas ({len(rows)})</summary>"
                    + _table(["combination", "in ISO 230 names", "value", "U (k = 2)", "unit"], rows, "combinations",
                             numeric=(2, 3)) + "</details>")
     if f["groups"]:
-        out.append("<h3>What the data cannot separate, and which measurement would</h3>")
+        out.append("<h3>Fitted errors the data cannot determine alone, and which measurement would</h3>"
+                   "<p>The question here is about the fit's parameters (which of them these poses cannot tell "
+                   "apart); which candidate effects the diagnosis could not tell apart is said in the rounds "
+                   "below.</p>")
         rows = []
         for g in f["groups"]:
             names = ", ".join(f"{n} ({i})" if i else n for n, i in zip(g["members"], g["iso"]))
             tips = "; ".join(f"{s['measure']}: determines {', '.join(s['determines'])}" if s.get("determines")
                              else f"{s['measure']}: could not be evaluated ({s.get('error', '')})"
                              for s in g["separate_by"])
-            rows.append([_e(names), _e(g["why"]), _e(tips or "\u2013")])
+            rel = (f" {', '.join(g['relative'])}: stated above relative to the others of this group."
+                   if g.get("relative") else "")
+            rows.append([_e(names), _e(g["why"]) + _e(rel), _e(tips or "\u2013")])
         out.append(_table(["parameters", "why", "extra measurement that separates them"], rows, "groups"))
     if f["correlations"]:
-        rows = [[_name(c["a"], c["a_iso"]), _name(c["b"], c["b_iso"]), f"{c['r']:+.3f}"] for c in f["correlations"]]
+        rows = [[_name(c["a"], c["a_iso"]), _name(c["b"], c["b_iso"]), _v(rec, f"fit.correlations.{i}.r", "+.3f")]
+                for i, c in enumerate(f["correlations"])]
         out.append("<h3>Strongly correlated determined parameters</h3>"
                    + _table(["parameter", "parameter", "correlation r"], rows, "correlations", numeric=(2,)))
     out.append("</section>")
@@ -259,14 +306,15 @@ def _fit(rec: dict) -> str:
 def _residuals(rec: dict, figs: dict) -> str:
     r = rec["residuals"]
     changed = r["before"]["effects"] != r["after"]["effects"]
-    text = (f"Grey: the residual of the model the diagnosis started from (RMS {_num(r['before']['rms_um'], 3)} "
-            f"\u00b5m)." + (f" Blue: the final model with the effects found (RMS {_num(r['after']['rms_um'], 3)} "
-                            f"\u00b5m)." if changed else " No effect was added."))
+    text = (f"Grey: the residual of the model the diagnosis started from (RMS "
+            f"{_v(rec, 'residuals.before.rms_um', '.3g')} \u00b5m)."
+            + (f" Blue: the final model with the effects found (RMS {_v(rec, 'residuals.after.rms_um', '.3g')} "
+               f"\u00b5m)." if changed else " No effect was added."))
     return ('<section id="residuals"><h2>Residuals against each axis and time</h2>'
             "<p>A model that explains the data leaves residuals scattered evenly around zero, with no trend "
             "along any axis or in time. A slope, a curve or a step along a variable points at an effect that "
             "changes with it.</p>"
-            + _figure(figs, "residuals", "residuals against each variable", _t(text)) + "</section>")
+            + _figure(figs, "residuals", "residuals against each variable", text) + "</section>")
 
 
 def _rounds(rec: dict, figs: dict) -> str:
@@ -276,26 +324,31 @@ def _rounds(rec: dict, figs: dict) -> str:
            "explains, and decides with an extended BIC and cross-validation whether the best one is real. If it "
            "is, it is added and the next round starts.</p>",
            _figure(figs, "rounds", "RMS per round", "Residual RMS after each round against the noise level.")]
-    for r in rec["rounds"]:
+    for n, r in enumerate(rec["rounds"]):
         model = "geometric errors" + "".join(f" + {a} ({i})" if i else f" + {a}"
                                              for a, i in zip(r["added"], r["added_iso"]))
         d = r["decision"]
         verdict = "an effect is missing" if r["missing_effect"] else "no missing effect"
-        ratio = "" if r["ratio"] is None else f", ratio {r['ratio']:.3g}"
+        ratio = "" if r["ratio"] is None else f", ratio {_v(rec, f'rounds.{n}.ratio', '.3g')}"
+        dk = f"rounds.{n}.decision"
         out.append(f"<h3>Round {r['round']}: {_e(verdict)}</h3><p>Model: {_e(model)}. Residual RMS "
-                   f"{_num(r['rms_um'], 4)} \u00b5m against noise {_num(r['noise_um'], 3)} \u00b5m{ratio}. "
-                   f"Decision: best candidate &Delta;EBIC {_num(d.get('delta_ebic_best'), 4)} (must be &lt; 0), "
-                   f"{d.get('cv_folds', '')}-fold cross-validation held-out error "
-                   f"{_num(d.get('cv_sse_without'), 4)} &rarr; {_num(d.get('cv_sse_with'), 4)} (must fall).</p>")
+                   f"{_v(rec, f'rounds.{n}.rms_um')} \u00b5m against noise {_v(rec, f'rounds.{n}.noise_um', '.3g')} "
+                   f"\u00b5m{ratio}. Decision: best candidate &Delta;EBIC "
+                   f"{_v(rec, f'{dk}.delta_ebic_best') if 'delta_ebic_best' in d else '&ndash;'} (must be &lt; 0), "
+                   f"{_v(rec, f'{dk}.cv_folds', 'd') if 'cv_folds' in d else ''}-fold cross-validation held-out "
+                   f"error {_v(rec, f'{dk}.cv_sse_without') if 'cv_sse_without' in d else '&ndash;'} &rarr; "
+                   f"{_v(rec, f'{dk}.cv_sse_with') if 'cv_sse_with' in d else '&ndash;'} (must fall).</p>")
         rows = []
-        for k, c in enumerate(r["candidates"], 1):
+        for k, c in enumerate(r["candidates"]):
             aliases = ", ".join(f"{a} ({i})" if i else a for a, i in zip(c["aliases"], c["aliases_iso"]))
             sep = "; ".join(f"{s['measure']} would separate " + " | ".join(", ".join(g) for g in s["separates"])
                             for s in c["separate_by"])
-            rows.append([str(k), _name(c["id"], c["iso"]), _num(c["rms_um"], 4), f"{100 * c['explained']:.1f} %",
+            rows.append([f"{k + 1}.", _name(c["id"], c["iso"]), _v(rec, f"rounds.{n}.candidates.{k}.rms_um"),
+                         f"{_v(rec, f'rounds.{n}.candidates.{k}.explained', '.1f', 100.0)} %",
                          _e(c["description"]), _e(aliases + (f" ({sep})" if sep else "") or "\u2013")])
         out.append(_table(["#", "candidate effect", "RMS after (\u00b5m)", "explains", "meaning",
-                           "indistinguishable on this data"], rows, f"candidates-{r['round']}", numeric=(0, 2, 3)))
+                           "candidates this data cannot tell apart from it (and what would)"], rows,
+                          f"candidates-{r['round']}", numeric=(2, 3)))
     out.append("</section>")
     return "".join(out)
 
@@ -317,25 +370,23 @@ def _iso230(rec: dict, figs: dict) -> str:
         return ""
     out = []
     if iso["positioning"]:
+        stated = [r for r in iso["positioning"] if r["uncertainty"].get("U_um")]
         out.append('<section id="iso230-2"><h2>ISO 230-2: positioning of linear axes</h2>'
                    "<p>Per axis, from the readings along it: per target and approach direction the mean positional "
                    "deviation and its estimated standard uncertainty s over the cycles; the axis figures of ISO "
-                   "230-2:2014 (&micro;m). E: systematic positional deviation (range of the mean deviations), M: mean "
+                   "230-2:2014 (\u00b5m). E: systematic positional deviation (range of the mean deviations), M: mean "
                    "bidirectional systematic positional deviation, B: reversal value (largest reversal at a "
                    "target), R: repeatability (4 s, bidirectional with the reversal), A: accuracy (range of the mean "
-                   "deviations &plusmn; 2 s). No uncertainty statement: the measuring device, temperature, "
-                   "expansion, misalignment and drift were not stated (<span class=\"code\">fiveaxis iso230-2 "
-                   "--u-device ...</span>).</p>")
-        keys = [("E", "E"), ("M", "M"), ("B", "B"), ("B_mean", "B mean"), ("R", "R"), ("A", "A")]
-        rows = []
-        for r in iso["positioning"]:
-            rows.append([_e(r["axis"]) + (f" ({_e(r['setup'])})" if r.get("setup") else ""), str(r["targets"]),
-                         str(r["cycles"]), _num(r["measured_length_mm"], 5)]
-                        + [_num(r[f"{k}_um"], 3) + (f" / {_num(r[f'{k}_fwd_um'], 3)} / {_num(r[f'{k}_bwd_um'], 3)}"
-                                                    if f"{k}_fwd_um" in r else "") for k, _ in keys])
-        out.append(_table(["axis", "targets", "cycles", "length (mm)"]
-                          + [f"{label} (\u00b5m){' bi / fwd / bwd' if k in ('E', 'R', 'A') else ''}"
-                             for k, label in keys], rows, "iso230-2-figures", numeric=tuple(range(1, 10))))
+                   "deviations &plusmn; 2 s). "
+                   + ("The expanded uncertainties U (k = 2) of E, M and B follow ISO 230-9's simplified budget from "
+                      "what the test states (below each axis)." if stated else
+                      "No uncertainty statement: the measuring device, temperature, expansion, misalignment and drift "
+                      "were not stated (<span class=\"code\">--u-device ...</span>, or the campaign's iso230_9).")
+                   + "</p>")
+        for a, r in enumerate(iso["positioning"]):
+            out.append(_axis_figures(rec, a))
+            out.append(_targets(rec, a))
+            out.append(f'<p class="note">{_t(r["uncertainty"]["statement"])}.</p>')
         out.append(_figures_and_notes(figs, "iso230_2", iso["positioning"], lambda r: (
             f"ISO 230-2 {r['axis']}", f"Mean positional deviation of {_e(r['axis'])} per target, forward and "
                                       "backward, with the &plusmn;2 s bands; the dots are the single readings.")))
@@ -346,15 +397,18 @@ def _iso230(rec: dict, figs: dict) -> str:
                    "<p>Per circle and direction: the circular deviation G (about the least-squares centre, and about "
                    "the minimum-zone centre), the radial deviation F (largest and smallest, against the nominal "
                    "radius, least-squares centre), and the circular hysteresis H between the two directions "
-                   "(&micro;m).</p>")
+                   "(\u00b5m).</p>")
         rows = []
-        for c in circ["circles"]:
+        for ci, c in enumerate(circ["circles"]):
             for k, r in enumerate(c["runs"]):
+                rk = f"iso230.circles.circles.{ci}.runs.{k}"
                 rows.append([_e(c["plane"]) + (f" ({_e(c['setup'])})" if c.get("setup") not in (None, c["plane"])
                                                else ""),
-                             _num(c["radius_mm"], 6), _e(r["direction"]), _num(r["G_um"], 3), _num(r["G_mz_um"], 3),
-                             _num(r["F_max_um"], 3), _num(r["F_min_um"], 3),
-                             _num(c.get("H_um"), 3) if k == 0 else ""])
+                             _v(rec, f"iso230.circles.circles.{ci}.radius_mm", ".6g"), _e(r["direction"]),
+                             _v(rec, f"{rk}.G_um", ".3g"), _v(rec, f"{rk}.G_mz_um", ".3g"),
+                             _v(rec, f"{rk}.F_max_um", ".3g"), _v(rec, f"{rk}.F_min_um", ".3g"),
+                             (_v(rec, f"iso230.circles.circles.{ci}.H_um", ".3g") if "H_um" in c else "&ndash;")
+                             if k == 0 else ""])
         out.append(_table(["circle", "radius (mm)", "direction", "G (\u00b5m)", "G min. zone (\u00b5m)",
                            "F max (\u00b5m)", "F min (\u00b5m)", "H (\u00b5m)"], rows, "iso230-4-figures",
                           numeric=(1, 3, 4, 5, 6, 7)))
@@ -365,19 +419,64 @@ def _iso230(rec: dict, figs: dict) -> str:
     return "".join(out)
 
 
+#: ISO 230-2's axis figures as a laser's report lists them: (figure, record key prefix, meaning).
+AXIS_FIGURES = (("E", "E", "systematic positional deviation"), ("M", "M", "mean bidirectional systematic positional "
+                                                                          "deviation"),
+                ("B", "B", "reversal value (largest |B_i|)"), ("B mean", "B_mean", "mean reversal value"),
+                ("R", "R", "repeatability"), ("A", "A", "accuracy"))
+
+
+def _axis_figures(rec: dict, a: int) -> str:
+    """The a-th axis's ISO 230-2 figures, one row each: bidirectional, forward, backward, U (k = 2) where ISO
+    230-9's budget gives one (um)."""
+    r = rec["iso230"]["positioning"][a]
+    k0 = f"iso230.positioning.{a}"
+    U = r["uncertainty"].get("U_um", {})
+    rows = [[f"<b>{name}</b>", _v(rec, f"{k0}.{key}_um", ".2f"),
+             _v(rec, f"{k0}.{key}_fwd_um", ".2f") if f"{key}_fwd_um" in r else "",
+             _v(rec, f"{k0}.{key}_bwd_um", ".2f") if f"{key}_bwd_um" in r else "",
+             _v(rec, f"{k0}.uncertainty.U_um.{key}", ".2f") if key in U else "&ndash;", _e(what)]
+            for name, key, what in AXIS_FIGURES]
+    return (f"<h3>{_e(r['axis'])}" + (f" ({_e(r['setup'])})" if r.get("setup") else "")
+            + f": {_v(rec, f'{k0}.targets', 'd')} targets over {_v(rec, f'{k0}.measured_length_mm', '.5g')} mm, "
+              f"{_v(rec, f'{k0}.cycles', 'd')} cycles</h3>"
+            + _table(["figure", "bidirectional (\u00b5m)", "forward (\u00b5m)", "backward (\u00b5m)",
+                      "U, k = 2 (\u00b5m)", "meaning"], rows, f"iso230-2-figures-{a}", numeric=(1, 2, 3, 4)))
+
+
+#: The per-target table of ISO 230-2 (the standard's table, transposed): (heading, record key, format).
+TARGET_COLUMNS = (("P_i", "targets_mm", ".3f"), ("mean x_i fwd", "mean_fwd_um", ".2f"),
+                  ("mean x_i bwd", "mean_bwd_um", ".2f"), ("s_i fwd", "s_fwd_um", ".2f"), ("s_i bwd", "s_bwd_um", ".2f"),
+                  ("R_i fwd", "R_i_fwd_um", ".2f"), ("R_i bwd", "R_i_bwd_um", ".2f"), ("B_i", "B_i_um", ".2f"),
+                  ("mean x_i bidir.", "mean_bidirectional_um", ".2f"), ("R_i bidir.", "R_i_um", ".2f"))
+
+
+def _targets(rec: dict, a: int) -> str:
+    """The per-target table of the a-th ISO 230-2 evaluation: per target P_i and approach direction the mean
+    deviation, s, R_i = 4 s, the reversal B_i and the bidirectional mean and R_i (um)."""
+    r = rec["iso230"]["positioning"][a]
+    k0 = f"iso230.positioning.{a}"
+    rows = [[f"{i + 1}."] + [_v(rec, f"{k0}.{key}.{i}", fmt) for _, key, fmt in TARGET_COLUMNS]
+            for i in range(len(r["targets_mm"]))]
+    head = ["i"] + [h for h, _, _ in TARGET_COLUMNS]
+    return (f"<p>{_e(r['axis'])} per target and approach direction (\u00b5m; P_i in mm):</p>"
+            + _table(head, rows, f"iso230-2-targets-{a}", numeric=tuple(range(1, 11))))
+
+
 def _sensitivity(rec: dict, figs: dict) -> str:
     s = rec["sensitivity"]
     if s is None:
         return ""
-    rows = [[str(k), _name(t["name"], t["iso"]), f"{100 * t['proportion']:.2f} %", _e(t["description"])]
-            for k, t in enumerate(s["top"], 1)]
+    rows = [[f"{k + 1}.", _name(t["name"], t["iso"]), f"{_v(rec, f'sensitivity.top.{k}.proportion', '.2f', 100.0)} %",
+             _e(t["description"])] for k, t in enumerate(s["top"])]
     return ('<section id="sensitivity"><h2>Which errors matter most on this machine</h2>'
-            f"<p>Global sensitivity (GSIL) of the machine over its strokes ({s['points_per_axis']} points per axis, "
-            f"tool length {_num(s['L0_mm'], 4)} mm, cutting length {_num(s['LE_mm'], 3)} mm), with "
+            f"<p>Global sensitivity (GSIL) of the machine over its strokes ({_v(rec, 'sensitivity.points_per_axis', 'd')} "
+            f"points per axis, tool length {_v(rec, 'sensitivity.L0_mm')} mm, cutting length "
+            f"{_v(rec, 'sensitivity.LE_mm', '.3g')} mm), with "
             f"{_e(s['errors'])}: the errors whose share is large deserve the most careful measurement and "
             "compensation. This is a property of the machine's kinematics, independent of the data above.</p>"
             + _figure(figs, "sensitivity", "GSIL top errors", "Largest shares of the global sensitivity.")
-            + _table(["rank", "error", "share PG_i", "meaning"], rows, "gsil", numeric=(0, 2)) + "</section>")
+            + _table(["rank", "error", "share PG_i", "meaning"], rows, "gsil", numeric=(2,)) + "</section>")
 
 
 def _compensation(rec: dict, figs: dict) -> str:
@@ -389,25 +488,36 @@ def _compensation(rec: dict, figs: dict) -> str:
                 "tool-tip error before and after compensation, and its maps) this section shows what the "
                 "compensation achieves.</p></section>")
     ranged = any(st.get("range_k2") for st in c["stages"])
-    rows = [[_e(st["label"]), _num(st["max"] * 1e3, 3), _num(st["rms"] * 1e3, 3), _num(st["p95"] * 1e3, 3)]
-            + ([f"{_num(st['range_k2'][0] * 1e3, 3)} to {_num(st['range_k2'][1] * 1e3, 3)}"
-                if st.get("range_k2") else "\u2013"] if ranged else [])
-            for st in c["stages"]]
+    um = ".2f"            # predicted errors to 0.01 um: what the model predicts, not what a machine resolves
+
+    def stage(i, what):
+        return _v(rec, f"compensation.stages.{i}.{what}", um, 1e3)
+    rows = [[_e(st["label"]), stage(i, "max"), stage(i, "rms"), stage(i, "p95")]
+            + ([f"{stage(i, 'range_k2.0')} to {stage(i, 'range_k2.1')}" if st.get("range_k2") else "\u2013"]
+               if ranged else [])
+            for i, st in enumerate(c["stages"])]
     head_row = ["", "largest (\u00b5m)", "RMS (\u00b5m)", "95th percentile (\u00b5m)"]
     if ranged:
         head_row.append("true RMS, k = 2 range (\u00b5m)")
     out = [head, f"<p>Predicted tool-tip error over the compensation's evaluation poses (from "
                  f"<span class=\"code\">{_e(c['folder'])}</span>)" + (f": {_e(c['method'])}" if c["method"] else "")
-           + ".</p>", _table(head_row, rows, "compensation-summary", numeric=(1, 2, 3))]
+           + ". The largest, RMS and 95th-percentile columns are what the fitted model itself predicts: a stage "
+             "that applies the model exactly (the kinematics module computes it) leaves nothing by construction. "
+           + ("What the machine will show lies in the last column's range (k = 2), which adds what the model "
+              "does not know." if ranged else "What the model does not know is not in these numbers.")
+           + "</p>", _table(head_row, rows, "compensation-summary", numeric=(1, 2, 3, 4) if ranged else (1, 2, 3))]
     u = c.get("uncertainty") or {}
     if u:
         prior = u.get("prior") or {}
         text = (f"<p>What the prediction cannot know: the fit's uncertainty moves the tool tip by "
-                f"{_num(u['fit_mm'] * 1e3, 3)} \u00b5m RMS, the {u['directions']} directions the data did not "
-                f"determine by {_num(u['undetermined_mm'] * 1e3, 3)} \u00b5m (their size taken as that of the "
-                f"determined errors: {_num(prior.get('linear_mm', 0.0) * 1e3, 3)} \u00b5m, "
-                f"{_num(prior.get('angular_rad', 0.0) * 1e6, 3)} \u00b5rad). The last column is the range of the "
-                f"true RMS error.")
+                f"{_v(rec, 'compensation.uncertainty.fit_mm', '.3g', 1e3)} \u00b5m RMS, the "
+                f"{_v(rec, 'compensation.uncertainty.directions', 'd')} directions the data did not determine by "
+                f"{_v(rec, 'compensation.uncertainty.undetermined_mm', '.3g', 1e3)} \u00b5m"
+                + (f" (their size taken as that of the determined errors: "
+                   f"{_v(rec, 'compensation.uncertainty.prior.linear_mm', '.3g', 1e3)} \u00b5m, "
+                   f"{_v(rec, 'compensation.uncertainty.prior.angular_rad', '.3g', 1e6)} \u00b5rad)"
+                   if "linear_mm" in prior and "angular_rad" in prior else "")
+                + ". The last column is the range of the true RMS error.")
         if u.get("measurement"):
             text += (f" The measurement that would determine the undetermined part: {_e(u['measurement'])} "
                      f"(<span class=\"code\">{_e(u['command'])}</span>).")
@@ -416,10 +526,12 @@ def _compensation(rec: dict, figs: dict) -> str:
         out.append(text + "</p>")
     by = c.get("by_tool_length") or []
     if by:
-        rows = [[_num(r["tool_length_mm"], 4) + (" (table)" if r["table_node"] else " (between)"),
-                 _num(r["before"]["rms"] * 1e3, 3), _num(r["after_table"]["rms"] * 1e3, 3),
-                 _num(r["after_exact_correction"]["rms"] * 1e3, 3), _num(r["after_table"]["max"] * 1e3, 3)]
-                for r in by]
+        def at(i, key):
+            return _v(rec, f"compensation.by_tool_length.{i}.{key}", um, 1e3)
+        rows = [[_v(rec, f"compensation.by_tool_length.{i}.tool_length_mm")
+                 + (" (table)" if r["table_node"] else " (between)"),
+                 at(i, "before.rms"), at(i, "after_table.rms"), at(i, "after_exact_correction.rms"),
+                 at(i, "after_table.max")] for i, r in enumerate(by)]
         out.append("<p>The table has a tool-length dimension: the predicted tool-tip error at each of its tool "
                    "lengths and between them (RMS over random poses at that length).</p>"
                    + _table(["tool length (mm)", "before, RMS (\u00b5m)", "after the table, RMS (\u00b5m)",
@@ -436,6 +548,126 @@ def _compensation(rec: dict, figs: dict) -> str:
     return "".join(out)
 
 
+# -- the certificate (only with a campaign) ------------------------------------------------------------------------
+LOCATION_WORDS = {"laboratory": "in the calibration laboratory", "customer": "at the customer's premises",
+                  "laboratoryBranch": "at a branch of the calibration laboratory",
+                  "customerBranch": "at a branch of the customer", "other": "elsewhere"}
+
+
+def _address(part: dict) -> str:
+    return ", ".join(_e(part[k]) for k in ("street", "postcode", "city", "country") if part.get(k))
+
+
+def _dl(items) -> str:
+    """A definition list of (term, already escaped value) pairs, empty values left out."""
+    return '<dl class="admin">' + "".join(f"<dt>{_e(t)}</dt><dd>{v}</dd>" for t, v in items if v) + "</dl>"
+
+
+def _cert_head(rec: dict) -> str:
+    c = rec["certificate"]
+    h, lab, cus, mach = c["certificate"], c["laboratory"], c["customer"], c.get("machine", {})
+    place, dates, proc, op = c["place"], c["dates"], c["procedure"], c["operator"]
+    m = rec["machine"]
+    item = " ".join(_e(mach[k]) for k in ("manufacturer", "model") if mach.get(k)) or _e(m["title"])
+    return ('<section id="certificate"><p class="kind">Calibration certificate</p>'
+            + _dl([("Certificate number", f'<b>{_e(h["number"])}</b>'), ("Date of issue", _e(h["issue_date"])),
+                   ("Calibration laboratory", _e(lab["name"]) + (f" (accreditation {_e(lab['accreditation'])})"
+                                                                 if lab.get("accreditation") else "")
+                    + f"<br>{_address(lab)}"
+                    + "".join(f"<br>{_e(lab[k])}" for k in ("email", "phone") if lab.get(k))),
+                   ("Customer", _e(cus["name"]) + (f", {_e(cus['contact'])}" if cus.get("contact") else "")
+                    + f"<br>{_address(cus)}" + (f"<br>order {_e(cus['order'])}" if cus.get("order") else "")),
+                   ("Item calibrated", f"machine tool {item}" + (f": {_e(mach['description'])}"
+                                                                 if mach.get("description") else "")
+                    + f"<br>serial number <b>{_e(mach['serial'])}</b>"
+                    + (f"; inventory number {_e(mach['inventory'])}" if mach.get("inventory") else "")
+                    + (f"; control {_e(mach['controller'])}" if mach.get("controller") else "")
+                    + f"<br>kinematic model: machine file <span class=\"code\">{_e(m['name'])}</span> "
+                      f"({_e(m['title'])}, {_e(m['convention'])} convention)"),
+                   ("Place of calibration", _e(LOCATION_WORDS[place["location"]])
+                    + (f": {_e(place['site'])}" if place.get("site") else "")),
+                   ("Date of calibration", _e(dates["begin"]) + (f" to {_e(dates['end'])}"
+                                                                 if dates["end"] != dates["begin"] else "")),
+                   ("Procedure", _e(proc["name"]) + (f" ({_e(proc['reference'])})" if proc.get("reference") else "")
+                    + (f"<br>{_e(proc['description'])}" if proc.get("description") else "")),
+                   ("Performed by", f"{_e(op['name'])}, {_e(op['role'])}")])
+            + "</section>")
+
+
+def _cert_instruments(rec: dict) -> str:
+    rows = []
+    for i in rec["certificate"]["instruments"]:
+        rows.append([_e(i["name"]), _e(" ".join(i[k] for k in ("manufacturer", "model") if i.get(k)) or "\u2013"),
+                     _e(i["serial"]),
+                     _e(i["certificate"]) + f"<br>{_e(i['certificate_issuer'])}"
+                     + (f", {_e(i['calibration_date'])}" if i.get("calibration_date") else ""),
+                     _e(i["traceability"])])
+    return ('<section id="instruments"><h2>Measuring instruments and traceability</h2>'
+            + _table(["instrument", "manufacturer, model", "serial number", "calibration certificate",
+                      "traceability"], rows, "instruments")
+            + f"<p>{_e(rec['certificate']['traceability'])}</p></section>")
+
+
+def _range(rec: dict, key: str, unit: str, fmt: str = ".1f") -> str:
+    """A stated value or [low, high] range of the record, with its unit."""
+    if isinstance(_get(rec, key), list):
+        return f"{_v(rec, key + '.0', fmt)} to {_v(rec, key + '.1', fmt)} {unit}"
+    return f"{_v(rec, key, fmt)} {unit}"
+
+
+def _cert_environment(rec: dict) -> str:
+    env = rec["certificate"]["environment"]
+    k0 = "certificate.environment"
+    stated = [(label, _range(rec, f"{k0}.{key}", unit, fmt)) for label, key, unit, fmt in (
+        ("Air temperature", "air_temperature_degC", "\u00b0C", ".4g"),
+        ("Temperature of the machine", "machine_temperature_degC", "\u00b0C", ".4g"),
+        ("Relative humidity", "humidity_percent", "%", ".3g")) if key in env]
+    if env.get("note"):
+        stated.append(("Note", _e(env["note"])))
+    out = ['<section id="environment"><h2>Environment</h2>']
+    if stated:
+        out.append(_dl(stated))
+    if env["sensors"]:
+        rows = [[f'<span class="code">{_e(s["name"])}</span>', _v(rec, f"{k0}.sensors.{i}.readings", "d"),
+                 _v(rec, f"{k0}.sensors.{i}.min_degC", ".2f"), _v(rec, f"{k0}.sensors.{i}.mean_degC", ".2f"),
+                 _v(rec, f"{k0}.sensors.{i}.max_degC", ".2f")] for i, s in enumerate(env["sensors"])]
+        out.append("<p>Temperatures read during the measurement (the temperature columns of the measurement "
+                   "file):</p>" + _table(["channel", "readings", "lowest (\u00b0C)", "mean (\u00b0C)",
+                                          "highest (\u00b0C)"], rows, "temperatures", numeric=(1, 2, 3, 4)))
+    if not stated and not env["sensors"]:
+        out.append("<p>No temperature was stated or measured: ISO 230-2 asks for the temperatures of the machine "
+                   "and of the air during the test to be stated.</p>")
+    out.append("</section>")
+    return "".join(out)
+
+
+def _cert_statements(rec: dict) -> str:
+    c = rec["certificate"]
+    out = ['<section id="uncertainty"><h2>Statement of uncertainty</h2>']
+    out += [f"<p>{_t(line)}</p>" for line in c["uncertainty_statement"]]
+    if (c.get("remarks") or {}).get("text"):
+        out.append(f"<h3>Remarks</h3><p>{_e(c['remarks']['text'])}</p>")
+    out.append("</section>")
+    return "".join(out)
+
+
+def _cert_signatures(rec: dict) -> str:
+    c = rec["certificate"]
+    op, ap = c["operator"], c.get("approval") or {}
+    place = c["laboratory"]["city"]
+
+    def block(title, name, role, date):
+        return (f'<div class="sign"><p class="role">{_e(title)}</p><div class="line"></div>'
+                f"<p>{_e(name) if name else '&nbsp;'}<br>{_e(role) if role else '&nbsp;'}</p>"
+                f"<p class=\"note\">{_e(place)}, {_e(date) if date else '(date)'}</p></div>")
+    return ('<section id="signatures"><h2>Signatures</h2><div class="signatures">'
+            + block("Calibrated by", op["name"], op["role"], c["dates"]["end"])
+            + block("Approved by", ap.get("name"), ap.get("role"), ap.get("date") or c["certificate"]["issue_date"])
+            + "</div><p class=\"note\">This certificate may only be reproduced in full. Its results relate only to "
+              "the item calibrated, at the time and under the conditions stated. A Digital Calibration "
+              "Certificate (PTB DCC 3.3.0, XML) issued with it carries the same numbers.</p></section>")
+
+
 def _has_iso(rec: dict, key: str) -> bool:
     """Whether the nav entry `key` has a section (the ISO 230 sections only when the data holds such readings)."""
     iso = rec.get("iso230") or {}
@@ -443,29 +675,46 @@ def _has_iso(rec: dict, key: str) -> bool:
         return bool(iso.get("positioning"))
     if key == "iso230-4":
         return bool(iso.get("circles"))
+    if key == "iso230-3":
+        return bool(rec.get("iso230_3"))
     return True
+
+
+def _iso230_3(rec: dict, figs: dict) -> str:
+    """The ISO 230-3 section (`report --iso230-3 FILE`), built in its own module on this one's helpers."""
+    from .iso230_3 import section_html   # imported here: that module imports this one's helpers
+    return section_html(rec, figs)
 
 
 def render(report) -> str:
     """The whole page as text (UTF-8)."""
     rec, figs = report.record, report.figures
     m = rec["machine"]
-    nav = "".join(f'<a href="#{k}">{t}</a>' for k, t in (
-        ("verdict", "Verdict"), ("terms", "Terms"), ("data", "Data"), ("fit", "Fitted errors"),
-        ("residuals", "Residuals"), ("rounds", "Diagnosis rounds"), ("iso230-2", "ISO 230-2"),
-        ("iso230-4", "ISO 230-4"), ("sensitivity", "Sensitivity"), ("compensation", "Compensation"))
-        if (k != "sensitivity" or rec["sensitivity"] is not None) and _has_iso(rec, k))
+    cert = rec.get("certificate")
+    sections = (("certificate", "Certificate"), ("instruments", "Instruments"), ("environment", "Environment"),
+                ("verdict", "Verdict"), ("terms", "Terms"), ("data", "Data"), ("fit", "Fitted errors"),
+                ("residuals", "Residuals"), ("rounds", "Diagnosis rounds"), ("iso230-2", "ISO 230-2"),
+                ("iso230-4", "ISO 230-4"), ("iso230-3", "ISO 230-3"), ("sensitivity", "Sensitivity"),
+                ("compensation", "Compensation"), ("uncertainty", "Uncertainty"), ("signatures", "Signatures"))
+    only_cert = {"certificate", "instruments", "environment", "uncertainty", "signatures"}
+    nav = "".join(f'<a href="#{k}">{t}</a>' for k, t in sections
+                  if (k != "sensitivity" or rec["sensitivity"] is not None) and _has_iso(rec, k)
+                  and (cert or k not in only_cert))
     body = [f"<h1>{_e(rec['title'])}</h1>",
             f'<p class="meta">Machine <b>{_e(m["name"])}</b> ({_e(m["title"])}; file <span class="code">'
             f"{_e(m['file'])}</span>, {_e(m['convention'])} convention) &middot; data <span class=\"code\">"
             f"{_e(rec['data']['file'])}</span> &middot; {_e(rec['generated'])} &middot; fiveaxis "
             f"{_e(rec['fiveaxis_version'])}</p>",
-            f"<nav>{nav}</nav>",
-            _verdict(rec), _glossary(), _data(rec, figs), _fit(rec), _residuals(rec, figs), _rounds(rec, figs),
-            _iso230(rec, figs), _sensitivity(rec, figs), _compensation(rec, figs),
-            "<footer>Made by fiveaxis from the measurement file and the machine file named above. Lengths in "
-            "\u00b5m (mm in the data), angles in \u00b5rad (degrees for axis positions). Method: the project's "
-            "docs/measurements.md and docs/iso230.md.</footer>"]
+            f"<nav>{nav}</nav>"]
+    if cert:
+        body += [_cert_head(rec), _cert_instruments(rec), _cert_environment(rec)]
+    body += [_verdict(rec), _glossary(), _data(rec, figs), _fit(rec), _residuals(rec, figs), _rounds(rec, figs),
+             _iso230(rec, figs), _iso230_3(rec, figs), _sensitivity(rec, figs), _compensation(rec, figs)]
+    if cert:
+        body += [_cert_statements(rec), _cert_signatures(rec)]
+    body.append("<footer>Made by fiveaxis from the measurement file and the machine file named above. Lengths in "
+                "\u00b5m (mm in the data), angles in \u00b5rad (degrees for axis positions). Method: the project's "
+                "docs/measurements.md and docs/iso230.md.</footer>")
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">"
             f"<title>{_e(rec['title'])}</title><style>{CSS}</style></head><body>\n"

@@ -12,9 +12,11 @@ from ..plots.iso230 import circle_figure, positioning_figure
 from .figures import png
 
 
-def sections(model, meas) -> tuple[dict | None, dict]:
+def sections(model, meas, statement: U.Statement | None = None) -> tuple[dict | None, dict]:
     """({"positioning": [ISO 230-2 records], "circles": ISO 230-4 record or None, "skipped": {setup: reasons}} or
-    None when no setup is either, figures {name: PNG bytes})."""
+    None when no setup is either, figures {name: PNG bytes}). statement: what the test states for ISO 230-9's
+    uncertainty of the ISO 230-2 figures (None: nothing stated)."""
+    statement = statement or U.Statement()
     positioning, circles, skipped = [], [], {}
     try:
         groups = line_groups(meas, "")
@@ -24,7 +26,8 @@ def sections(model, meas) -> tuple[dict | None, dict]:
         part = meas.subset(idx)
         reasons = []
         try:
-            positioning += [P.to_json(ev, U.none_statement()) for ev in P.evaluate(part, model)]
+            positioning += [P.to_json(ev, U.budget(statement, ev.length_mm) or U.none_statement())
+                            for ev in P.evaluate(part, model)]
             continue
         except InputError as exc:
             reasons.append(f"ISO 230-2: {exc}")

@@ -21,27 +21,29 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import __version__
-from ..diagnosis import diagnose as D
+from ..diagnosis import rounds as loop
 from ..diagnosis import separation as sep
 from ..effects.families import describe_param
 from ..estimation.problem import machine_effects, resolve_effects
 from ..estimation.result import to_json as fit_json
 from ..estimation.solver import formula
-from ..exceptions import InputError
+from ..iso230 import uncertainty as U
 from ..measurement import observations as ob
-from ..measurement.files import read
+from ..measurement.files import join, read
 from ..model import iso_names as iso
 from ..model.error_model import load
 from ..plots.residuals import residual_figure, series_of
 from ..sensitivity.grid import Grid
 from ..sensitivity.indices import gsil
+from ..units import human
+from . import text
 from . import compensation as C
-from . import figures, iso230
+from . import certificate, figures, iso230
 from ..diagnosis import preconditions
 from ..estimation import design_size
 
-#: Rounds of diagnose -> add the top candidate, at most (as scripts/run-main.sh).
-MAX_ROUNDS = 4
+#: Rounds of diagnose -> add the top candidate, at most (the calibration loop: fiveaxis.diagnosis.rounds).
+MAX_ROUNDS = loop.MAX_ROUNDS
 #: Candidates kept per round.
 TOP = 5
 #: GSIL grid: points per axis over the strokes (X of li2018 is reduced exactly: it appears in no J_i).
@@ -93,7 +95,8 @@ def _data_record(model, meas) -> dict:
             "setups": list(meas.setups),
             "tool_length_mm": [float(meas.L.min()), float(meas.L.max())],
             "time_s": None if meas.t is None else [float(meas.t.min()), float(meas.t.max())],
-            "sigma_um": None if meas.sigma is None else float(np.sqrt(np.mean(meas.sigma ** 2)) * 1e3)}
+            "sigma_um": None if meas.sigma is None or np.isnan(meas.sigma).all()
+            else float(np.sqrt(np.nanmean(meas.sigma ** 2)) * 1e3)}
 
 
 def _readings_text(model, meas) -> str:
@@ -131,11 +134,20 @@ def _fit_record(model, j: dict, groups_advice) -> dict:
         value, unit = people(p.get("value"), p["unit"])
         std, _ = people(p.get("std"), p["unit"])
         entry = iso.names(model).get(name)
+        shown = p["determined"] and p.get("plausible", True)
+        note = p.get("note", "") if p.get("plausible", True) else text.IMPLAUSIBLE
+        if p.get("fixed"):
+            note = "held (--fix or [fit] fixed)"
+        elif p.get("decided_by") in ("prior", "data and prior") and "posterior" in p:
+            note = (f"{note}; posterior {human(p['posterior']['value'], p['unit'])} +- "
+                    f"{human(p['posterior']['expanded_k2'], p['unit'])} (k = 2), the prior's moved by the "
+                    f"combinations ({p['data_share']:.0%} data)")
         params.append({"name": name, "iso": iso.name(model, name),
                        "kind": entry.kind if entry else "effect coefficient",
                        "description": p.get("description") or (describe_param(placed, name) if entry else ""),
-                       "value": value, "u_k2": None if std is None else 2 * std, "unit": unit,
-                       "determined": p["determined"], "note": p.get("note", "")})
+                       "value": value if shown else None, "u_k2": None if std is None or not shown else 2 * std,
+                       "unit": unit, "determined": shown, "note": note,
+                       "decided_by": p.get("decided_by", "data")})
     combos = []
     for c in j["combinations"]:
         value, unit = people(c["value"], c["unit"])
@@ -146,9 +158,13 @@ def _fit_record(model, j: dict, groups_advice) -> dict:
     for q in j["quantities"]:
         value, unit = people(q["value"], q["unit"])
         std, _ = people(q["std"], q["unit"])
+        if q.get("plausible") is False:
+            continue
         quantities.append({"name": q["lead"], "iso": q["iso"], "quantity": q["quantity"],
-                           "relative_to": q["relative_to"], "value": value, "u_k2": 2 * std, "unit": unit,
-                           "formula": q["formula"]})
+                           "relative_to": q["relative_to"] or "nothing else (the other members' share is below "
+                                                             "0.001)",
+                           "value": value, "u_k2": 2 * std, "unit": unit,
+                           "formula": q["formula_iso"]})
     setups = []
     for su_ in j.get("setups", []):
         for name, p in su_["parameters"].items():
@@ -158,12 +174,14 @@ def _fit_record(model, j: dict, groups_advice) -> dict:
                            "value": value, "u_k2": None if std is None else 2 * std, "unit": unit,
                            "determined": p["determined"], "note": p.get("note", ""),
                            "placement": su_.get("placement", "")})
+    leads = {q["name"] for q in quantities}
+    groups = [dict(g, relative=[m for m in g["members"] if m in leads]) for g in groups_advice]
     return {"rms_um": j["rms_mm"] * 1e3, "rms_first_order_um": j["rms_first_order_mm"] * 1e3, "rank": j["rank"],
             "setups": setups,
             "n_parameters": j["n_parameters"], "condition": j["condition"], "sigma": j["sigma"],
             "reduced_chi2": j.get("reduced_chi2"), "effects": j["effects"],
             "effects_iso": [iso.name(model, e) for e in j["effects"]], "parameters": params,
-            "combinations": combos, "quantities": quantities, "groups": groups_advice,
+            "combinations": combos, "quantities": quantities, "groups": groups,
             "correlations": [dict(c, a_iso=iso.name(model, c["a"]), b_iso=iso.name(model, c["b"]))
                              for c in j["correlations"]]}
 
@@ -205,8 +223,11 @@ def _verdict(obj, rounds: list[dict], fit: dict, max_rounds: int) -> dict:
         unexplained.append("the data has no sigma column: the noise is estimated from the residual itself; the "
                            "verdict rests on the candidate test and the residual-structure tests")
     if fit["groups"]:
+        relative = sum(len(g["relative"]) for g in fit["groups"])
         unexplained.append(f"{len(fit['groups'])} groups of parameters cannot be told apart by this data (their "
-                           f"combinations are determined; see the fit)")
+                           f"combinations are determined; see the fit)"
+                           + (f"; {relative} of these parameters {'is' if relative == 1 else 'are'} stated relative "
+                              f"to the others of {'its' if relative == 1 else 'their'} group" if relative else ""))
     if explained:
         headline = (f"The model explains the measurements to the noise level: residual RMS {last['rms_um']:.3g} um "
                     f"against noise {last['noise_um']:.3g} um"
@@ -217,44 +238,54 @@ def _verdict(obj, rounds: list[dict], fit: dict, max_rounds: int) -> dict:
     return {"explained": explained, "verdict": verdict, "headline": headline, "rms_um": last["rms_um"],
             "noise_um": last["noise_um"], "noise_source": last["noise_source"], "ratio": ratio,
             "rms_first_um": rounds[0]["rms_um"],
-            "effects_found": [{"id": a, "iso": iso.name(obj, a),
-                               "description": next((c["description"] for r in rounds for c in r["candidates"]
-                                                    if c["id"] == a), "")} for a in found],
+            "effects_found": [_found(obj, a, fit) for a in found],
             "unexplained": unexplained}
+
+
+def _found(obj, effect_id: str, fit: dict) -> dict:
+    """An effect the rounds added, as the final fit has it (one size per effect: the final model's, never a
+    round's): its parameters' names in the fit's table and the description of its first parameter."""
+    names = [p["name"] for p in fit["parameters"] if p["name"] == effect_id or p["name"].startswith(effect_id + "@")]
+    first = next((p for p in fit["parameters"] if names and p["name"] == names[0]), None)
+    return {"id": effect_id, "iso": iso.name(obj, effect_id), "parameters": names,
+            "description": first["description"] if first else ""}
 
 
 def build(data, machine="li2018", convention: str = "equations", added=(), compensation=None,
           max_rounds: int = MAX_ROUNDS, sensitivity: bool = True, title: str | None = None,
-          frame: str | None = None) -> Report:
-    """Run the analyses of a measurement file and collect the report's record and figures.
+          frame: str | None = None, campaign: dict | None = None, uncertainty: U.Statement | None = None,
+          today: _dt.date | None = None) -> Report:
+    """Run the analyses of a measurement file (or of several: one joint fit, `measurement.files.join`) and collect
+    the report's record and figures.
 
     added: effect ids added to the model before the first round (project or ISO names); compensation: a folder
     with summary.json (see report.compensation) or None. Rounds: diagnose, add the top candidate, repeat while
     the decision says an effect is missing, at most max_rounds diagnoses; frame: of the readings (None: the
-    file's, else workpiece)."""
-    if max_rounds < 1:
-        raise InputError(f"rounds: expected at least 1, got {max_rounds}")
+    file's, else workpiece). campaign: a checked campaign (`report.campaign.load`): the record becomes a
+    calibration certificate (`record["certificate"]`); uncertainty: the ISO 230-9 statement of the ISO 230-2
+    figures (default: the campaign's iso230_9 keys, else none); today: the issue date when the campaign gives
+    none."""
+    if uncertainty is None:
+        uncertainty = U.Statement(**{k: v for k, v in (campaign or {}).get("iso230_9", {}).items()})
+    U.check(uncertainty)
     model = load(machine, convention)
     comp = C.read(compensation, model.machine.name) if compensation is not None else None
-    meas = read(data, model.machine, min_rows=2, frame=frame)
+    paths = list(data) if isinstance(data, (list, tuple)) else [data]
+    meas = join([read(p, model.machine, min_rows=2 if len(paths) == 1 else 1, frame=frame) for p in paths],
+                model.machine)
     effects = resolve_effects(model, machine_effects(model) + list(added))
     design_size.check(model, meas, effects)
     preconditions.check(meas)
-    rounds, diags = [], []
-    for k in range(1, max_rounds + 1):
-        dg = D.diagnose(model, meas, effects, top=TOP)
-        diags.append(dg)
-        rounds.append(_round_record(model, k, dg.to_json()))
-        if not (dg.missing_effect and dg.candidates) or k == max_rounds:
-            break
-        effects = effects + resolve_effects(model, [dg.candidates[0]["id"]])
+    diags = loop.rounds(model, meas, effects, max_rounds, top=TOP, fixed=dict(model.machine.fixed) or None)
+    rounds = [_round_record(model, k, dg.to_json()) for k, dg in enumerate(diags, 1)]
     final = diags[-1]
     j = fit_json(final.fit)
     advice = sep.parameters(model, meas, final.fit.problem.effects, j["unidentifiable"],
                             list(final.fit.problem.names))
     fit = _fit_record(model, j, advice)
     record = {
-        "title": title or f"Calibration report: {model.machine.title}",
+        "title": title or (f"Calibration certificate {campaign['certificate']['number']}: {model.machine.title}"
+                           if campaign else f"Calibration report: {model.machine.title}"),
         "generated": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
         "fiveaxis_version": _version(),
         "machine": _machine_record(model), "data": _data_record(model, meas), "rounds": rounds, "fit": fit,
@@ -262,7 +293,8 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
                       "after": {"effects": rounds[-1]["added"], "rms_um": rounds[-1]["rms_um"]}},
         "sensitivity": None, "compensation": None}
     record["verdict"] = _verdict(model, rounds, fit, max_rounds)
-    figs = {"coverage": figures.coverage(model, meas), "rounds": figures.rounds(rounds)}
+    figs = {"rounds": figures.rounds(rounds)}
+    figs["coverage"], record["data"]["coverage_caption"] = figures.coverage(model, meas)
     series = [series_of(diags[0].fit, f"{_model_label(rounds[0]['added'])} (RMS {rounds[0]['rms_um']:.3g} um)")]
     if len(diags) > 1:
         series.append(series_of(final.fit, f"{_model_label(rounds[-1]['added'])} (RMS {rounds[-1]['rms_um']:.3g} "
@@ -271,8 +303,10 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
         model, meas, series, "Fit residual (measured minus modelled reading, um; urad for "
                                                     "the tool axis) against each axis "
                              "position and time" + (", before and after the effects found" if len(diags) > 1 else "")))
-    record["iso230"], iso_figs = iso230.sections(model, meas)
+    record["iso230"], iso_figs = iso230.sections(model, meas, uncertainty)
     figs.update(iso_figs)
+    record["certificate"] = (certificate.block(campaign, meas, record["iso230"], fit["sigma"], today)
+                             if campaign else None)
     if sensitivity:
         record["sensitivity"], top = _sensitivity(model)
         figs["sensitivity"] = figures.sensitivity(top)

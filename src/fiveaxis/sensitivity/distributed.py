@@ -65,13 +65,14 @@ def gsil(model, grid, client, errors=None, L0=None, LE=None, rel_tiny=1e-12, chu
     (default 4 per worker thread), so the client's memory stays bounded whatever the grid size.
     """
     if worker_kernel not in ("serial", "parallel"):
-        raise InputError(f"worker_kernel: expected 'serial' or 'parallel', got {worker_kernel!r}")
+        raise InputError(f"worker_kernel: expected 'serial' or 'parallel', got {worker_kernel!r}", key="worker_kernel")
     if int(chunk) != chunk or chunk < 1:
-        raise InputError(f"chunk: expected a positive number of poses, got {chunk}")
+        raise InputError(f"chunk: expected a positive number of poses, got {chunk}", key="chunk")
     L0 = model.machine.tool_length if L0 is None else float(L0)
     LE = model.machine.cutting_length if LE is None else float(LE)
     if not (math.isfinite(L0) and math.isfinite(LE) and LE > 0 and L0 > 0):
-        raise InputError(f"L0/LE: expected positive tool and cutting lengths in mm, got {L0} and {LE}")
+        raise InputError(f"L0/LE: expected positive tool and cutting lengths in mm, got {L0} and {LE}",
+                         key=("L0", "LE"))
     E, label = error_values(model, errors)
     if grid.size == 0:
         raise InputError("the grid has no poses")

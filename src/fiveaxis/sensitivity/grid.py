@@ -150,7 +150,7 @@ def parse_axis_spec(spec: str, rotary: tuple[str, ...] | set[str] = ()) -> GridA
     name, sep, rng = spec.partition("=")
     name = name.strip()
     if not sep or not name or not rng.strip():
-        raise InputError(f"axis spec {spec!r}: expected NAME=LO:HI:COUNT or NAME=VALUE")
+        raise InputError(f"axis spec {spec!r}: expected NAME=LO:HI:COUNT or NAME=VALUE", key="axis spec")
     parts = rng.split(":")
     unit = "deg" if name in rotary else "mm"
     try:
@@ -163,19 +163,19 @@ def parse_axis_spec(spec: str, rotary: tuple[str, ...] | set[str] = ()) -> GridA
             raise ValueError
     except ValueError:
         raise InputError(f"axis spec {spec!r}: expected NAME=LO:HI:COUNT (numbers, COUNT an integer) or "
-                         f"NAME=VALUE") from None
+                         f"NAME=VALUE", key="axis spec") from None
     if not (math.isfinite(lo) and math.isfinite(hi)):
-        raise InputError(f"axis spec {spec!r}: the range must be finite numbers ({unit})")
+        raise InputError(f"axis spec {spec!r}: the range must be finite numbers ({unit})", key="axis spec")
     if not math.isfinite(count) or count != int(count):
         raise InputError(f"axis spec {spec!r}: COUNT must be a whole number of points (COUNT an integer), got "
-                         f"{parts[-1].strip()}")
+                         f"{parts[-1].strip()}", key="axis spec")
     count = int(count)
     if count < 1:
-        raise InputError(f"axis spec {spec!r}: count must be at least 1, got {count}")
+        raise InputError(f"axis spec {spec!r}: count must be at least 1, got {count}", key="axis spec")
     if count > 1 and not hi > lo:
         kind = "empty" if hi == lo else "inverted"
         raise InputError(f"axis spec {spec!r}: {kind} range {lo:g}:{hi:g} {unit} with {count} points (expected "
-                         f"lo < hi, or a count of 1 for a fixed axis)")
+                         f"lo < hi, or a count of 1 for a fixed axis)", key="axis spec")
     if name in rotary:
         lo, hi = math.radians(lo), math.radians(hi)
     return GridAxis(name, lo, hi, count)
@@ -187,7 +187,8 @@ def grid_from_specs(base: Grid, specs: list[str], rotary=()) -> Grid:
     for s in specs or ():
         ax = parse_axis_spec(s, rotary)
         if ax.name not in base.names:
-            raise InputError(f"axis spec {s!r}: unknown axis '{ax.name}' (expected one of: {', '.join(base.names)})")
+            raise InputError(f"axis spec {s!r}: unknown axis '{ax.name}' (expected one of: {', '.join(base.names)})",
+                             key="axis spec")
         new[ax.name] = ax
     return base.replace(**new)
 

@@ -47,16 +47,16 @@ CHECK_SAMPLE = 4096
 def quadrature(L0: float, LE: float, order: int) -> tuple[np.ndarray, np.ndarray]:
     """Gauss-Legendre nodes (tool lengths, mm) and weights (mm) on [L0 - LE, L0]."""
     if not (isinstance(LE, (int, float)) and math.isfinite(LE) and LE > 0):
-        raise InputError(f"LE: the effective cutting length must be a positive number of mm, got {LE}")
+        raise InputError(f"LE: the effective cutting length must be a positive number of mm, got {LE}", key="LE")
     if not (math.isfinite(L0) and 0 < L0 <= MAX_TOOL_LENGTH_MM):
         raise InputError(f"L0: the tool length must be a positive number of mm up to {MAX_TOOL_LENGTH_MM:g}, got "
-                         f"{L0}")
+                         f"{L0}", key="L0")
     if LE > L0:
-        raise InputError(f"the effective cutting length LE = {LE:g} mm is longer than the tool length L0 = {L0:g} "
-                         f"mm: the cutting edge would reach behind the gauge line (tool lengths L0 - LE = "
-                         f"{L0 - LE:g} mm < 0); expected LE <= L0")
+        raise InputError(f"LE: the effective cutting length {LE:g} mm is longer than the tool length L0 = {L0:g} mm: "
+                         f"the cutting edge would reach behind the gauge line (tool lengths L0 - LE = {L0 - LE:g} mm "
+                         f"< 0); expected LE <= L0", key="LE")
     if int(order) != order or not 1 <= order <= 200:
-        raise InputError(f"order: the Gauss-Legendre order must be an integer from 1 to 200, got {order}")
+        raise InputError(f"order: the Gauss-Legendre order must be an integer from 1 to 200, got {order}", key="order")
     x, w = np.polynomial.legendre.leggauss(int(order))
     return L0 - 0.5 * LE + 0.5 * LE * x, 0.5 * LE * w
 
@@ -79,7 +79,7 @@ def kernel_w(model, poses, E, L0, LE, order, rel_tiny=REL_TINY, normals=None, mo
     E = np.ascontiguousarray(E, dtype=float)
     if order == "exact":
         if mode != 0:
-            raise InputError("the exact integral over L is for W_i alone (normal mode 0); give order=N")
+            raise InputError("the exact integral over L is for W_i alone (normal mode 0); give order=N", key="order")
         lo, hi = float(L0 - LE), float(L0)
         if each:
             W = np.zeros((len(poses), len(E)))
@@ -311,12 +311,13 @@ def lsil(model, poses, errors=None, L0=None, LE=None, order=2 * DEFAULT_ORDER, m
     """LSIL_i: the mean over the poses of a PoseList of W_i (mode 0) or of its projection on the surface normal
     (mode 1, normals required); per-pose values in `per_pose`."""
     if mode not in (0, 1):
-        raise InputError(f"normal_mode: expected 0 (W_i alone) or 1 (projection on the normal N), got {mode}")
+        raise InputError(f"normal_mode: expected 0 (W_i alone) or 1 (projection on the normal N), got {mode}",
+                         key="normal_mode")
     L0 = model.machine.tool_length if L0 is None else float(L0)
     LE = model.machine.cutting_length if LE is None else float(LE)
     _validate(L0, LE, order)
     if order == "exact" and mode != 0:
-        raise InputError("the exact integral over L is for W_i alone (normal mode 0); give order=N")
+        raise InputError("the exact integral over L is for W_i alone (normal mode 0); give order=N", key="order")
     E, label = error_values(model, errors)
     normals = getattr(poses, "normals", None)
     if mode == 1 and normals is None:

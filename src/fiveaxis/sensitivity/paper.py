@@ -85,7 +85,7 @@ def paper_errors(model) -> dict[str, float]:
 def cone_phi(cone: int, n: int = 5) -> np.ndarray:
     """n evenly spaced azimuths (rad) over the quarter of the cone at machining position `cone` (1 or 2)."""
     if cone not in CONE_PHI:
-        raise InputError(f"cone: expected 1 or 2, got {cone}")
+        raise InputError(f"cone: expected 1 or 2, got {cone}", key="cone")
     lo, hi = CONE_PHI[cone]
     return np.radians(np.linspace(lo, hi, n))
 

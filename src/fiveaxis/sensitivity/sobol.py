@@ -62,9 +62,9 @@ def sobol_total(model, grid, L0, LE, bound: float = 1e-4, n: int = 256, seed: in
     from SALib.analyze import sobol as sobol_analyze   # optional heavy dependency: only `fiveaxis sobol`
     from SALib.sample import sobol as sobol_sample   # (as above)
     if not (bound > 0 and np.isfinite(bound)):
-        raise InputError(f"bound: expected a positive finite error magnitude (mm, rad), got {bound}")
+        raise InputError(f"bound: expected a positive finite error magnitude (mm, rad), got {bound}", key="bound")
     if n < 2 or n & (n - 1):
-        raise InputError(f"samples: expected a power of 2 (SALib's Sobol' sequence), got {n}")
+        raise InputError(f"samples: expected a power of 2 (SALib's Sobol' sequence), got {n}", key="samples")
     names = list(model.errors)
     problem = {"num_vars": len(names), "names": names, "bounds": [[-bound, bound]] * len(names)}
     X = sobol_sample.sample(problem, n, calc_second_order=False, seed=seed)

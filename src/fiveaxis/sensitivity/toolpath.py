@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError
-from ..inputs import regular_file
+from ..inputs import MAX_TABLE_BYTES, open_file
 from .grid import PoseList
 from ..guards import check_size
 from ..linuxcnc.rs274 import AXES
@@ -94,10 +94,10 @@ def read_csv(path, machine, max_rows: int | None = None) -> Toolpath:
     """A toolpath CSV (see the module docstring); max_rows: refuse longer files (fiveaxis.guards)."""
     path = Path(path)
     variables = machine.variables
-    if path.exists():
-        regular_file(path, "a toolpath CSV")              # a FIFO or a device would block or never end
+    if not path.exists():
+        raise InputError(f"{path}: toolpath file not found")
     try:
-        with open(path, newline="", encoding="utf-8") as f:
+        with open_file(path, "a toolpath CSV", MAX_TABLE_BYTES, text=True, newline="") as f:
             reader = csv.reader(f)
             header = next(reader, None)
             if header is None:
@@ -339,7 +339,7 @@ def from_specs(specs, machine) -> Toolpath:
         rows.append([_convert(np.array(vals[v]), machine.axis(v).type) for v in variables])
         normals.append([vals[c] for c in NORMAL_COLUMNS] if given else None)
     if any(n is None for n in normals) and not all(n is None for n in normals):
-        raise InputError("poses: give a normal (nx, ny, nz) for every pose or for none")
+        raise InputError("poses: give a normal (nx, ny, nz) for every pose or for none", key="poses")
     q = np.array(rows, dtype=float)
     check_strokes(machine, q, lambda i: f"--pose {specs[i]!r}")
     N = None if normals[0] is None else _normals(np.array(normals, dtype=float), lambda i: f"--pose {specs[i]!r}")

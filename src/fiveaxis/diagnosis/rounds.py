@@ -1,0 +1,32 @@
+"""The calibration loop, written once: diagnose, add the top candidate, diagnose again, while the decision says an
+effect is missing and names one, at most `max_rounds` diagnoses.
+
+`fiveaxis diagnose FILE --rounds N` prints it (`report.text.rounds`), `fiveaxis report` builds its rounds from it,
+and `make run` (scripts/run-main.sh) shows it on the examples.
+"""
+from __future__ import annotations
+
+from ..estimation.problem import resolve_effects
+from ..exceptions import InputError
+from . import diagnose as D
+
+#: Rounds of diagnose -> add the top candidate, at most, unless told otherwise.
+MAX_ROUNDS = 4
+
+
+def rounds(model, meas, effects, max_rounds: int = MAX_ROUNDS, top: int = 10, fixed=None,
+           in_blocks: bool | None = None, prior=None) -> list:
+    """The diagnoses of the loop, in order ([Diagnosis]): round 1 with `effects`, each next round with the previous
+    round's best candidate added, until a round's verdict is not "missing effect" (or it lists no candidate) or
+    `max_rounds` diagnoses ran. top, fixed, in_blocks, prior: as for `diagnose`."""
+    if isinstance(max_rounds, bool) or not isinstance(max_rounds, int) or max_rounds < 1:
+        raise InputError(f"rounds: expected a whole number >= 1, got {max_rounds!r}")
+    out = []
+    effects = list(effects)
+    for k in range(1, max_rounds + 1):
+        dg = D.diagnose(model, meas, effects, top=top, fixed=fixed, in_blocks=in_blocks, prior=prior)
+        out.append(dg)
+        if not (dg.missing_effect and dg.candidates) or k == max_rounds:
+            break
+        effects = effects + resolve_effects(model, [dg.candidates[0]["id"]])
+    return out
