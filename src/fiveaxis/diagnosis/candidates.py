@@ -179,6 +179,7 @@ def deltas(rss, gains, N, pens, known_sigma):
 class Prior:
     """The families searched and their trials: the penalty of the decision."""
     trials: dict               # family -> M_f
+    _memo: dict = field(default_factory=dict, repr=False, compare=False)   # (family, N, k) -> penalty
 
     @property
     def F(self) -> int:
@@ -187,7 +188,10 @@ class Prior:
     def penalty(self, family: str, N: int, k: int = 1) -> float:
         """Penalty of a candidate of k coefficients of a family (a searched family's argument counts as one
         more)."""
-        return ebic_penalty(N, self.trials.get(family, 1), k + fx.family(family).SEARCHED, self.F)
+        key = (family, N, k)
+        if key not in self._memo:           # asked for thousands of times per diagnosis, a few distinct
+            self._memo[key] = ebic_penalty(N, self.trials.get(family, 1), k + fx.family(family).SEARCHED, self.F)
+        return self._memo[key]
 
     def to_json(self, N: int) -> dict:
         return {f: {"M": int(m), "penalty_one_coefficient": self.penalty(f, N, 1),
@@ -256,9 +260,9 @@ class Pool:
         return out
 
 
-def candidate_matrix(block, w: np.ndarray, effects) -> np.ndarray:
-    """Weighted design columns (m_b, k) of candidate effects at a block's readings."""
-    return block.effect_columns(effects) * w[:, None]
+def candidate_matrix(block, w: np.ndarray, effects, out=None) -> np.ndarray:
+    """Weighted design columns (m_b, k) of candidate effects at a block's readings (written into out if given)."""
+    return block.effect_columns(effects, w=w, out=out)
 
 
 def param_columns(block, w: np.ndarray):
