@@ -267,3 +267,47 @@ def test_confounded_when_everything_rises_with_time():
     pairs = [{fx.parse(c[k], model.machine, model.errors).var for k in ("effect", "with")} for c in conf]
     assert {"temp_spindle", fx.TIME} in pairs
     assert "cool-down phase, a spindle stop or a second day" in dg.heat["confounded_note"]
+
+
+# -- the plausibility of a rate per degC (compensation.plausible.THERMAL) ---------------------------------------
+def test_a_rate_per_degC_beyond_a_machine_is_flagged_and_refused(tmp_path):
+    """A spindle growing 1.5 um/degC and an X scale of 11.5 um/m/degC pass without a word; the same readings
+    against a sensor that barely changed (its changes a hundredth: 150 um/degC fitted) are flagged by fit with the
+    hint, and a model of 1 mm/degC or 1 mm/m/degC (edited, a unit slip) is refused by compensate, nothing written."""
+    import dataclasses
+    import json
+    from conftest import run_cli
+    from fiveaxis.compensation import plausible
+    from fiveaxis.measurement.simulate import simulate
+    model = fiveaxis.load("li2018")
+    ids = ["L:temp_spindle", "dx_x:x.temp_xscale"]
+    half = 0.5 * float(np.ptp(model.machine.axis("X").model_stroke))      # mm: the scale effect's c at the end
+    sim = simulate(model, ["L:temp_spindle=0.0015", f"dx_x:x.temp_xscale={ALPHA * half}"], n=200, seed=4,
+                   duration=14400.0, temperatures={"spindle": "spindle", "xscale": "bed:rise=3,tau=5000"})
+    fm = MF.from_fit(F.fit(model, sim.meas, ids))
+    rates = {e.id: e.values[0] for e in fm.effects}
+    assert abs(rates["L:temp_spindle"] - 1.5e-3) < 0.1e-3                    # the truth, so the bound is judged on it
+    assert abs(rates["dx_x:x.temp_xscale"] / half - ALPHA) < 0.2 * ALPHA
+    assert plausible.model_findings(fm, model.machine) == []
+    # the sensor that barely changed: the same readings, its changes a hundredth (0.15 degC over the test)
+    T = sim.meas.temps["temp_spindle"]
+    slip = dataclasses.replace(sim.meas, temps=dict(sim.meas.temps, temp_spindle=T[0] + (T - T[0]) / 100.0))
+    found = plausible.model_findings(MF.from_fit(F.fit(model, slip, ids)), model.machine)
+    assert len(found) == 1 and found[0].startswith("effect L:temp_spindle: 1") and "um/degC of temp_spindle" in found[0]
+    assert plausible.unit_slip(found).endswith(plausible.TEMPERATURE_HINT)
+    # compensate refuses a model of 1 mm/degC (and reports the scale's 1 mm/m/degC beside it), nothing written
+    path = tmp_path / "m.json"
+    MF.save(fm, path)
+    data = json.loads(path.read_text())
+    for e in data["effects"]:
+        e["coefficients_mm_rad"] = {k: (1.0 if e["param"] == "L" else 1e-3 * half) for k in e["coefficients_mm_rad"]}
+    path.write_text(json.dumps(data))
+    out = tmp_path / "c"
+    out.mkdir()
+    rc, _, err = run_cli("compensate", path, "-o", out)
+    assert rc == 2 and err.count("\n") == 1 and list(out.iterdir()) == [], err
+    assert "L:temp_spindle: 1000 um/degC" in err and "(and 1 more)" in err and plausible.TEMPERATURE_HINT in err
+    assert "nothing is written for the controller" in err
+    bad = MF.load(path)
+    found = plausible.model_findings(bad, model.machine)
+    assert any(f.startswith("effect dx_x:x.temp_xscale: 1000 um/m/degC") for f in found), found

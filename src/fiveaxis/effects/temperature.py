@@ -163,6 +163,21 @@ class Temperature(base.VocabularyEffect):
         return out
 
     @classmethod
+    def extents(cls, rec, scales):
+        """Its rate, judged by `fiveaxis.compensation.plausible.THERMAL`: ("per_degC", |c| in mm/degC or
+        rad/degC, None) for an effect of the channel alone; a scale effect on a linear axis ("expansion_per_degC",
+        |c| / half-stroke in 1/degC (mm per mm of position per degC), the axis' column); on a rotary axis its
+        change at the end of the stroke per degC ("per_degC")."""
+        if not rec.values:
+            return []
+        c = abs(float(rec.values[0]))
+        axis = cls._axis_of_id(rec.id, rec.var)
+        s = scales.get(axis) if axis else None
+        if s is not None and s.unit == "mm" and s.half > 0:
+            return [("expansion_per_degC", c / s.half, s.column)]
+        return [("per_degC", c, s.column if s is not None else None)]
+
+    @classmethod
     def evaluated_in(cls, rec, ctx):
         """Without its channel's temperature the channel is at its reference: the effect adds nothing."""
         return ctx if rec.var in ctx.temps else None

@@ -406,14 +406,14 @@ def _get(d, key, kind, where):
 ARG_RANGE = (1e-3, 1e6)
 
 
-def _check_id(ident, family, param, var, deg, arg, where) -> None:
+def _check_id(ident, family, param, var, deg, arg, where, toks=()) -> None:
     """An effect's id must follow its family's grammar for its own variable and say what the entry's keys say
     (parameter, degree, period / time constant / spacing), that argument within ARG_RANGE; InputError naming the
     file, the entry and the key. Custom effects (no variable) are the machine file's: checked there."""
     if var is None:
         return
-    got = split_id(ident, [var], (family,))
-    if got is None or got[1][0] != param:
+    got = split_id(ident, [var, *toks], (family,))      # toks: the file's other variables (a scale effect's axis)
+    if got is None or got[1][0] != param or got[1][1] != var:
         raise InputError(f"{where}: key 'id': {ident!r} is not a {family.NAME} effect of {param} along {var} "
                          f"(expected <param>:<var>{family.GRAMMAR}, e.g. {family.EXAMPLE})")
     said = got[1][2]
@@ -424,7 +424,7 @@ def _check_id(ident, family, param, var, deg, arg, where) -> None:
         if arg is not None and float(arg) != said:
             raise InputError(f"{where}: key '{key}': {arg:g} where the id {ident!r} says {said:g}")
         lo, hi = ARG_RANGE
-        if not lo <= said <= hi:
+        if said != 0 and not lo <= said <= hi:       # 0: an id without one (a temperature effect without a lag)
             raise InputError(f"{where}: key '{key}': {said:g}: expected {lo:g} to {hi:g} (the variable's unit: mm, "
                              f"deg or s)")
 
@@ -483,7 +483,7 @@ def load(path) -> FittedModel:
         stds = tuple(float(_get(sd, n, "num", f"{where}: std_mm_rad")) if n in sd else None for n in names)
         param = _get(e, "param", "str", where)
         var, deg, arg = fx.family(kind).read_json(e, values, scales, where)
-        _check_id(ident, fx.family(kind), param, var, deg, arg, where)
+        _check_id(ident, fx.family(kind), param, var, deg, arg, where, [k for k in scales if k != var])
         effects.append(EffectRecord(ident, kind, param, var, deg, names, values, stds, arg))
     combos = tuple(c for c in data.get("combinations", []) if isinstance(c, dict))
     fit = data.get("fit", {}) if isinstance(data.get("fit", {}), dict) else {}
