@@ -57,14 +57,15 @@ def lagged(grid, T, tau):
     return y
 
 
-def day(model, seed, runs, heat=True, air_shift=0.0, drop=(), base=None):
-    """A measurement file of one day (tmp CSV read back) and its truth: (Measurements, base errors, temps)."""
+def day(model, seed, runs, heat=True, air_shift=0.0, drop=(), base=None, start=20.0):
+    """A measurement file of one day (tmp CSV read back) and its truth: (Measurements, base errors, temps); the
+    machine's errors are stated at 20 degC (the spindle starts at `start`)."""
     machine = model.machine
     rng = np.random.default_rng(seed)
     n = N
     q = machine.random_poses(n, rng)
     t = np.sort(rng.uniform(0, HOURS * 3600, n))
-    grid, Ts = spindle_history(t, runs)
+    grid, Ts = spindle_history(t, runs, start=start)
     T_spindle = np.interp(t, grid, Ts)
     T_lag = np.interp(t, grid, lagged(grid, Ts, LAG))
     T_x = 20.0 + 3.0 * -np.expm1(-t / 5000.0)
@@ -311,3 +312,42 @@ def test_a_rate_per_degC_beyond_a_machine_is_flagged_and_refused(tmp_path):
     bad = MF.load(path)
     found = plausible.model_findings(bad, model.machine)
     assert any(f.startswith("effect dx_x:x.temp_xscale: 1000 um/m/degC") for f in found), found
+
+
+# -- a stated reference temperature (--reference-temperature) -----------------------------------------------------
+def test_a_stated_reference_is_the_machine_at_that_temperature(tmp_path):
+    """A spindle warm from the previous shift (26 degC at the first reading) on a machine whose tool length is the
+    presetter's at 20 degC (the truth: L grows 1.5 um/degC from 20). Fitted with the stated reference 20 (the option
+    of fit and diagnose), the model holds 20 (kept in model.json as stated, the kinematics module's pin default) and
+    predicts the tool 9 um longer at a steady 26 degC, as the truth; reckoned from the first reading it predicts
+    nothing there. The option's refusals name it."""
+    from dataclasses import replace
+    from conftest import run_cli
+    from fiveaxis.commands.options import references_of
+    model = fiveaxis.load("li2018")
+    cols, _ = day(model, 7, [(0.0, 7200.0)], start=26.0, drop=("temp_air", "temp_motor"))
+    path = write(tmp_path, "warm.csv", cols)
+    meas = read(path, model.machine)
+    ids = [f"L:temp_spindle~{LAG:g}", "dx_x:x.temp_xscale"]
+    stated = replace(meas, references=references_of(["20"], meas))
+    assert stated.references == {"temp_spindle": 20.0, "temp_xscale": 20.0}
+    fm = MF.from_fit(F.fit(model, stated, ids))
+    MF.save(fm, tmp_path / "m.json")
+    fm = MF.load(tmp_path / "m.json")
+    sc = fm.scales["temp_spindle"]
+    assert sc.centre == 20.0 and sc.stated
+    at = model.machine.random_poses(5, np.random.default_rng(0))
+    _, dL = MF.errors_at(fm, model, at, temps={"temp_spindle": 26.0, "temp_xscale": 20.0})
+    assert np.allclose(dL, GAIN_L * 6.0, rtol=0.05), dL                 # the truth: 9 um longer at 26 degC
+    first = MF.from_fit(F.fit(model, meas, ids))
+    assert not first.scales["temp_spindle"].stated and abs(first.scales["temp_spindle"].centre - 26.0) < 0.5
+    _, dL_first = MF.errors_at(first, model, at, temps={"temp_spindle": 26.0, "temp_xscale": 20.0})
+    assert np.all(np.abs(dL_first) < 1e-3)                              # under 1 um: its reference is ~26
+    for spec, said in (("spindle=20", None), ("temp_xscale=21.5", None), ("foo=20", "no column temp_foo"),
+                       ("2000", "from -50 to 200 degC")):
+        if said is None:
+            assert references_of([spec], meas) == {"temp_" + spec.split("=")[0].removeprefix("temp_"):
+                                                   float(spec.split("=")[1])}
+            continue
+        rc, _, err = run_cli("fit", path, "--machine", "li2018", "--reference-temperature", spec)
+        assert rc == 2 and err.count("\n") == 1 and "--reference-temperature" in err and said in err, err

@@ -57,6 +57,7 @@ def _fit_options(p):
                    help="the resolution of a column (mm, deg), e.g. X=0.001 or A=0.0001 (repeatable): for Parquet "
                         "files, whose numbers say nothing of it (counted as full precision without), or to state a "
                         "controller's; a CSV column's is read from the digits its cells write")
+    options.reference_temperature(p)
     p.add_argument("--blocks", default="auto", choices=("auto", "on", "off"),
                    help="build the design in row blocks of 16,384 poses (bounded memory for 10^5-10^7 rows): auto "
                         "(above 16,384 poses; default), on, off (in memory)")

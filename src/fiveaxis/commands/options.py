@@ -7,13 +7,17 @@ whether the user named it) and `tool_lengths_of`; what an option means for the c
 from 0 to MAX_TOOL_LENGTH_MM, two lengths at least MIN_LENGTH_STEP_MM apart (a controller's resolution: 100 and
 100.0000000001 are one tool). compensate: the table's lengths (at least 2); plan: the lengths to plan with;
 simulate: each pose's length drawn uniformly between the smallest and the largest.
+
+`--reference-temperature [NAME=]DEGC` (fit, diagnose): the stated reference of the temperature channels, set on the
+measurements `measurements` reads (`Measurements.references`).
 """
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 from ..exceptions import InputError
-from ..model.columns import MAX_TOOL_LENGTH_MM, MIN_LENGTH_STEP_MM
+from ..model.columns import MAX_TOOL_LENGTH_MM, MIN_LENGTH_STEP_MM, TEMPERATURE_PREFIX, TEMPERATURE_RANGE_DEGC
 
 #: The machine of a command without --machine (the paper's).
 DEFAULT_MACHINE = "li2018"
@@ -75,9 +79,48 @@ def measurements(args, machine, min_rows: int = 1, resolution: dict | None = Non
         if several and not any(name in getattr(m, "columns", ()) for m in sets):
             raise InputError(f"--resolution {name}=...: no such column in {', '.join(str(f) for f in files)}")
     meas = join(sets, machine) if several else sets[0]
+    if getattr(args, "reference_temperature", None):
+        meas = replace(meas, references=references_of(args.reference_temperature, meas))
     for w in meas.warnings:
         print(f"fiveaxis: warning: {w}", file=sys.stderr)
     return meas
+
+
+def reference_temperature(p) -> None:
+    """--reference-temperature [NAME=]DEGC (repeatable): the temperature the model's base errors are stated at."""
+    p.add_argument("--reference-temperature", action="append", default=[], metavar="[NAME=]DEGC",
+                   help="the temperature a channel's effects are reckoned from, degC (the base errors are the machine "
+                        "at it; kept in the model file, the kinematics module's pin default): DEGC for every temp_ "
+                        "channel (e.g. 20, ISO 1's), NAME=DEGC for one (e.g. spindle=20); repeatable; default: each "
+                        "channel's first reading in time")
+
+
+def references_of(specs, meas) -> dict:
+    """{temp_<name>: degC} of --reference-temperature values for the channels of meas (a bare DEGC: every
+    channel, NAME=DEGC after it: that one), checked; InputError naming the option otherwise."""
+    out = {}
+    lo, hi = TEMPERATURE_RANGE_DEGC
+    for spec in specs or ():
+        name, sep, raw = spec.rpartition("=")
+        where = f"--reference-temperature {spec!r}"
+        try:
+            value = float(raw)
+        except ValueError:
+            value = float("nan")
+        if not lo <= value <= hi:
+            raise InputError(f"{where}: expected [NAME=]DEGC with a temperature from {lo:g} to {hi:g} degC, e.g. 20 "
+                             f"or spindle=20")
+        if not meas.temps:
+            raise InputError(f"{where}: the measurements have no temperature column (temp_<name>)")
+        if not sep:
+            out.update({c: value for c in meas.temps})
+            continue
+        channel = name.strip() if name.strip().startswith(TEMPERATURE_PREFIX) else TEMPERATURE_PREFIX + name.strip()
+        if channel not in meas.temps:
+            raise InputError(f"{where}: no column {channel} in the measurements (expected one of: "
+                             f"{', '.join(meas.temps)})")
+        out[channel] = value
+    return out
 
 
 def convention(p) -> None:

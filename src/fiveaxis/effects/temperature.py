@@ -1,6 +1,6 @@
 """The temperature-driven family `<param>:[<axis>.]temp_<name>[~<tau>]`: an error or the tool length changing
-linearly with a temperature channel's change from its reference (the channel's first reading in time, or a stated
-one), optionally times an axis position (a scale expanding with its temperature) and through a first-order lag of
+linearly with a temperature channel's change from its reference (the channel's first reading in time, or one stated
+with `--reference-temperature`: `Measurements.references`), optionally times an axis position (a scale expanding with its temperature) and through a first-order lag of
 time constant tau (a sensor on the spindle housing lagging the spindle nose):
 
     param += c (T_lag - T_ref)                     L:temp_spindle, L:temp_spindle~600
@@ -133,6 +133,8 @@ class Temperature(base.VocabularyEffect):
             return f"{what} changing with {self.var}{lag}{along}{note}"
         rate, unit = self.physical(machine, np.ravel(coefs)[:1], sc)[0]
         text = f"{what} changing by {human(rate, unit, 2)} of {self.var}{lag}{along}"
+        if getattr(sc[self.var], "stated", False):
+            text += f", from the stated reference {sc[self.var].centre:g} degC"
         if ctx is not None and ctx.n and self.var in ctx.temps and not self.axis:
             T = ctx.lagged(self.var, self.arg)
             size = float(np.ravel(coefs)[0]) * (float(np.max(T)) - float(np.min(T)))

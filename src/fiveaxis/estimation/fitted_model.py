@@ -19,7 +19,8 @@ The file is JSON, mm and rad, with the unit in every key that holds a number:
      "undetermined": [names], "policy": "...", "combinations": [{"formula", "terms", "value_mm_rad", "std_mm_rad"}],
      "effects": [{"id", "kind", "param", "variable", "degree", "coefficients_mm_rad": {name: value},
                   "std_mm_rad": {name: value}}],
-     "scales": {token: {"variable", "centre_<unit>", "half_range_<unit>"}},
+     "scales": {token: {"variable", "centre_<unit>", "half_range_<unit>"}},   (a temperature channel: centre_degC
+                its reference, "reference": "stated" (--reference-temperature) or "first reading", range_degC)
      "fit": {"n_poses", "rms_mm", "noise_mm", "rank", "n_parameters", "measured_tool_lengths_mm": [min, max]},
      "covariance_mm_rad": {"names": [...], "matrix": [[...]]},
      "undetermined_directions_mm_rad": {"names": [...], "basis": [[...], ...]},
@@ -342,7 +343,8 @@ def to_json(fm: FittedModel, folder=None) -> dict:
         unit = _SCALE_UNIT[sc.unit]
         scales[tok] = {"variable": sc.column if sc.column is not None else "t",
                        f"centre_{unit}": float(sc.centre), f"half_range_{unit}": float(sc.half),
-                       **({f"range_{unit}": [float(x) for x in sc.span]} if sc.span else {})}
+                       **({f"range_{unit}": [float(x) for x in sc.span]} if sc.span else {}),
+                       **({"reference": "stated" if sc.stated else "first reading"} if unit == "degC" else {})}
     effects = []
     for e in fm.effects:
         rec = {"id": e.id, "kind": e.kind, "param": e.param, **fx.family(e.kind).write_json(e)}
@@ -467,8 +469,12 @@ def load(path) -> FittedModel:
                 isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in span)):
             raise InputError(f"{where}: key 'range_{unit}': expected [lowest, highest] reading, got "
                              f"{json.dumps(span)[:40]}")
+        stated = sc.get("reference", "first reading")
+        if stated not in ("stated", "first reading"):
+            raise InputError(f"{where}: key 'reference': expected \"stated\" or \"first reading\", got "
+                             f"{json.dumps(stated)[:40]}")
         scales[tok] = fx.Scale(tok, None if var == "t" else var, centre, half, iface, to_unit,
-                               tuple(float(x) for x in span) if span else None)
+                               tuple(float(x) for x in span) if span else None, stated == "stated")
     effects = []
     for i, e in enumerate(_get(data, "effects", "list", w)):
         where = f"{w}: effects[{i}]"

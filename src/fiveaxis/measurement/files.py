@@ -67,6 +67,7 @@ class Measurements:
     quantum: dict | None = None         # resolution of the file's numbers: "poses" (n, nvar), "L" (n,), "u" (n, 3)
     #                                     model units, half a unit of the last digit (None: full precision)
     temps: dict = field(default_factory=dict)         # temp_<name> -> (n,) degC, NaN where not read
+    references: dict = field(default_factory=dict)    # temp_<name> -> stated reference (degC; else the first reading)
     source: np.ndarray | None = None    # (n,) index into `sources` of each row's file (None: one file)
     sources: tuple = ()                 # the files of a joint set (`join`), in order
     columns: tuple = ()                 # the file's column names (as read)
