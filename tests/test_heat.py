@@ -351,3 +351,40 @@ def test_a_stated_reference_is_the_machine_at_that_temperature(tmp_path):
             continue
         rc, _, err = run_cli("fit", path, "--machine", "li2018", "--reference-temperature", spec)
         assert rc == 2 and err.count("\n") == 1 and "--reference-temperature" in err and said in err, err
+
+
+# -- the cross-validation folds search the lags again -------------------------------------------------------------
+def test_the_folds_search_the_lags_again(monkeypatch):
+    """A lag chosen on all the readings must not enter a fold's held-out test (it has seen the held-out rows):
+    every lagged temperature candidate a fold's "add the best candidate" can choose was searched on that fold's
+    training rows; the all-data ones are left out of every fold, as the periods and time constants are."""
+    from fiveaxis.diagnosis import decision as dc
+    from fiveaxis.measurement.simulate import simulate
+    model = fiveaxis.load("li2018")
+    sim = simulate(model, [f"L:temp_spindle~{LAG:g}=0.0015"], n=300, seed=2, duration=14400.0,
+                   temperatures={"spindle": "spindle:off=7200", "air": "air:amp=1"})
+    seen = {}
+    real = dc.cross_validate
+
+    def spy(rows, lay, *args):
+        seen["lay"] = lay
+        return real(rows, lay, *args)
+    monkeypatch.setattr(dc, "cross_validate", spy)
+    dg = D.diagnose(model, sim.meas)
+    lay = seen["lay"]
+    temps = [k for k, e in enumerate(lay.effects) if isinstance(e, fx.Temperature) and e.tau > 0]
+    main = [k for k in temps if lay.fold[k] is None]
+    assert main and all(k in lay.resampled for k in main if lay.effects[k].var == "temp_spindle"
+                        and lay.effects[k].param == fx.TOOL)
+    spindle = next(k for k in main if lay.effects[k].param == fx.TOOL and lay.effects[k].var == "temp_spindle")
+    own = {}
+    for f in range(dc.K_FOLDS):
+        usable = [k for k in temps if (lay.fold[k] is None and k not in lay.resampled) or lay.fold[k] == f]
+        assert not [k for k in usable if lay.fold[k] is None and lay.effects[k].param == fx.TOOL
+                    and lay.effects[k].var == "temp_spindle"]                # the all-data lag: in no fold
+        own[f] = [lay.effects[k].tau for k in usable if lay.fold[k] == f and lay.effects[k].param == fx.TOOL
+                  and lay.effects[k].var == "temp_spindle"]
+        assert len(own[f]) == 1 and abs(own[f][0] - LAG) < 0.3 * LAG, own  # its own search finds the lag
+    print(f"all data: {lay.effects[spindle].id}; folds' own lags {own}; CV chose {dg.decision['cv_chosen']}")
+    assert len({v[0] for v in own.values()} | {lay.effects[spindle].tau}) > 1   # searched, not copied
+    assert "L:temp_spindle" in " ".join(dg.decision["accepted"])
