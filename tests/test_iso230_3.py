@@ -397,3 +397,31 @@ def test_parquet_and_blank_temperatures(tmp_path):
     assert (col["first_degC"], col["last_degC"], col["max_degC"]) == pytest.approx((read[0], read[-1], read.max()))
     assert any(f"temp_column: {len(read)} readings of {len(df)}" in n for n in a["notes"])
     assert a["series"]["temp_column_degC"][0] is None
+
+
+def test_files_are_read_through_the_public_table_reader(tmp_path):
+    """One reader of checked columns (`measurement.files.read_table`): no module outside measurement/files.py
+    reaches its private helpers, and the ISO 230-3 reader names a bad cell's row, line and column as it does."""
+    import ast
+    private = []
+    for path in sorted((ROOT / "src" / "fiveaxis").rglob("*.py")):
+        if path.name == "files.py" and path.parent.name == "measurement":
+            continue
+        tree = ast.parse(path.read_text())
+        aliases = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").endswith("measurement.files"):
+                private += [f"{path.name}: {a.name}" for a in node.names if a.name.startswith("_")]
+            if isinstance(node, ast.ImportFrom) and (node.module or "").endswith("measurement"):
+                aliases |= {a.asname or a.name for a in node.names if a.name == "files"}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases \
+                    and node.attr.startswith("_"):
+                private.append(f"{path.name}: {node.value.id}.{node.attr}")
+    assert private == []
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,dx,temp_spindle\n0,0.001,20\n\n60,0.002,abc\n120,0.003,21\n")
+    with pytest.raises(InputError, match=r"bad.csv: data row 3 \(line 4\), column temp_spindle: expected a number, "
+                                         r"got 'abc'"):
+        from fiveaxis.iso230.thermal_file import read
+        read(bad)
