@@ -52,3 +52,44 @@ def test_a_probe_importing_upwards_breaks_the_contract(tree, lower, higher):
     r = _lint(tmp_path, pkgs)
     assert r.returncode != 0
     assert f"fiveaxis.{lower}.probe_upwards -> {higher}" in r.stdout, r.stdout[-3000:]
+
+
+def _imports(root: Path) -> dict:
+    """{module: the runtime's modules it imports}, imports inside functions counted (an import moved into a function
+    to break a cycle still is one)."""
+    import ast
+    mods = {}
+    for p in root.rglob("*.py"):
+        parts = p.relative_to(root.parent).with_suffix("").parts
+        mods[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = p
+    graph = {}
+    for name, p in mods.items():
+        pkg = name if p.name == "__init__.py" else name.rpartition(".")[0]
+        deps = set()
+        for node in ast.walk(ast.parse(p.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                base = pkg.split(".")[:len(pkg.split(".")) - node.level + 1] if node.level else []
+                target = ".".join(base + ([node.module] if node.module else []))
+                deps |= {f"{target}.{a.name}" if f"{target}.{a.name}" in mods else target for a in node.names}
+            elif isinstance(node, ast.Import):
+                deps |= {a.name for a in node.names}
+        graph[name] = {d for d in deps if d in mods and d != name}
+    return graph
+
+
+def test_no_module_imports_one_that_imports_it_back():
+    """No circle between the runtime's modules (report/html.py and report/iso230_3.py imported each other, one import
+    inside a function breaking it: the shared pieces are report/markup.py now)."""
+    graph = _imports(ROOT / "src" / "fiveaxis")
+    circles = []
+    for start in graph:                       # a path from a module back to itself, depth first
+        seen, todo = set(), [(start, [start])]
+        while todo:
+            node, path = todo.pop()
+            for nxt in graph[node]:
+                if nxt == start:
+                    circles.append(" -> ".join(path + [start]))
+                elif nxt not in seen:
+                    seen.add(nxt)
+                    todo.append((nxt, path + [nxt]))
+    assert circles == []
