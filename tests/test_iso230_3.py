@@ -247,9 +247,16 @@ def test_known_etve_by_hand(tmp_path):
 # -- the command line ---------------------------------------------------------------------------------------------
 def test_command_line_text_json_plot(tmp_path, capsys):
     out = tmp_path / "sim.csv"
-    rc, _, err = run_cli("iso230-3-simulate", out, "--hours", "5", "--seed", "2", "--truth",
+    rc, _, err = run_cli("simulate", "--iso230-3", "spindle", "-o", out, "--hours", "5", "--seed", "2", "--truth",
                          tmp_path / "truth.json")
     assert rc == 0 and "wrote" in err
+    # one simulate: the test's options only with --iso230-3, a machine's readings' options never with it
+    for argv, said in ((["--hours", "5"], "--hours: an option of the ISO 230-3 test"),
+                       (["--iso230-3", "etve", "--effect", "ex_x:x1"], "--effect: an option of a machine's"),
+                       (["--iso230-3", "etve", "--machine", "li2018"], "--machine: the ISO 230-3 test"),
+                       (["--iso230-3", "etve", "--hours", "0"], "--hours")):
+        rc, _, e = run_cli("simulate", *argv, "-o", tmp_path / "no.csv")
+        assert rc == 2 and e.count("\n") == 1 and said in e and not (tmp_path / "no.csv").exists(), e
     rc, text, _ = run_cli("iso230-3", out, "--spacing", "100", "--plot", tmp_path / "plots")
     assert rc == 0 and "thermal distortion caused by a rotating spindle" in text
     assert "X to 0.1 um" in text and "A to 1 urad" in text and "running 0 to 239 min, 8000 rpm" in text

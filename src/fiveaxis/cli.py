@@ -41,8 +41,6 @@ COMMANDS = {
                                              "ballbar's diagnostic list"),
     "iso230-3": ("fiveaxis.commands.iso230_3", "ISO 230-3 thermal tests (ETVE, spindle, moving axis): drift per "
                                                "direction and phase beside the temperatures"),
-    "iso230-3-simulate": ("fiveaxis.commands.iso230_3", "a simulated ISO 230-3 test file (displacements of a "
-                                                        "five-sensor nest and temperatures over hours)"),
 }
 
 

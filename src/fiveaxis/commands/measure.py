@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import options
+from . import iso230_3, options
 from ..exceptions import InputError, one_line
 from ..compensation import plausible
 from ..diagnosis import preconditions
@@ -140,6 +140,7 @@ def register_simulate(p):
                         "spindle=spindle:rise=15,tau=900,off=7200 (warm-up, cool-down), air=air:amp=1.5, "
                         "bed=bed:rise=2, motor=mix:spindle=0.4,air=1 (docs/measurements.md); repeatable; drive "
                         "effects with --effect L:temp_spindle~600=0.0012 (mm or rad per degC)")
+    iso230_3.simulate_options(p)
     p.set_defaults(func=run_simulate)
 
 
@@ -321,6 +322,9 @@ def run_diagnose(args) -> int:
 
 
 def run_simulate(args) -> int:
+    iso230_3.check_simulate_options(args)
+    if args.iso230_3 is not None:
+        return iso230_3.run_simulate(args)
     from ..model.error_model import load
     from ..measurement.files import in_frame, write
     from ..outputs import target, write_text
