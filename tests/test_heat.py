@@ -388,3 +388,29 @@ def test_the_folds_search_the_lags_again(monkeypatch):
     print(f"all data: {lay.effects[spindle].id}; folds' own lags {own}; CV chose {dg.decision['cv_chosen']}")
     assert len({v[0] for v in own.values()} | {lay.effects[spindle].tau}) > 1   # searched, not copied
     assert "L:temp_spindle" in " ".join(dg.decision["accepted"])
+
+
+# -- the calibration loop says where it is (make run's heat section runs it once) --------------------------------
+def test_the_loop_reports_each_round(tmp_path):
+    """`diagnose --rounds N` prints one line per round on stderr as it goes (a loop runs for seconds to minutes):
+    its verdict, residual and the effect added next, the same as the JSON record it prints once at the end."""
+    import json
+    from conftest import run_cli
+    from fiveaxis.measurement.simulate import simulate, to_frame
+    model = fiveaxis.load("li2018")
+    sim = simulate(model, ["L:temp_spindle=0.0015"], n=120, seed=5, duration=14400.0,
+                   temperatures={"spindle": "spindle:off=7200"})
+    path = tmp_path / "h.csv"
+    to_frame(sim, model).to_csv(path, index=False)
+    rc, out, err = run_cli("diagnose", path, "--rounds", "3", "--top", "1", "--json")
+    rounds = json.loads(out)["rounds"]
+    lines = [line for line in err.splitlines() if line.startswith("fiveaxis: diagnose round")]
+    print("\n".join(lines))
+    assert rc == 0 and len(lines) == len(rounds) >= 2
+    for k, (line, r) in enumerate(zip(lines, rounds)):
+        assert line.startswith(f"fiveaxis: diagnose round {k + 1} of at most 3: {r['verdict']} (residual RMS "
+                               f"{1e3 * r['rms_mm']:.3g} um)")
+        if k + 1 < len(rounds):
+            assert line.endswith(f"adding {rounds[k + 1]['added'][-1]}")
+    assert lines[-1].endswith("the loop ends")
+    assert "L:temp_spindle" in " ".join(rounds[-1]["added"])

@@ -295,6 +295,13 @@ def run_fit(args) -> int:
     return 0
 
 
+def _round_done(k: int, most: int, dg, added) -> None:
+    """One line on stderr after each round of `diagnose --rounds N` (a loop runs for seconds to minutes)."""
+    then = f"adding {added}" if added else "the loop ends"
+    print(f"fiveaxis: diagnose round {k} of at most {most}: {dg.verdict} (residual RMS "
+          f"{1e3 * dg.rms_mm:.3g} um); {then}", file=sys.stderr, flush=True)
+
+
 def run_diagnose(args) -> int:
     from ..diagnosis import rounds as loop
     from ..report import text
@@ -306,7 +313,7 @@ def run_diagnose(args) -> int:
     preconditions.check(meas)                        # enough distinct poses for the cross-validation
     with _where_blocks(args) as in_blocks:
         dgs = loop.rounds(model, meas, effects, args.rounds, top=args.top, fixed=fixed, in_blocks=in_blocks,
-                          prior=prior)
+                          prior=prior, progress=_round_done if args.rounds > 1 else None)
     if args.plot is not None:
         from ..plots.residuals import plot_residuals
         path = plot_residuals(dgs[-1], args.plot)
