@@ -321,7 +321,6 @@ def test_a_stated_reference_is_the_machine_at_that_temperature(tmp_path):
     of fit and diagnose), the model holds 20 (kept in model.json as stated, the kinematics module's pin default) and
     predicts the tool 9 um longer at a steady 26 degC, as the truth; reckoned from the first reading it predicts
     nothing there. The option's refusals name it."""
-    from dataclasses import replace
     from conftest import run_cli
     from fiveaxis.commands.options import references_of
     model = fiveaxis.load("li2018")
@@ -329,7 +328,7 @@ def test_a_stated_reference_is_the_machine_at_that_temperature(tmp_path):
     path = write(tmp_path, "warm.csv", cols)
     meas = read(path, model.machine)
     ids = [f"L:temp_spindle~{LAG:g}", "dx_x:x.temp_xscale"]
-    stated = replace(meas, references=references_of(["20"], meas))
+    stated = meas.with_references(references_of(["20"]))
     assert stated.references == {"temp_spindle": 20.0, "temp_xscale": 20.0}
     fm = MF.from_fit(F.fit(model, stated, ids))
     MF.save(fm, tmp_path / "m.json")
@@ -343,12 +342,10 @@ def test_a_stated_reference_is_the_machine_at_that_temperature(tmp_path):
     assert not first.scales["temp_spindle"].stated and abs(first.scales["temp_spindle"].centre - 26.0) < 0.5
     _, dL_first = MF.errors_at(first, model, at, temps={"temp_spindle": 26.0, "temp_xscale": 20.0})
     assert np.all(np.abs(dL_first) < 1e-3)                              # under 1 um: its reference is ~26
-    for spec, said in (("spindle=20", None), ("temp_xscale=21.5", None), ("foo=20", "no column temp_foo"),
-                       ("2000", "from -50 to 200 degC")):
-        if said is None:
-            assert references_of([spec], meas) == {"temp_" + spec.split("=")[0].removeprefix("temp_"):
-                                                   float(spec.split("=")[1])}
-            continue
+    assert meas.with_references(references_of(["20", "spindle=21.5"])).references == \
+        {"temp_spindle": 21.5, "temp_xscale": 20.0}                      # a channel's own after every channel's
+    for spec, said in (("foo=20", "no column temp_foo"), ("2000", "from -50 to 200 degC"), ("=20", "[NAME=]DEGC"),
+                       ("spindle=warm", "[NAME=]DEGC")):
         rc, _, err = run_cli("fit", path, "--machine", "li2018", "--reference-temperature", spec)
         assert rc == 2 and err.count("\n") == 1 and "--reference-temperature" in err and said in err, err
 

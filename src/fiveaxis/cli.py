@@ -80,7 +80,7 @@ OPTIONS = {
     "drift_um": "--drift", "temperature_deviation_K": "--temperature-deviation",
     "spacing_mm": "--spacing", "spindle_on_min": "--spindle-on", "spindle_off_min": "--spindle-off",
     "spindle_speed_rpm": "--spindle-speed", "test_hours": "--hours", "run_hours": "--run-hours",
-    "interval_s": "--interval", "speed_rpm": "--speed",
+    "interval_s": "--interval", "speed_rpm": "--speed", "reference_temperature": "--reference-temperature",
 }
 COMMAND_OPTIONS = {"lsa": {"poses": "--pose"}, "fit": {"effect": "--add"}, "diagnose": {"effect": "--add"},
                    "report": {"effect": "--add"}}

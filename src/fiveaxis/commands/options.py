@@ -8,16 +8,15 @@ from 0 to MAX_TOOL_LENGTH_MM, two lengths at least MIN_LENGTH_STEP_MM apart (a c
 100.0000000001 are one tool). compensate: the table's lengths (at least 2); plan: the lengths to plan with;
 simulate: each pose's length drawn uniformly between the smallest and the largest.
 
-`--reference-temperature [NAME=]DEGC` (fit, diagnose): the stated reference of the temperature channels, set on the
-measurements `measurements` reads (`Measurements.references`).
+`--reference-temperature [NAME=]DEGC` (fit, diagnose, report): the stated reference of the temperature channels,
+set on the measurements `measurements` reads (`Measurements.with_references`).
 """
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 from ..exceptions import InputError
-from ..model.columns import MAX_TOOL_LENGTH_MM, MIN_LENGTH_STEP_MM, TEMPERATURE_PREFIX, TEMPERATURE_RANGE_DEGC
+from ..model.columns import MAX_TOOL_LENGTH_MM, MIN_LENGTH_STEP_MM
 
 #: The machine of a command without --machine (the paper's).
 DEFAULT_MACHINE = "li2018"
@@ -80,7 +79,7 @@ def measurements(args, machine, min_rows: int = 1, resolution: dict | None = Non
             raise InputError(f"--resolution {name}=...: no such column in {', '.join(str(f) for f in files)}")
     meas = join(sets, machine) if several else sets[0]
     if getattr(args, "reference_temperature", None):
-        meas = replace(meas, references=references_of(args.reference_temperature, meas))
+        meas = meas.with_references(references_of(args.reference_temperature))
     for w in meas.warnings:
         print(f"fiveaxis: warning: {w}", file=sys.stderr)
     return meas
@@ -95,31 +94,21 @@ def reference_temperature(p) -> None:
                         "channel's first reading in time")
 
 
-def references_of(specs, meas) -> dict:
-    """{temp_<name>: degC} of --reference-temperature values for the channels of meas (a bare DEGC: every
-    channel, NAME=DEGC after it: that one), checked; InputError naming the option otherwise."""
+def references_of(specs) -> dict:
+    """{channel name or None (every channel): degC} of --reference-temperature values ([NAME=]DEGC), in order, for
+    `Measurements.with_references`; InputError naming the option for a value that is not one."""
     out = {}
-    lo, hi = TEMPERATURE_RANGE_DEGC
     for spec in specs or ():
         name, sep, raw = spec.rpartition("=")
-        where = f"--reference-temperature {spec!r}"
         try:
             value = float(raw)
         except ValueError:
             value = float("nan")
-        if not lo <= value <= hi:
-            raise InputError(f"{where}: expected [NAME=]DEGC with a temperature from {lo:g} to {hi:g} degC, e.g. 20 "
-                             f"or spindle=20")
-        if not meas.temps:
-            raise InputError(f"{where}: the measurements have no temperature column (temp_<name>)")
-        if not sep:
-            out.update({c: value for c in meas.temps})
-            continue
-        channel = name.strip() if name.strip().startswith(TEMPERATURE_PREFIX) else TEMPERATURE_PREFIX + name.strip()
-        if channel not in meas.temps:
-            raise InputError(f"{where}: no column {channel} in the measurements (expected one of: "
-                             f"{', '.join(meas.temps)})")
-        out[channel] = value
+        if not math.isfinite(value) or (sep and not name.strip()):
+            raise InputError(f"--reference-temperature {spec!r}: expected [NAME=]DEGC, e.g. 20 or spindle=20")
+        key = name.strip() if sep else None
+        out.pop(key, None)
+        out[key] = value
     return out
 
 

@@ -29,7 +29,8 @@ import numpy as np
 
 from ..exceptions import InputError
 from ..model.columns import (AXIS_DEVIATIONS, BY_NAME, COLUMNS, DEVIATIONS, DIRECTION, DIRECTION_PREFIX, FRAMES, LINE,
-                             READINGS, SETUP_KINDS, TEMPERATURE_PREFIX, TEMPERATURE_RE, temperature_column)
+                             READINGS, SETUP_KINDS, TEMPERATURE_PREFIX, TEMPERATURE_RANGE_DEGC, TEMPERATURE_RE,
+                             temperature_column)
 from ..inputs import MAX_TABLE_BYTES, open_file
 from .column_names import check as check_columns
 
@@ -101,6 +102,30 @@ class Measurements:
                        dirs={k: v[rows] for k, v in self.dirs.items()}, rows=self.rows[rows], warnings=[],
                        temps={k: v[rows] for k, v in self.temps.items()}, source=pick(self.source),
                        quantum=None if self.quantum is None else {k: pick(v) for k, v in self.quantum.items()})
+
+    def with_references(self, stated: dict) -> "Measurements":
+        """The same readings with stated reference temperatures (the temperature effects reckoned from them, not from
+        each channel's first reading): stated {temp_<name> or <name>: degC; None: every channel}, later entries over
+        earlier ones. InputError (key reference_temperature) for a channel the data do not have or a temperature
+        outside the plausible range."""
+        out = dict(self.references)
+        lo, hi = TEMPERATURE_RANGE_DEGC
+        for name, value in stated.items():
+            if not lo <= value <= hi:
+                raise InputError(f"reference_temperature: {value:g} degC: expected a temperature from {lo:g} to {hi:g} "
+                                 f"degC", key="reference_temperature")
+            if not self.temps:
+                raise InputError(f"reference_temperature: {self.path} has no temperature column (temp_<name>)",
+                                 key="reference_temperature")
+            if name is None:
+                out.update({c: float(value) for c in self.temps})
+                continue
+            channel = name if name.startswith(TEMPERATURE_PREFIX) else TEMPERATURE_PREFIX + name
+            if channel not in self.temps:
+                raise InputError(f"reference_temperature: no column {channel} in {self.path} (expected one of: "
+                                 f"{', '.join(self.temps)})", key="reference_temperature")
+            out[channel] = float(value)
+        return replace(self, references=out)
 
     def with_poses(self, poses, L=None) -> "Measurements":
         """The same readings at other poses (mm, rad) and tool lengths (mm): what another plan would measure."""
