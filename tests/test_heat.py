@@ -411,3 +411,23 @@ def test_the_loop_reports_each_round(tmp_path):
             assert line.endswith(f"adding {rounds[k + 1]['added'][-1]}")
     assert lines[-1].endswith("the loop ends")
     assert "L:temp_spindle" in " ".join(rounds[-1]["added"])
+
+
+def test_compensate_shows_its_stages_on_a_terminal_only(monkeypatch):
+    """compensate (seconds to a minute) draws its stages as a bar on a terminal; in a pipe or a log it stays silent
+    (a refusal there is one line)."""
+    import io
+    import sys
+    from fiveaxis.commands.compensate import _stages
+    from fiveaxis.compensation.pipeline import STAGES
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+    for stream, shown in ((Terminal(), True), (io.StringIO(), False)):
+        monkeypatch.setattr(sys, "stderr", stream)
+        with _stages(STAGES) as stage:
+            for name in STAGES:
+                stage(name)
+        text = stream.getvalue()
+        assert ("compensate: 100%" in text and all(name in text for name in STAGES)) if shown else text == ""
