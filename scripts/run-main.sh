@@ -130,9 +130,12 @@ say "A 4-hour test on li2018 with four temperature sensors (spindle running 2 h,
     --temperature spindle=spindle:rise=15,tau=900,off=7200 --temperature xscale=bed:rise=3,tau=5000 \
     --temperature air=air:amp=1 --temperature motor=mix:spindle=0.4,air=1 \
     --effect L:temp_spindle~600=0.0015 --effect dx_x:x.temp_xscale=0.0287 -o "$HEAT" --force
-loop "$HEAT" li2018
-FOUND=$("$BIN/fiveaxis" diagnose "$HEAT" --rounds 4 --json | "$BIN/python" -c 'import json, sys
-r = json.load(sys.stdin)["rounds"]; print(" ".join("--add " + i for i in r[-1]["added"]))')
+say "The calibration loop: fiveaxis diagnose $HEAT --machine li2018 --rounds 4 --top 3 (run once: the text below and the effects it found come from its JSON record)"
+"$BIN/fiveaxis" diagnose "$HEAT" --machine li2018 --rounds 4 --top 3 --json > "$HDIR/rounds.json"
+"$BIN/python" -c 'import json, sys; from fiveaxis.report import text
+print(text.rounds(json.load(open(sys.argv[1]))["rounds"]))' "$HDIR/rounds.json"
+FOUND=$("$BIN/python" -c 'import json, sys
+print(" ".join("--add " + i for i in json.load(open(sys.argv[1]))["rounds"][-1]["added"]))' "$HDIR/rounds.json")
 say "Fit what the loop found ($FOUND) and compensate at a warm state (temp_spindle 35 degC, temp_xscale its warmest reading)"
 "$BIN/fiveaxis" fit "$HEAT" --machine li2018 $FOUND -o "$HDIR/model.json" --force | sed -n '/residual RMS/p;/temp_/p'
 "$BIN/fiveaxis" compensate "$HDIR/model.json" -o "$HDIR/comp" --temperature spindle=35 --force | sed -n '/^  at /,/only the kinematics/p'

@@ -1,6 +1,6 @@
 """The temperature-driven family `<param>:[<axis>.]temp_<name>[~<tau>]`: an error or the tool length changing
-linearly with a temperature channel's change from its reference (the channel's first reading in time, or a stated
-one), optionally times an axis position (a scale expanding with its temperature) and through a first-order lag of
+linearly with a temperature channel's change from its reference (the channel's first reading in time, or one stated
+with `--reference-temperature`: `Measurements.references`), optionally times an axis position (a scale expanding with its temperature) and through a first-order lag of
 time constant tau (a sensor on the spindle housing lagging the spindle nose):
 
     param += c (T_lag - T_ref)                     L:temp_spindle, L:temp_spindle~600
@@ -133,6 +133,8 @@ class Temperature(base.VocabularyEffect):
             return f"{what} changing with {self.var}{lag}{along}{note}"
         rate, unit = self.physical(machine, np.ravel(coefs)[:1], sc)[0]
         text = f"{what} changing by {human(rate, unit, 2)} of {self.var}{lag}{along}"
+        if getattr(sc[self.var], "stated", False):
+            text += f", from the stated reference {sc[self.var].centre:g} degC"
         if ctx is not None and ctx.n and self.var in ctx.temps and not self.axis:
             T = ctx.lagged(self.var, self.arg)
             size = float(np.ravel(coefs)[0]) * (float(np.max(T)) - float(np.min(T)))
@@ -161,6 +163,21 @@ class Temperature(base.VocabularyEffect):
         if rec.arg:
             out[cls.ARG_KEY] = rec.arg
         return out
+
+    @classmethod
+    def extents(cls, rec, scales):
+        """Its rate, judged by `fiveaxis.compensation.plausible.THERMAL`: ("per_degC", |c| in mm/degC or
+        rad/degC, None) for an effect of the channel alone; a scale effect on a linear axis ("expansion_per_degC",
+        |c| / half-stroke in 1/degC (mm per mm of position per degC), the axis' column); on a rotary axis its
+        change at the end of the stroke per degC ("per_degC")."""
+        if not rec.values:
+            return []
+        c = abs(float(rec.values[0]))
+        axis = cls._axis_of_id(rec.id, rec.var)
+        s = scales.get(axis) if axis else None
+        if s is not None and s.unit == "mm" and s.half > 0:
+            return [("expansion_per_degC", c / s.half, s.column)]
+        return [("per_degC", c, s.column if s is not None else None)]
 
     @classmethod
     def evaluated_in(cls, rec, ctx):
