@@ -153,4 +153,4 @@ def test_exam_runs_and_measures():
         assert 0 < r["quantities"] and 0 <= r["covered"] <= r["quantities"]
     for key in ("false_alarm_rate", "coverage_k2", "band_coverage"):
         assert s[key] is None or 0.0 <= s[key] <= 1.0
-    assert out["table"].startswith("| measured | value |")
+    assert out["table"].startswith("| measured | value") and set(out["tables"]) >= {"machine", "instrument"}
