@@ -36,6 +36,7 @@ from scipy.stats import beta
 from fiveaxis.compensation import prediction
 from fiveaxis.compensation.part_setup import SetupRemoval
 from fiveaxis.diagnosis import diagnose as D
+from fiveaxis.diagnosis import profiles
 from fiveaxis.effects import families as fx
 from fiveaxis.estimation import fit as F
 from fiveaxis.estimation.design import InMemory
@@ -54,9 +55,12 @@ NOISE = 1e-3
 NULL_SHARE = 0.4
 #: A hidden effect's part the model cannot absorb must be at least this share of its signal (else another draw).
 VISIBLE = 0.3
-#: A hidden effect is at most this size over the plan's range (mm, rad: what an error motion of a machine tool can
-#: be); a draw whose k x noise needs more is drawn again.
-MAX_SIZE = {"mm": 0.030, "rad": 100e-6}
+#: A hidden effect is at most this size over the plan's readings (peak to peak, mm, rad: what an error motion of a
+#: machine tool can be); a draw whose k x noise needs more is drawn again (at most DRAWS times; then the set is
+#: null and says so: `drawn_null`). 30 um / 100 urad left most draws at k > 6 without an effect (a linear error
+#: motion at 10x the noise of tip readings spans about 60 um).
+MAX_SIZE = {"mm": 0.100, "rad": 300e-6}
+DRAWS = 100
 #: Workspace poses.
 WORKSPACE_POSES = 400
 
@@ -96,8 +100,6 @@ FAMILIES = ("polynomial", "reversal", "periodic", "thermal", "profile")
 PERIOD_SHARE = (0.15, 0.8)
 #: A thermal drift's time constant (s) over the default hour of a simulated set.
 TAU_S = (200.0, 1500.0)
-#: A profile's knots over the stroke.
-PROFILE_KNOTS = (7, 13)
 #: A periodic period and a thermal time constant count as the hidden one within these ratios (the searches round
 #: them to 3 significant figures and refine on a grid).
 PERIOD_RATIO = 1.1
@@ -106,7 +108,8 @@ TAU_RATIO = 2.0
 
 def _draw_id(machine, meas, rng) -> str | None:
     """A random effect id of a random family: an error motion of an axis along its own variable (polynomial of
-    degree 1-2, reversal, periodic, profile), or any error motion or the tool length drifting in time (thermal)."""
+    degree 1-2, reversal, periodic, profile at the spacing a diagnosis offers on these positions), or any error
+    motion or the tool length drifting in time (thermal); None if the family cannot be drawn on this plan."""
     family = FAMILIES[rng.integers(len(FAMILIES))]
     if family == "thermal":
         params = [n for a in machine.axes for n in a.pdge] + [fx.TOOL]
@@ -129,8 +132,8 @@ def _draw_id(machine, meas, rng) -> str | None:
     if family == "periodic":
         span = float(np.ptp(meas.poses[:, i])) * to_unit
         return f"{param}:{tok}p{rng.uniform(*PERIOD_SHARE) * span:.3g}"
-    lo, hi = (float(x) for x in axis.stroke)
-    return f"{param}:{tok}k{(hi - lo) / (int(rng.integers(*PROFILE_KNOTS)) - 1):.4g}"
+    spacing = profiles.spacing_for(machine, tok, meas.poses[:, i] * to_unit)
+    return None if spacing is None else fx.family("profile").format(param, tok, spacing)
 
 
 def hidden_effect(model, sim0, rng, k: float):
@@ -142,7 +145,7 @@ def hidden_effect(model, sim0, rng, k: float):
     block = InMemory(prob).block
     A = block.A
     mm = prob.obs.group == 0
-    for _ in range(30):
+    for _ in range(DRAWS):
         ident = _draw_id(machine, sim0.meas, rng)
         if ident is None:
             continue
@@ -237,27 +240,39 @@ class Workspace:
 
 
 def trial(t: int, seed: int, n: int, folder: Path, models: dict) -> dict:
+    """Trial t of the exam seeded `seed`: its machine, instrument and resolution by t (every combination in turn),
+    null or hidden effect and k drawn."""
     rng = np.random.default_rng([seed, t])
     machine = MACHINES[t % len(MACHINES)]
     instrument = INSTRUMENTS[(t // len(MACHINES)) % len(INSTRUMENTS)]
     resolution = RESOLUTIONS[(t // (len(MACHINES) * len(INSTRUMENTS))) % len(RESOLUTIONS)]
-    model = models[machine]
-    chain = chain_of(model)
     sim_seed = int(rng.integers(1 << 30))
     null = bool(rng.random() < NULL_SHARE)
     k = float(rng.uniform(2.0, 10.0))
-    rec = {"trial": t, "machine": machine, "instrument": instrument, "resolution": resolution, "null": null}
+    rec = run_set(models[machine], instrument, resolution, n, sim_seed, None if null else k, rng,
+                  folder / f"t{t}.csv", seed + t)
+    return {"trial": t, **rec}
+
+
+def run_set(model, instrument: str, resolution: str, n: int, sim_seed: int, k: float | None, rng, path: Path,
+            workspace_seed: int) -> dict:
+    """One set: a true machine measured by the instrument's plan of about n poses (a null set for k None, else one
+    hidden effect at k times the noise), written at the resolution to path and read back; diagnose, the top
+    candidate added on a verdict 'missing effect', the fit; the record of what was measured (see the module)."""
+    chain = chain_of(model)
+    null = k is None
+    rec = {"machine": model.machine.name, "instrument": instrument, "resolution": resolution, "null": null}
     effects = []
     if not null:
         sim0 = simulate(model, [], n=n, instrument=instrument, seed=sim_seed, noise=NOISE, chain=chain)
         drawn = hidden_effect(model, sim0, rng, k)
         if drawn is None:
-            null = rec["null"] = True
+            null = rec["null"] = rec["drawn_null"] = True
         else:
             effects = [drawn]
             rec.update(effect=drawn[0].id, family=drawn[0].NAME, k=k)
     sim = simulate(model, effects, n=n, instrument=instrument, seed=sim_seed, noise=NOISE, chain=chain)
-    meas = read(written(model, sim, folder / f"t{t}.csv", resolution), model.machine)
+    meas = read(written(model, sim, path, resolution), model.machine)
     dg = D.diagnose(model, meas)
     rec["verdict"] = dg.verdict
     top = dg.candidates[0] if dg.candidates else None
@@ -273,7 +288,7 @@ def trial(t: int, seed: int, n: int, folder: Path, models: dict) -> dict:
     rec["model_right"] = added == [e.id for e, _ in effects]
     rec["rms_over_noise"] = res.rms_mm / NOISE
     rec["covered"], rec["quantities"] = coverage(res, sim)
-    ws = Workspace(model, seed + t)
+    ws = Workspace(model, workspace_seed)
     ctx = fx.context(model.machine, ws.poses, None, {}, sc=fx.scales(model.machine, sim.meas.t))
     E_true = np.tile([sim.base_errors[e] for e in model.errors], (len(ws.poses), 1))
     for eff, vals in effects:
@@ -327,7 +342,8 @@ def summary(trials: list) -> dict:
                       if r["workspace_before_um"] > 0])
     counts = rates(trials)
     out = {"trials": len(trials), "null_sets": sum(r["null"] for r in trials),
-           "hidden_effects": sum(not r["null"] for r in trials), "counts": counts}
+           "hidden_effects": sum(not r["null"] for r in trials), "counts": counts,
+           "drawn_null": sum(bool(r.get("drawn_null")) for r in trials)}
     for key, (a, b) in counts.items():
         out[key] = None if not b else a / b
         out[key + "_ci95"] = interval(a, b)
@@ -363,7 +379,8 @@ def _cell(a: int, b: int) -> str:
 def table(s: dict) -> str:
     """The overall summary as a Markdown table: each rate with its count and Clopper-Pearson 95 % interval."""
     c = s["counts"]
-    rows = [("trials (null sets / hidden effects)", f"{s['trials']} ({s['null_sets']} / {s['hidden_effects']})", "")]
+    rows = [("trials (null sets / hidden effects)", f"{s['trials']} ({s['null_sets']} / {s['hidden_effects']}; "
+             f"{s.get('drawn_null', 0)} null for want of an effect of that k within the size limit)", "")]
     rows += [(label, _cell(*c[key]), goal) for label, key, goal in ROWS]
 
     def num(x, f="{:.3f}"):
