@@ -41,8 +41,6 @@ COMMANDS = {
                                              "ballbar's diagnostic list"),
     "iso230-3": ("fiveaxis.commands.iso230_3", "ISO 230-3 thermal tests (ETVE, spindle, moving axis): drift per "
                                                "direction and phase beside the temperatures"),
-    "iso230-3-simulate": ("fiveaxis.commands.iso230_3", "a simulated ISO 230-3 test file (displacements of a "
-                                                        "five-sensor nest and temperatures over hours)"),
 }
 
 
@@ -82,7 +80,7 @@ OPTIONS = {
     "drift_um": "--drift", "temperature_deviation_K": "--temperature-deviation",
     "spacing_mm": "--spacing", "spindle_on_min": "--spindle-on", "spindle_off_min": "--spindle-off",
     "spindle_speed_rpm": "--spindle-speed", "test_hours": "--hours", "run_hours": "--run-hours",
-    "interval_s": "--interval", "speed_rpm": "--speed",
+    "interval_s": "--interval", "speed_rpm": "--speed", "reference_temperature": "--reference-temperature",
 }
 COMMAND_OPTIONS = {"lsa": {"poses": "--pose"}, "fit": {"effect": "--add"}, "diagnose": {"effect": "--add"},
                    "report": {"effect": "--add"}}

@@ -4,7 +4,11 @@ A pass is a list of tasks, each a call fn(*args) whose result comes back to the 
 of a GSIL grid (`fiveaxis.sensitivity.distributed`), the row blocks of a fit or a diagnosis
 (`fiveaxis.estimation.design`). Two runners:
 
-- `Local`: the tasks one after the other in this process (the default);
+- `Local`: the tasks in this process, on as many threads as the process may use cores (`threads()`; the default):
+  NumPy's BLAS and LAPACK, its large array operations and the numba kernels release the GIL, so two blocks of a
+  pass run on two cores; each thread runs numba's parallel kernels on one thread and BLAS is kept to one thread by
+  the callers (`fiveaxis.estimation.fit.one_blas_thread`). At most threads + 1 tasks are in flight (memory: a few
+  blocks), results in task order;
 - `OnDask`: the tasks on the workers of a `dask.distributed.Client`, at most `in_flight` submitted at a time (the
   client's memory stays bounded whatever the number of tasks), results gathered in task order. Objects that many
   passes need (the blocks of a measurement set) are sent to the workers once (`keep`), and each task can ask to
@@ -17,8 +21,12 @@ which a threaded Dask worker does; the tasks here call serial (`nogil`) kernels 
 """
 from __future__ import annotations
 
+import os
 from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
+
+import numba
 
 from .exceptions import InputError
 
@@ -34,13 +42,74 @@ class Kept:
         self.where = where           # per item: the workers holding it (OnDask), or None
 
 
+#: Environment variable that sets the threads of `Local` (default: the cores this process may use).
+THREADS_ENV = "FIVEAXIS_THREADS"
+
+
+def threads() -> int:
+    """Threads the passes of this process run on: FIVEAXIS_THREADS if set (a positive integer), else the cores this
+    process may use."""
+    raw = os.environ.get(THREADS_ENV, "").strip()
+    if raw:
+        if not raw.isdigit() or int(raw) < 1:
+            raise InputError(f"{THREADS_ENV}={raw!r}: expected a positive whole number of threads")
+        return int(raw)
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+#: numba threading layers whose parallel kernels may be entered from several threads at once ("default" and
+#: "safe" pick TBB first, or OpenMP; "forksafe" may pick workqueue).
+THREADSAFE_LAYERS = ("tbb", "omp", "threadsafe")
+
+
+def kernels_threadsafe() -> bool:
+    """Whether the blocks of a pass may run on several threads: numba's parallel kernels, which the blocks call, may
+    then be entered from several threads at once. Not with the workqueue layer (it aborts the process: "Concurrent
+    access has been detected"), which the command line chooses (`fiveaxis.cli.THREADING_LAYER`)."""
+    layer = str(numba.config.THREADING_LAYER).lower()
+    if layer in ("default", "safe"):
+        try:
+            from numba.np.ufunc import tbbpool  # noqa: F401 - what numba itself tries first
+            return True
+        except ImportError:
+            return layer == "default" and _omp_available()
+    return layer in THREADSAFE_LAYERS
+
+
+def _omp_available() -> bool:
+    try:
+        from numba.np.ufunc import omppool  # noqa: F401
+        return True
+    except ImportError:
+        return False
+
+
+def _one_numba_thread():
+    numba.set_num_threads(1)          # per thread: the pass's threads share the cores, not each its own team
+
+
 class Local:
-    """Tasks one after the other in this process."""
+    """Tasks in this process, on `threads` threads (None: `threads()` where numba's parallel kernels may be entered
+    from several threads, `kernels_threadsafe`, else one; 1: one after the other)."""
+
+    def __init__(self, threads: int | None = None):
+        self.threads = threads
 
     def map(self, fn, tasks, near=None):
         """Yield fn(*task) for every task (an iterable of argument tuples), in order; near is ignored here."""
-        for task in tasks:
-            yield fn(*task)
+        n = self.threads or (threads() if kernels_threadsafe() else 1)
+        if n <= 1:
+            for task in tasks:
+                yield fn(*task)
+            return
+        with ThreadPoolExecutor(n, initializer=_one_numba_thread) as pool:
+            pending = deque()
+            for task in tasks:
+                pending.append(pool.submit(fn, *task))
+                if len(pending) > n:
+                    yield pending.popleft().result()
+            while pending:
+                yield pending.popleft().result()
 
     def keep(self, key, make) -> Kept:
         """The objects make() returns, for the tasks of passes; in this process they are made again for each

@@ -120,23 +120,27 @@ def diagnose(model, meas, added=(), top: int = 10, fixed=None, in_blocks: bool |
     blocks (None: above `fiveaxis.estimation.design.IN_MEMORY_POSES` poses); prior: the fit's priors
     (`fiveaxis.estimation.priors.PriorSpec`; None: the defaults)."""
     with F.one_blas_thread():
-        res = F.fit(model, meas, added, fixed=fixed, in_blocks=in_blocks, robust=False, prior=prior)
-        return diagnose_fit(robust_fit(res), top)
+        # the least-squares fit is not kept beside the robust one (10^6 poses: its problem's arrays are ~0.4 GB)
+        res = robust_fit(F.fit(model, meas, added, fixed=fixed, in_blocks=in_blocks, robust=False, prior=prior))
+        return diagnose_fit(res, top)
 
 
 def robust_fit(res: FitResult) -> FitResult:
     """The robust fit of a diagnosis from a least-squares fit: gross outliers flagged (`fiveaxis.estimation.fit`),
     then checked: readings flagged may be the largest deviations of a missing effect rather than gross errors (a
     roll error times a long lever arm has long tails), so the effects the decision's rule accepts on the other
-    readings (forward selection on the screen, without the period search) join the model, outliers are flagged
-    again against it, and the model is fitted without the readings flagged then."""
+    readings (forward selection on the screen, without the period search) and those it accepts on every reading
+    (a missing effect can be all a run shows: a backlash on a laser run of X flags the whole run against the scale
+    of the other runs, and the other readings then show nothing of it) join the model, outliers are flagged again
+    against it (a robust fit: an effect a gross outlier drew in does not hide it), and the model is fitted without
+    the readings flagged then."""
     if not F.suspects(res):
         res.outliers = no_outliers(len(res.problem.d))
         return res
     rob = F.robust(res)
     if not rob.outliers.count:
         return rob
-    accepted = accepted_effects(rob)
+    accepted = list(dict.fromkeys(accepted_effects(rob) + accepted_effects(res)))
     if not accepted:
         return rob
     prob = res.problem
@@ -289,11 +293,14 @@ def _columns(block, w, residual, free, fixed_vals, effects) -> np.ndarray:
     """The decision's columns on a block's readings: [A w (free) | candidates' | r w | d w]."""
     A = block.A
     d = block.prob.d - A[:, ~free] @ fixed_vals if (~free).any() else block.prob.d
-    parts = [A[:, free] * w[:, None]]
+    p = int(free.sum())
+    X = np.empty((len(w), p + sum(len(e.names) for e in effects) + 2))     # filled in place: no copies
+    np.multiply(A if free.all() else A[:, free], w[:, None], out=X[:, :p])
     if effects:
-        parts.append(cd.candidate_matrix(block, w, effects))
-    parts += [(residual * w)[:, None], (d * w)[:, None]]
-    return np.hstack(parts)
+        cd.candidate_matrix(block, w, effects, out=X[:, p:-2])
+    np.multiply(residual, w, out=X[:, -2])
+    np.multiply(d, w, out=X[:, -1])
+    return X
 
 
 def _compress_block(block, w, residual, fold, free, fixed_vals, ids, folds):
