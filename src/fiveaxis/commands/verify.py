@@ -15,6 +15,8 @@ import shlex
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from . import options
 from ..exceptions import InputError, one_line
 
@@ -59,8 +61,15 @@ def run_verify(args) -> int:
     from ..compensation.folder import load_table
     if args.noise is not None and not (0 < args.noise < float("inf")):
         raise InputError(f"--noise: expected a positive, finite noise in mm, got {args.noise}")
+    if args.n < 1:
+        raise InputError(f"--n {args.n}: expected a positive number of poses")
+    if args.seed < 0:
+        raise InputError(f"--seed: expected a number >= 0, got {args.seed}")
     fm, model = _model(args)
-    table = load_table(args.compensation, model)
+    try:
+        table = load_table(args.compensation, model)
+    except InputError as exc:
+        raise InputError(f"--compensation {args.compensation}: {exc}") from None
     if args.readings is not None:
         if args.output is not None:
             raise InputError("--readings: -o is for writing a verification program, not for checking readings")
@@ -71,10 +80,14 @@ def run_verify(args) -> int:
 def _check(args, fm, model, table) -> int:
     from ..compensation import verify as V
     from ..measurement.files import read
-    meas = read(args.readings, model.machine)
-    tip = meas.d
-    if tip is None or tip.ndim != 2 or tip.shape[1] != 3:
-        raise InputError(f"{args.readings}: expected tool-tip readings (columns dx, dy, dz, mm)")
+    try:
+        meas = read(args.readings, model.machine)
+    except InputError as exc:
+        raise InputError(f"--readings: {exc}") from None
+    tip = None if meas.d is None else np.asarray(meas.d, float)
+    if tip is None or tip.ndim != 2 or tip.shape[1] != 3 or not np.all(np.isfinite(tip)):
+        raise InputError(f"--readings {args.readings}: expected tool-tip readings (columns dx, dy, dz, mm) at every "
+                         f"row")
     pred = V.predict(fm, model, table, meas.poses, meas.L, args.noise)
     out = V.evaluate(pred, tip)
     if args.json:
@@ -111,12 +124,10 @@ def _program(args, fm, model, table) -> int:
     from .plan import CHANGE_CANDIDATES, CHANGE_PROGRAM
     if args.output is not None:
         if args.output.suffix.lower() != ".csv":
-            raise InputError(f"{args.output}: expected a .csv file for the poses")
+            raise InputError(f"-o {args.output}: expected a .csv file for the poses")
         paths = [args.output, args.output.with_suffix(".ngc"), args.output.with_suffix(".predicted.json")]
         for path in paths:
             target(path, args.force)
-    if args.seed < 0:
-        raise InputError(f"--seed: expected a number >= 0, got {args.seed}")
     mode = default_mode(model.machine)
     try:
         res = P.make(model, "tip", args.n, seed=args.seed, kinematics=mode,
