@@ -296,6 +296,10 @@ def test_a_rate_per_degC_beyond_a_machine_is_flagged_and_refused(tmp_path):
     found = plausible.model_findings(MF.from_fit(F.fit(model, slip, ids)), model.machine)
     assert len(found) == 1 and found[0].startswith("effect L:temp_spindle: 1") and "um/degC of temp_spindle" in found[0]
     assert plausible.unit_slip(found).endswith(plausible.TEMPERATURE_HINT)
+    eff, ctx = fx.parse("L:temp_spindle", model.machine, model.errors), fx.context(model.machine, slip.poses, slip.t,
+                                                                                 temps=slip.temps)
+    assert "NOT A MACHINE'S RATE: 150 um/degC: beyond" in eff.describe(model.machine, [0.15], ctx)   # fit's text
+    assert "NOT A MACHINE" not in eff.describe(model.machine, [0.0015], ctx)
     # compensate refuses a model of 1 mm/degC (and reports the scale's 1 mm/m/degC beside it), nothing written
     path = tmp_path / "m.json"
     MF.save(fm, path)

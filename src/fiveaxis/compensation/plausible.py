@@ -17,6 +17,7 @@ import numpy as np
 
 from ..effects.base import TOOL
 from ..effects.families import family
+from ..effects.temperature import RATE_BOUNDS as THERMAL, rate_beyond  # noqa: F401 (THERMAL: the bounds, here too)
 from ..exceptions import InputError
 
 #: Bounds, with why. A real machine's geometric errors are micrometres and microradians; location errors of axes
@@ -44,17 +45,6 @@ MACHINES = {
 }
 UNIT_HINT = "did you write um in a mm column?"
 
-#: What a machine's thermal effects show per degC of a sensor (the temperature family's extents): a rate beyond is
-#: not heat but a unit slip (um in a mm column) or a channel that barely changed standing in for a drift. (bound,
-#: what it is; mm/degC, rad/degC, 1/degC.) Steel expands 11.5 um/m/degC, aluminium 23; a spindle grows tens of um
-#: over tens of degC (1 to 3 um/degC); a sensor off the hot spot reads a fraction of its change (a larger gain).
-THERMAL = {
-    "per_degC_mm": (0.1, "a machine's thermal growth per degC of a sensor (steel 11.5 um/m/degC: 23 um/degC over a "
-                         "2 m structure; a spindle grows tens of um over tens of degC)"),
-    "per_degC_rad": (1e-3, "a machine's thermal tilt per degC of a sensor (a 2 m column 0.5 m deep, 1 degC warmer "
-                           "at the back: 46 urad/degC)"),
-    "expansion_per_degC": (1e-4, "the expansion of a scale or screw (steel 11.5 um/m/degC, aluminium 23 um/m/degC)"),
-}
 TEMPERATURE_HINT = ("did you write um in a mm column, or a temp_ column not in degC (or a sensor that barely changed "
                     "standing in for a drift)?")
 
@@ -76,23 +66,15 @@ def unit_slip(findings: list[str]) -> str:
 
 
 def _thermal(e, quantity: str, size: float, unit: str | None) -> str | None:
-    """The finding of a temperature effect's rate beyond THERMAL, or None."""
-    if quantity == "expansion_per_degC":
-        limit, what = THERMAL[quantity]
-        shown, per = f"{1e6 * size:.4g} um/m/degC", f"{1e6 * limit:g} um/m/degC"
-    elif unit == "rad":
-        limit, what = THERMAL["per_degC_rad"]
-        shown, per = f"{1e6 * size:.4g} urad/degC", f"{1e6 * limit:g} urad/degC"
-    else:
-        limit, what = THERMAL["per_degC_mm"]
-        shown, per = f"{1e3 * size:.4g} um/degC", f"{1e3 * limit:g} um/degC"
-    return None if size <= limit else f"effect {e.id}: {shown} of {e.var}: beyond {what}, {per}"
+    """The finding of a temperature effect's rate beyond its family's bound (`effects.temperature.RATE_BOUNDS`)."""
+    beyond = rate_beyond(quantity, size, unit)
+    return None if beyond is None else f"effect {e.id}: {beyond.replace('/degC:', f'/degC of {e.var}:', 1)}"
 
 
 def model_findings(fm, machine) -> list[str]:
     """What a fitted model (fiveaxis.estimation.fitted_model.FittedModel) holds that no machine shows: its noise
     estimate, the backlash of its reversal effects, the change of its polynomial effects over the stroke, the
-    rate per degC of its temperature effects (THERMAL), the determined errors and combinations beyond LIMITS. Empty when all is plausible. mm and rad."""
+    rate per degC of its temperature effects (THERMAL, the family's RATE_BOUNDS), the determined errors and combinations beyond LIMITS. Empty when all is plausible. mm and rad."""
     out = []
     noise = fm.fit.get("noise_mm")
     limit, what = MACHINES["noise_mm"]

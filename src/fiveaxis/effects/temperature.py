@@ -30,6 +30,35 @@ from ..units import human
 from . import base
 from .base import TIME, TOOL, EffectContext, EffectRecord, axis_of_token, describe_param, is_positioning
 
+#: What a machine's thermal effects show per degC of a sensor (`extents`' quantities; judged by
+#: `fiveaxis.compensation.plausible` and said by `describe`): a rate beyond is
+#: not heat but a unit slip (um in a mm column) or a channel that barely changed standing in for a drift. (bound,
+#: what it is; mm/degC, rad/degC, 1/degC.) Steel expands 11.5 um/m/degC, aluminium 23; a spindle grows tens of um
+#: over tens of degC (1 to 3 um/degC); a sensor off the hot spot reads a fraction of its change (a larger gain).
+RATE_BOUNDS = {
+    "per_degC_mm": (0.1, "a machine's thermal growth per degC of a sensor (steel 11.5 um/m/degC: 23 um/degC over a "
+                         "2 m structure; a spindle grows tens of um over tens of degC)"),
+    "per_degC_rad": (1e-3, "a machine's thermal tilt per degC of a sensor (a 2 m column 0.5 m deep, 1 degC warmer "
+                           "at the back: 46 urad/degC)"),
+    "expansion_per_degC": (1e-4, "the expansion of a scale or screw (steel 11.5 um/m/degC, aluminium 23 um/m/degC)"),
+}
+
+
+def rate_beyond(quantity: str, size: float, unit: str | None) -> str | None:
+    """'150 um/degC: beyond <what it is>, 100 um/degC' for a rate of `extents` (quantity, size; unit: of the
+    parameter, mm or rad) beyond RATE_BOUNDS, else None."""
+    if quantity == "expansion_per_degC":
+        limit, what = RATE_BOUNDS[quantity]
+        shown, per = f"{1e6 * size:.4g} um/m/degC", f"{1e6 * limit:g} um/m/degC"
+    elif unit == "rad":
+        limit, what = RATE_BOUNDS["per_degC_rad"]
+        shown, per = f"{1e6 * size:.4g} urad/degC", f"{1e6 * limit:g} urad/degC"
+    else:
+        limit, what = RATE_BOUNDS["per_degC_mm"]
+        shown, per = f"{1e3 * size:.4g} um/degC", f"{1e3 * limit:g} um/degC"
+    return None if size <= limit else f"{shown}: beyond {what}, {per}"
+
+
 _FORM = re.compile(rf"^(?:([A-Za-z][A-Za-z0-9]*)\.)?({TEMPERATURE_RE})(?:~([^~]*))?$")
 
 
@@ -140,6 +169,10 @@ class Temperature(base.VocabularyEffect):
             size = float(np.ravel(coefs)[0]) * (float(np.max(T)) - float(np.min(T)))
             text += (f": {human(abs(size), self.unit_of(machine), 2)} over the measured range "
                      f"({np.min(T):.3g} to {np.max(T):.3g} degC)")
+        beyond = [b for q, s, _ in self.extents(self.record(np.ravel(coefs)[:1]), sc)
+                  for b in [rate_beyond(q, s, self.unit_of(machine))] if b]
+        if beyond:
+            text += f"; NOT A MACHINE'S RATE: {beyond[0]} (a unit slip, or a sensor that barely changed?)"
         return text + note
 
     def _note(self, machine) -> str:
