@@ -5,7 +5,6 @@ set-up (a work offset and a rotation about the table's axis) at most 20 % of bef
 does not get there. References: the true machine's tool-tip errors from the independent chain (`model/htm.py`,
 `tests/truth.py`), the simulated noises."""
 import json
-import types
 
 import numpy as np
 import pytest
@@ -22,11 +21,11 @@ from fiveaxis.report import text
 
 from truth import truth_model
 
+from conftest import run_cli  # noqa: E402
+
+
 def _cli(argv):
-    """The command line in-process (conftest.run_cli) as (returncode, stdout, stderr)."""
-    from conftest import run_cli
-    rc, out, err = run_cli(*argv)
-    return types.SimpleNamespace(returncode=rc, stdout=out, stderr=err)
+    return run_cli(*argv, result=True)
 
 
 @pytest.fixture(scope="module")

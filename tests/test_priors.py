@@ -5,7 +5,6 @@ prior decided each quantity. References: the normal equations written out in pla
 sets against the fit of one with the other's posterior as its prior, and the simulations' truths."""
 import json
 import shutil
-import types
 
 import numpy as np
 import pytest
@@ -22,11 +21,11 @@ from fiveaxis.model.error_model import load
 from fiveaxis.model.machine import MACHINES_DIR
 from fiveaxis.report import text
 
+from conftest import run_cli  # noqa: E402
+
+
 def _cli(argv):
-    """The command line in-process (conftest.run_cli) as (returncode, stdout, stderr)."""
-    from conftest import run_cli
-    rc, out, err = run_cli(*argv)
-    return types.SimpleNamespace(returncode=rc, stdout=out, stderr=err)
+    return run_cli(*argv, result=True)
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,6 @@
 precision unless stated; and the rule on evidence: a direction whose readings stand far above what the rounding can
 create is determined. References: the simulations' noise (1 um) and hidden effects."""
 import json
-import types
 from decimal import Decimal
 
 import numpy as np
@@ -20,11 +19,11 @@ from fiveaxis.report import text
 from written import controller_csv, too_large, two_tools
 
 NOISE = 0.001
+from conftest import run_cli  # noqa: E402
+
+
 def _cli(argv):
-    """The command line in-process (conftest.run_cli) as (returncode, stdout, stderr)."""
-    from conftest import run_cli
-    rc, out, err = run_cli(*argv)
-    return types.SimpleNamespace(returncode=rc, stdout=out, stderr=err)
+    return run_cli(*argv, result=True)
 
 
 @pytest.fixture(scope="module")

@@ -129,15 +129,18 @@ def robust_fit(res: FitResult) -> FitResult:
     """The robust fit of a diagnosis from a least-squares fit: gross outliers flagged (`fiveaxis.estimation.fit`),
     then checked: readings flagged may be the largest deviations of a missing effect rather than gross errors (a
     roll error times a long lever arm has long tails), so the effects the decision's rule accepts on the other
-    readings (forward selection on the screen, without the period search) join the model, outliers are flagged
-    again against it, and the model is fitted without the readings flagged then."""
+    readings (forward selection on the screen, without the period search) and those it accepts on every reading
+    (a missing effect can be all a run shows: a backlash on a laser run of X flags the whole run against the scale
+    of the other runs, and the other readings then show nothing of it) join the model, outliers are flagged again
+    against it (a robust fit: an effect a gross outlier drew in does not hide it), and the model is fitted without
+    the readings flagged then."""
     if not F.suspects(res):
         res.outliers = no_outliers(len(res.problem.d))
         return res
     rob = F.robust(res)
     if not rob.outliers.count:
         return rob
-    accepted = accepted_effects(rob)
+    accepted = list(dict.fromkeys(accepted_effects(rob) + accepted_effects(res)))
     if not accepted:
         return rob
     prob, in_blocks = res.problem, res.design.in_blocks

@@ -283,7 +283,7 @@ def gsil(model, grid, errors=None, L0=None, LE=None, order=None, rel_tiny=REL_TI
     one task) or "serial" (one thread per task: for threaded workers).
     """
     if kernel not in ("serial", "parallel"):
-        raise InputError(f"kernel: expected 'serial' or 'parallel', got {kernel!r}", key="kernel")
+        raise InputError(f"kernel: expected 'serial' or 'parallel', got {kernel!r}", key="worker_kernel")
     if isinstance(chunk, bool) or not isinstance(chunk, (int, np.integer)) or chunk < 1:
         raise InputError(f"chunk: expected a positive number of poses, got {chunk}", key="chunk")
     L0 = model.machine.tool_length if L0 is None else float(L0)
