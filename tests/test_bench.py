@@ -28,7 +28,7 @@ TINY = {
     "same_answers": None,                 # two folders of records: its own test below
     "exam": ["--trials", "3", "--poses", "200"],
     "joint_compensation": ["--seeds", "1", "--fits", "joint", "--rtest-poses", "40", "--poses", "100", "--nodes", "2",
-                           "--json"],
+                           "--comp-points", "3", "--json"],
 }
 
 
