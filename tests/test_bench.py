@@ -29,7 +29,7 @@ TINY = {
     "exam": ["--trials", "3", "--poses", "200"],
     "sample_run": None,                   # writes a file: its own test below
     "joint_compensation": ["--seeds", "1", "--fits", "joint", "--rtest-poses", "40", "--poses", "100", "--nodes", "2",
-                           "--json"],
+                           "--comp-points", "3", "--json"],
 }
 
 
