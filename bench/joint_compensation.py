@@ -59,7 +59,7 @@ def error_values(model, q, errors, effects):
     return E
 
 
-def one(model, seed, rtest_poses, poses, nodes, fits=("laser", "rtest", "joint")):
+def one(model, seed, rtest_poses, poses, nodes, fits=("laser", "rtest", "joint"), comp_points=None):
     machine = model.machine
     errors, effects = true_machine(model, seed)
     order = [list(model.errors).index(n) for n in machine.error_names]
@@ -83,7 +83,8 @@ def one(model, seed, rtest_poses, poses, nodes, fits=("laser", "rtest", "joint")
     for label in fits:
         meas = sets[label]()
         fm = from_fit(F.fit(model, meas, list(EFFECTS)))
-        comp = CP.compensate(fm, model, {v: nodes for v in machine.variables if v not in machine.rotary}, poses=poses)
+        comp = CP.compensate(fm, model, {v: nodes for v in machine.variables if v not in machine.rotary},
+                             comp_points=comp_points, poses=poses)
         after = _rms(setup.remove(true_tip(compensated_commands(comp.table, q))))
         band = comp.account["uncertainty"]["tip_error_mm"]["after_table"]["setup_removed"]
         lo, hi = band["range_k2"]
@@ -102,12 +103,14 @@ def main(argv=None):
     p.add_argument("--rtest-poses", type=int, default=600)
     p.add_argument("--poses", type=int, default=2000, help="random poses of the truth and of the account")
     p.add_argument("--nodes", type=int, default=5, help="table nodes per linear axis")
+    p.add_argument("--comp-points", type=int, default=None, help="points per LinuxCNC comp file (default 33)")
     p.add_argument("--fits", default="laser,rtest,joint", help="which fits (laser, rtest, joint)")
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     model = load("ac_trunnion")
     fits = tuple(f.strip() for f in args.fits.split(","))
-    rows = [one(model, int(s), args.rtest_poses, args.poses, args.nodes, fits) for s in args.seeds.split(",")]
+    rows = [one(model, int(s), args.rtest_poses, args.poses, args.nodes, fits, args.comp_points)
+            for s in args.seeds.split(",")]
     if args.json:
         print(json.dumps(rows, indent=1))
     else:

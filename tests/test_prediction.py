@@ -210,15 +210,13 @@ GOOD_PRIOR = ("linear_motion_mm=0.001", "linear_motion_rad=2e-6", "linear_locati
 
 def _true_errors(model, q, base, effects):
     """Error values per pose (n, 41): the base values plus polynomial effects c u^deg, u the axis position scaled
-    to its stroke (written here from the effect grammar, not through fiveaxis.effects)."""
-    E = np.tile([base[n] for n in model.errors], (len(q), 1))
-    for ident, c in effects.items():
-        param, spec = ident.split(":")
-        var = next(v for v in model.variables if v.lower() == spec[0])
-        lo, hi = model.machine.axis(var).model_stroke
-        u = (q[:, list(model.variables).index(var)] - 0.5 * (lo + hi)) / (0.5 * (hi - lo))
-        E[:, list(model.errors).index(param)] += c * u ** int(spec[1:])
-    return E
+    to its stroke (written from the effect grammar, not through fiveaxis.effects: bench/joint_compensation.py's)."""
+    import importlib
+    import sys
+    from conftest import ROOT
+    if str(ROOT / "bench") not in sys.path:
+        sys.path.insert(0, str(ROOT / "bench"))
+    return importlib.import_module("joint_compensation").error_values(model, q, base, effects)
 
 
 @pytest.fixture(scope="module", params=[pytest.param("good", marks=pytest.mark.slow),
