@@ -12,7 +12,7 @@ from fiveaxis.estimation import design
 from fiveaxis.estimation import fit as F
 from fiveaxis.measurement import observations
 from fiveaxis.measurement.simulate import simulate
-from fiveaxis.model.error_model import load
+from fiveaxis.model.error_model import load, serial_kernels
 from fiveaxis.model.machine import MACHINES_DIR, load_machine
 from fiveaxis.sensitivity.grid import Grid
 from fiveaxis.sensitivity.indices import gsil, lsil
@@ -24,6 +24,8 @@ def warm(name: str, convention: str) -> float:
     model = load(name, convention)
     sim = simulate(model, n=30, seed=0, instrument="tip", with_axis=True)
     F.fit(model, sim.meas)                                     # jk, errors exact/first, tips, design/apply loops
+    with serial_kernels():                                     # their serial twins (a pass's threads)
+        F.fit(model, sim.meas)
     grid = Grid.from_strokes(model.machine, {v: 2 for v in model.variables})
     gsil(model, grid, check=False, progress=False)             # the exact GSIL kernel
     gsil(model, grid, order=4, check=False, progress=False)    # the quadrature kernels

@@ -576,6 +576,10 @@ OPTION_TRIALS = [   # (command argv, expect, names)
         ("--tool-lengths", "a,b"), ("--damping", "nan"), ("--damping", "-1"),
         ("--damping", "inf"), ("--comp-points", "1"), ("--comp-points", "1000"), ("--poses", "0"),
         ("--poses", "-1"), ("--seed", "-1"), ("--max-nodes", "0"))],
+    *[(["verify", "{base}/model.json", "--compensation", "{base}/comp", o, v], REFUSE, (o,)) for o, v in (
+        ("--n", "0"), ("--seed", "-1"), ("--noise", "nan"), ("--noise", "0"), ("--compensation", "{out}/none"),
+        ("--readings", "{base}/iso2.csv"), ("--readings", "{out}/none.csv"), ("-o", "{out}/v.txt"))],
+    (["verify", "{base}/model.json", "--compensation", "{base}/comp", "--readings", "{base}/meas.csv"], EITHER, ()),
     (["compensate", "{base}/model.json", "-o", "{out}", "--nodes", "X=1e9", "--max-nodes", "2000000000000"], REFUSE,
      ("--nodes", "memory")),
     (["compensate", "{base}/model.json", "-o", "{out}", "--damping", "0", "--nodes", "X=2,Y=2,Z=2"], EITHER,

@@ -27,6 +27,8 @@ TINY = {
     "bench_scale": None,                  # subprocesses and a folder: its own test below
     "same_answers": None,                 # two folders of records: its own test below
     "exam": ["--trials", "3", "--poses", "200"],
+    "joint_compensation": ["--seeds", "1", "--fits", "joint", "--rtest-poses", "40", "--poses", "100", "--nodes", "2",
+                           "--comp-points", "3", "--json"],
 }
 
 
@@ -154,3 +156,12 @@ def test_exam_runs_and_measures():
     for key in ("false_alarm_rate", "coverage_k2", "band_coverage"):
         assert s[key] is None or 0.0 <= s[key] <= 1.0
     assert out["table"].startswith("| measured | value") and set(out["tables"]) >= {"machine", "instrument"}
+
+
+def test_joint_compensation_runs_and_measures():
+    """Issue 29's joint criterion through the table (one seed, the joint fit, tiny sizes): the true error before and
+    after measured from the independent chain, after below before, the predicted range ordered."""
+    rows = bench_module("joint_compensation").main(TINY["joint_compensation"])
+    assert len(rows) == 1 and set(rows[0]["fits"]) == {"joint"}
+    f = rows[0]["fits"]["joint"]
+    assert 0 < f["after_mm"] < rows[0]["before_mm"] and f["range_k2_mm"][0] <= f["range_k2_mm"][1]

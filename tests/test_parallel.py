@@ -62,12 +62,32 @@ def test_row_blocks_on_two_threads_give_the_numbers_of_one(monkeypatch):
     assert out["1"][2]["candidates"] == out["2"][2]["candidates"]
 
 
-def test_one_thread_where_parallel_kernels_cannot_be_entered_from_several(monkeypatch):
-    """numba's workqueue layer (the command line's) aborts the process when two threads enter a parallel kernel:
-    the blocks of a pass then run one after the other, in the calling thread."""
-    monkeypatch.setenv(parallel.THREADS_ENV, "2")
-    monkeypatch.setattr(parallel.numba.config, "THREADING_LAYER", "workqueue")
-    assert not parallel.kernels_threadsafe()
-    assert set(parallel.Local().map(threading.get_ident, [()] * 4)) == {threading.get_ident()}
-    monkeypatch.setattr(parallel.numba.config, "THREADING_LAYER", "tbb")
-    assert parallel.kernels_threadsafe()
+
+
+def test_threads_of_a_pass_under_the_command_lines_threading_layer(tmp_path):
+    """The command line's numba layer (workqueue) aborts the process when two threads enter a parallel kernel: a
+    fit in blocks on two threads (the design's kernels and the exact model's) runs there, its threads on the
+    kernels' serial twins, with the numbers of one thread to the last bit."""
+    import os
+    import subprocess
+    import sys
+    code = """
+import os
+import numba
+import numpy as np
+import fiveaxis
+from fiveaxis.estimation import design as dsg, fit as F
+from fiveaxis.measurement.simulate import simulate
+model = fiveaxis.load("li2018")
+meas = simulate(model, ["dz_x:x2"], n=900, seed=5).meas
+dsg.BLOCK_POSES = 150
+fits = []
+for n in ("1", "2"):
+    os.environ["FIVEAXIS_THREADS"] = n
+    fits.append(F.fit(model, meas, ["dz_x:x2"], in_blocks=True))
+print(numba.threading_layer(), int(np.array_equal(fits[0].theta, fits[1].theta)))
+"""
+    env = dict(os.environ, NUMBA_THREADING_LAYER="workqueue")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-1500:]
+    assert out.stdout.split() == ["workqueue", "1"]

@@ -33,6 +33,8 @@ COMMANDS = {
     "names": ("fiveaxis.commands.names", "the errors' project names beside their ISO 230 names, kind, unit, meaning"),
     "compensate": ("fiveaxis.commands.compensate", "compensation table, LinuxCNC files and predicted error from a "
                                                    "fitted model"),
+    "verify": ("fiveaxis.commands.verify", "check on the machine that a compensation is active with the right sign "
+                                           "and size: a short program with predicted readings, then pass/fail"),
     "plan": ("fiveaxis.commands.plan", "the measurement poses that determine the most, before measuring; CSV + G-code"),
     "dask": ("fiveaxis.commands.dask", "GSIL of a workspace grid on Dask: local worker processes or --scheduler"),
     "iso230-2": ("fiveaxis.commands.iso230", "ISO 230-2 positioning figures of a linear axis (E, M, B, R, A per "

@@ -6,8 +6,9 @@ of a GSIL grid (`fiveaxis.sensitivity.distributed`), the row blocks of a fit or 
 
 - `Local`: the tasks in this process, on as many threads as the process may use cores (`threads()`; the default):
   NumPy's BLAS and LAPACK, its large array operations and the numba kernels release the GIL, so two blocks of a
-  pass run on two cores; each thread runs numba's parallel kernels on one thread and BLAS is kept to one thread by
-  the callers (`fiveaxis.estimation.fit.one_blas_thread`). At most threads + 1 tasks are in flight (memory: a few
+  pass run on two cores; each thread calls the serial twins of the generated parallel kernels
+  (`fiveaxis.model.error_model.set_serial_kernels`) and BLAS is kept to one thread by the callers
+  (`fiveaxis.estimation.fit.one_blas_thread`). At most threads + 1 tasks are in flight (memory: a few
   blocks), results in task order;
 - `OnDask`: the tasks on the workers of a `dask.distributed.Client`, at most `in_flight` submitted at a time (the
   client's memory stays bounded whatever the number of tasks), results gathered in task order. Objects that many
@@ -16,8 +17,9 @@ of a GSIL grid (`fiveaxis.sensitivity.distributed`), the row blocks of a fit or 
 
 `runner()` is the runner in effect: `Local`, or `OnDask` inside `on_cluster(client)`. Workers need the package and
 the machine files at the same paths as the client (they load models by path).
-Threads: numba's workqueue threading layer aborts when a parallel kernel is entered from several threads at once,
-which a threaded Dask worker does; the tasks here call serial (`nogil`) kernels unless told otherwise.
+Threads: numba's workqueue threading layer (the command line's) aborts when a parallel kernel is entered from several
+threads at once, which a pass's threads or a threaded Dask worker would do; their tasks call serial (`nogil`)
+kernels.
 """
 from __future__ import annotations
 
@@ -29,6 +31,7 @@ from contextlib import contextmanager
 import numba
 
 from .exceptions import InputError
+from .model.error_model import set_serial_kernels
 
 #: Schemes of scheduler addresses: plain TCP, or TLS (its certificates come from the dask configuration).
 SCHEMES = ("tcp", "tls")
@@ -57,52 +60,29 @@ def threads() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
-#: numba threading layers whose parallel kernels may be entered from several threads at once ("default" and
-#: "safe" pick TBB first, or OpenMP; "forksafe" may pick workqueue).
-THREADSAFE_LAYERS = ("tbb", "omp", "threadsafe")
-
-
-def kernels_threadsafe() -> bool:
-    """Whether the blocks of a pass may run on several threads: numba's parallel kernels, which the blocks call, may
-    then be entered from several threads at once. Not with the workqueue layer (it aborts the process: "Concurrent
-    access has been detected"), which the command line chooses (`fiveaxis.cli.THREADING_LAYER`)."""
-    layer = str(numba.config.THREADING_LAYER).lower()
-    if layer in ("default", "safe"):
-        try:
-            from numba.np.ufunc import tbbpool  # noqa: F401 - what numba itself tries first
-            return True
-        except ImportError:
-            return layer == "default" and _omp_available()
-    return layer in THREADSAFE_LAYERS
-
-
-def _omp_available() -> bool:
-    try:
-        from numba.np.ufunc import omppool  # noqa: F401
-        return True
-    except ImportError:
-        return False
-
-
-def _one_numba_thread():
-    numba.set_num_threads(1)          # per thread: the pass's threads share the cores, not each its own team
+def _task_thread():
+    """A pass's thread: numba on one thread (the pass's threads share the cores, not each its own team) and the
+    generated kernels' serial twins (no parallel kernel entered from two threads: numba's workqueue layer, the
+    command line's, aborts the process then)."""
+    numba.set_num_threads(1)
+    set_serial_kernels(True)
 
 
 class Local:
-    """Tasks in this process, on `threads` threads (None: `threads()` where numba's parallel kernels may be entered
-    from several threads, `kernels_threadsafe`, else one; 1: one after the other)."""
+    """Tasks in this process, on `threads` threads (None: `threads()`; 1: one after the other, in the calling
+    thread)."""
 
     def __init__(self, threads: int | None = None):
         self.threads = threads
 
     def map(self, fn, tasks, near=None):
         """Yield fn(*task) for every task (an iterable of argument tuples), in order; near is ignored here."""
-        n = self.threads or (threads() if kernels_threadsafe() else 1)
+        n = self.threads or threads()
         if n <= 1:
             for task in tasks:
                 yield fn(*task)
             return
-        with ThreadPoolExecutor(n, initializer=_one_numba_thread) as pool:
+        with ThreadPoolExecutor(n, initializer=_task_thread) as pool:
             pending = deque()
             for task in tasks:
                 pending.append(pool.submit(fn, *task))

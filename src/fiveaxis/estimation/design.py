@@ -32,7 +32,7 @@ from .. import parallel
 from ..effects import families as fx
 from ..exceptions import InputError
 from ..measurement import observations as ob
-from ..model.error_model import load
+from ..model.error_model import load, serial_kernels
 from .problem import Problem, resolve_effects
 
 #: Above this many poses, fit and diagnose build the design in row blocks instead of in memory (in memory, a
@@ -267,10 +267,12 @@ def _in_process(fn, pb: Problem, rows, *arrays):
 
 
 def _on_worker(spec: Problem, where, fn, *arrays):
-    """One block on a worker: the model loaded (once per worker process), the effects resolved."""
+    """One block on a worker: the model loaded (once per worker process), the effects resolved; the kernels' serial
+    twins (a worker may run several blocks at once on its threads)."""
     model = load(where[0], where[1], derive=False)
     pb = replace(spec, model=model, effects=resolve_effects(model, spec.effects))
-    return fn(Block(pb, slice(0, pb.obs.m)), *arrays)
+    with serial_kernels():
+        return fn(Block(pb, slice(0, pb.obs.m)), *arrays)
 
 
 def backend(prob: Problem, in_blocks: bool | None = None):

@@ -302,6 +302,8 @@ def gsil(model, grid, errors=None, L0=None, LE=None, order=None, rel_tiny=REL_TI
     detail = " x ".join(f"{a.name} {a.count}" for a in work.axes if a.count > 1) if isinstance(work, Grid) else ""
     check_size(work.size, "poses", max_size, how, detail)
     run = parallel.runner() if runner is None else runner
+    if isinstance(run, parallel.Local) and kernel == "parallel":
+        run = parallel.Local(1)     # the parallel kernel takes the cores itself, entered from this thread alone
     ref = model if isinstance(run, parallel.Local) else (str(Path(model.machine.path).resolve()), model.convention)
     tasks = ((ref, work, s, min(s + int(chunk), work.size), E, L0, LE, order, rel_tiny, kernel)
              for s in range(0, work.size, int(chunk)))
