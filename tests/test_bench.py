@@ -27,6 +27,7 @@ TINY = {
     "bench_scale": None,                  # subprocesses and a folder: its own test below
     "same_answers": None,                 # two folders of records: its own test below
     "exam": ["--trials", "3", "--poses", "200"],
+    "sample_run": None,                   # writes a file: its own test below
     "joint_compensation": ["--seeds", "1", "--fits", "joint", "--rtest-poses", "40", "--poses", "100", "--nodes", "2",
                            "--comp-points", "3", "--json"],
 }
@@ -165,3 +166,13 @@ def test_joint_compensation_runs_and_measures():
     assert len(rows) == 1 and set(rows[0]["fits"]) == {"joint"}
     f = rows[0]["fits"]["joint"]
     assert 0 < f["after_mm"] < rows[0]["before_mm"] and f["range_k2_mm"][0] <= f["range_k2_mm"][1]
+
+
+def test_sample_run_samples_a_command(tmp_path):
+    """bench/sample_run.py on a tiny simulate: the command ran, its RSS and its frames were sampled."""
+    out = tmp_path / "s.csv"
+    rec = bench_module("sample_run").main(["--period", "0.01", "--", "simulate", "--machine", "li2018", "--n", "50",
+                                           "-o", str(out)])
+    assert rec["rc"] == 0 and out.exists()
+    assert rec["samples"] and all(rss > 0 for _, rss, _ in rec["samples"])
+    assert "peak RSS" in rec["report"]

@@ -237,6 +237,13 @@ class Pool:
         """The weighted columns of `items`, side by side (N, sum of their coefficients)."""
         return np.hstack([self.G, self.Gp, *self.custom_cols, *self.profile_cols])
 
+    def drop_block_columns(self) -> None:
+        """Forget the screen's columns of the multi-column candidates and of the searches' parameters (Gp,
+        custom_cols, profile_cols, P; the one-column candidates' G, the searches' results and the prior stay): the
+        decision over all readings in row blocks builds its own (at a sample of 8,192 poses: ~0.2 GB)."""
+        self.Gp = self.P = None
+        self.custom_cols, self.profile_cols = [], []
+
     @property
     def blocks(self) -> list:
         """Multi-column candidates: the periodic ones, then the custom ones."""

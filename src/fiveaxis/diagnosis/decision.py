@@ -160,14 +160,20 @@ class CompressedRows:
 
 def compress_block(X: np.ndarray, fold: np.ndarray, mm: np.ndarray, w: np.ndarray, folds: int):
     """One block's part of CompressedRows: per fold, the TSQR factor of its readings' rows of X; the Gram matrix
-    of X / w over the readings in mm."""
+    of X / w over the readings in mm. Where every reading is in mm with one weight (tip readings of one noise), the
+    Gram matrix is that of the fold factors (sum of R^T R over w^2: c^3 per fold instead of m c^2 for the block,
+    0.4 of the pass at 10^6 poses); else X is divided by w in place (no second matrix of its size)."""
     R = [sv.tsqr(None, X[fold == f]) if np.any(fold == f) else None for f in range(folds)]
-    if mm.all():
-        Xm = X / w[:, None]
+    if mm.all() and len(w) and np.all(w == w[0]):
+        gram = sum(Rf.T @ Rf for Rf in R if Rf is not None) / (w[0] * w[0])
+    elif mm.all():
+        X /= w[:, None]
+        gram = X.T @ X
     else:
         Xm = X[mm]
         Xm /= w[mm, None]
-    return R, np.bincount(fold, minlength=folds), Xm.T @ Xm, int(mm.sum())
+        gram = Xm.T @ Xm
+    return R, np.bincount(fold, minlength=folds), gram, int(mm.sum())
 
 
 def orthonormal(X: np.ndarray) -> np.ndarray:

@@ -143,11 +143,13 @@ def robust_fit(res: FitResult) -> FitResult:
     accepted = list(dict.fromkeys(accepted_effects(rob) + accepted_effects(res)))
     if not accepted:
         return rob
-    prob = res.problem
-    richer = F.fit(prob.model, prob.meas, with_effects(prob, accepted), in_blocks=res.design.in_blocks)
+    prob, in_blocks = res.problem, res.design.in_blocks
+    del rob                        # its problem without the outliers (10^6 poses: ~0.3 GB) is not needed again
+    richer = F.fit(prob.model, prob.meas, with_effects(prob, accepted), in_blocks=in_blocks)
     flags = np.zeros(len(prob.d), bool)
     flags[richer.outliers.index] = True
-    return F.fit(prob.model, prob.meas, with_effects(prob), exclude=flags, in_blocks=res.design.in_blocks)
+    del richer
+    return F.fit(prob.model, prob.meas, with_effects(prob), exclude=flags, in_blocks=in_blocks)
 
 
 @dataclass
@@ -335,6 +337,7 @@ def diagnose_fit(res: FitResult, top: int = 10) -> "Diagnosis":
         X = _columns(sc.block, prob.w, res.residual, free, prob.fixed_values, effects)
         rows = dc.RawRows(X, fold, prob.obs.group == ob.LENGTH, prob.w, dc.K_FOLDS)
     else:
+        pool.drop_block_columns()               # not needed past the screen; the pass holds blocks of its own
         rows = dc.CompressedRows(lay.c, dc.K_FOLDS)
         ids = [e.id for e in effects] if isinstance(parallel.runner(), parallel.OnDask) else effects
         for part in design.map(partial(_compress_block, free=free, fixed_vals=prob.fixed_values, ids=ids,
