@@ -3,6 +3,8 @@ spaced (every 90 mm from -360 to 360 mm on ac_trunnion's X stroke of [-400, 400]
 targets (`dx_x:xk90from-360`), not the stroke split in 8; the comp file's lines are at the targets (and the stroke's
 ends, where the end values are held, as LinuxCNC holds them); irregular targets keep the knots over the stroke; a
 rotary axis' profile is said to be an angular one."""
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -103,3 +105,15 @@ def test_diagnosis_offers_knots_at_the_targets_and_comp_lines_there(model, log, 
     assert list(nominal) == [-400.0, *TARGETS, 400.0]        # the targets, and the stroke's ends held
     # beyond the end targets the profile is held (within 10 nm), not extrapolated (that would move it by 2 to 5 um)
     assert fwd[0] == pytest.approx(fwd[1], abs=1e-5) and fwd[-1] == pytest.approx(fwd[-2], abs=1e-5)
+
+
+def test_default_table_worse_than_the_comp_file_says_so(model, log):
+    fm = MF.from_fit(F.fit(model, log, ["dx_x:xk90from-360"]))
+    (rec,) = fm.effects                                     # + a 72 um slope: the table corrects, but not all
+    fm = dataclasses.replace(fm, effects=[dataclasses.replace(rec, values=tuple(VALUES + 1e-4 * TARGETS))])
+    comp = CP.compensate(fm, model, counts={v: 3 for v in model.variables}, poses=50)
+    tip = comp.account["tip_error_mm"]
+    assert tip["after_table"]["max"] > 1.5 * tip["after_linuxcnc"]["max"]      # 3 nodes cannot carry 9 knots
+    (warn,) = [w for w in comp.account["warnings"] if "volumetric table" in w]
+    assert "linuxcnc/joint0-X.comp" in warn and "--nodes X=11" in warn
+    assert f"{1e3 * tip['after_table']['max']:.3g} um" in warn
