@@ -77,7 +77,9 @@ say "diagnose with the reversal in: the per-position profile dx_x:xk100 is offer
 say "Fit the reversal and the profile, compensate: LinuxCNC's trims at the profile's knots (joint0-X.comp)"
 "$BIN/fiveaxis" fit "$LASER" --machine ac_trunnion --add dx_x:xr --add dx_x:xk100 -o "$IDIR/model.json" --force \
     | sed -n '/residual RMS/p'
-"$BIN/fiveaxis" compensate "$IDIR/model.json" -o "$IDIR/comp" --poses 500 --force \
+# --nodes X=9: a table node at each of the profile's 9 knots (the default 5 nodes cannot hold a 9-knot profile:
+# the table would be worse than none, and compensate refuses it)
+"$BIN/fiveaxis" compensate "$IDIR/model.json" -o "$IDIR/comp" --poses 500 --force --nodes X=9 \
     > /dev/null
 cat "$IDIR/comp/linuxcnc/joint0-X.comp"
 say "The same laser run with LinuxCNC's files applied (simulate --compensation --linuxcnc): ISO 230-2 again"
@@ -128,9 +130,12 @@ say "A 4-hour test on li2018 with four temperature sensors (spindle running 2 h,
     --temperature spindle=spindle:rise=15,tau=900,off=7200 --temperature xscale=bed:rise=3,tau=5000 \
     --temperature air=air:amp=1 --temperature motor=mix:spindle=0.4,air=1 \
     --effect L:temp_spindle~600=0.0015 --effect dx_x:x.temp_xscale=0.0287 -o "$HEAT" --force
-loop "$HEAT" li2018
-FOUND=$("$BIN/fiveaxis" diagnose "$HEAT" --rounds 4 --json | "$BIN/python" -c 'import json, sys
-r = json.load(sys.stdin)["rounds"]; print(" ".join("--add " + i for i in r[-1]["added"]))')
+say "The calibration loop: fiveaxis diagnose $HEAT --machine li2018 --rounds 4 --top 3 (run once: the text below and the effects it found come from its JSON record)"
+"$BIN/fiveaxis" diagnose "$HEAT" --machine li2018 --rounds 4 --top 3 --json > "$HDIR/rounds.json"
+"$BIN/python" -c 'import json, sys; from fiveaxis.report import text
+print(text.rounds(json.load(open(sys.argv[1]))["rounds"]))' "$HDIR/rounds.json"
+FOUND=$("$BIN/python" -c 'import json, sys
+print(" ".join("--add " + i for i in json.load(open(sys.argv[1]))["rounds"][-1]["added"]))' "$HDIR/rounds.json")
 say "Fit what the loop found ($FOUND) and compensate at a warm state (temp_spindle 35 degC, temp_xscale its warmest reading)"
 "$BIN/fiveaxis" fit "$HEAT" --machine li2018 $FOUND -o "$HDIR/model.json" --force | sed -n '/residual RMS/p;/temp_/p'
 "$BIN/fiveaxis" compensate "$HDIR/model.json" -o "$HDIR/comp" --temperature spindle=35 --force | sed -n '/^  at /,/only the kinematics/p'

@@ -3,6 +3,7 @@ import contextlib
 import io
 import os
 import sys
+import types
 from pathlib import Path
 
 import numpy as np
@@ -59,11 +60,12 @@ def worst_z(res, sim):
     return float(np.max(np.abs(zs))), len(zs)
 
 
-def run_cli(*argv, echo: bool = False):
+def run_cli(*argv, echo: bool = False, result: bool = False):
     """The one way tests reach the command line (in-process; a subprocess only where a real process is the
     point: exit under load, kill -9, an installed wheel): (exit code, stdout, stderr), argparse's SystemExit giving
     its code. It captures by itself, so fixtures of any scope use it; echo: also write the output to sys.stdout /
-    sys.stderr afterwards (for a test that reads capsys)."""
+    sys.stderr afterwards (for a test that reads capsys); result: a subprocess.CompletedProcess-like record
+    (returncode, stdout, stderr) instead of the tuple."""
     from fiveaxis.cli import main            # (the package under test: imported when a test runs it)
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
@@ -74,6 +76,8 @@ def run_cli(*argv, echo: bool = False):
     if echo:
         sys.stdout.write(out.getvalue())
         sys.stderr.write(err.getvalue())
+    if result:
+        return types.SimpleNamespace(returncode=rc, stdout=out.getvalue(), stderr=err.getvalue())
     return rc, out.getvalue(), err.getvalue()
 
 

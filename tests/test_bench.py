@@ -25,7 +25,11 @@ TINY = {
     "bench_plan": ["--tiny"],
     "bench_plan_programs": None,          # needs a folder and rs274: its own test below
     "bench_scale": None,                  # subprocesses and a folder: its own test below
+    "same_answers": None,                 # two folders of records: its own test below
     "exam": ["--trials", "3", "--poses", "200"],
+    "sample_run": None,                   # writes a file: its own test below
+    "joint_compensation": ["--seeds", "1", "--fits", "joint", "--rtest-poses", "40", "--poses", "100", "--nodes", "2",
+                           "--comp-points", "3", "--json"],
 }
 
 
@@ -119,6 +123,26 @@ def test_bench_scale_tiny(tmp_path):
     assert rows[1]["found"], rows[1]
 
 
+def test_same_answers_compares_records(tmp_path):
+    """The JSON comparison of bench/same_answers.py: numbers by relative difference, anything else exactly."""
+    import json
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir(), b.mkdir()
+    rec = {"verdict": "missing effect", "rms_mm": 0.002, "seconds": 3.0,
+           "candidates": [{"id": "ex_x:x1", "delta_ebic": -120.5}, {"id": "dz_x:x2", "delta_ebic": -3.0}]}
+    (a / "one.json").write_text(json.dumps(rec))
+    rec2 = json.loads(json.dumps(rec))
+    rec2["candidates"][0]["delta_ebic"] = -120.5 * (1 + 1e-12)
+    rec2["seconds"] = 9.0                                                # times are not compared
+    (b / "one.json").write_text(json.dumps(rec2))
+    out = bench_module("same_answers").main(["compare", str(a), str(b)])
+    assert out["other"] == 0 and 0.5e-12 < out["worst"] < 2e-12
+    rec2["candidates"][1]["id"] = "dz_x:x1"                              # another candidate listed: a decision
+    (b / "one.json").write_text(json.dumps(rec2))
+    out = bench_module("same_answers").main(["compare", str(a), str(b)])
+    assert out["other"] == 1
+
+
 def test_exam_runs_and_measures():
     """The Monte-Carlo exam (issue 29) on three trials (tip readings on the three machines): every trial measured,
     the residual after the fit at the noise, the compensated workspace error below the uncompensated one, the
@@ -132,4 +156,23 @@ def test_exam_runs_and_measures():
         assert 0 < r["quantities"] and 0 <= r["covered"] <= r["quantities"]
     for key in ("false_alarm_rate", "coverage_k2", "band_coverage"):
         assert s[key] is None or 0.0 <= s[key] <= 1.0
-    assert out["table"].startswith("| measured | value |")
+    assert out["table"].startswith("| measured | value") and set(out["tables"]) >= {"machine", "instrument"}
+
+
+def test_joint_compensation_runs_and_measures():
+    """Issue 29's joint criterion through the table (one seed, the joint fit, tiny sizes): the true error before and
+    after measured from the independent chain, after below before, the predicted range ordered."""
+    rows = bench_module("joint_compensation").main(TINY["joint_compensation"])
+    assert len(rows) == 1 and set(rows[0]["fits"]) == {"joint"}
+    f = rows[0]["fits"]["joint"]
+    assert 0 < f["after_mm"] < rows[0]["before_mm"] and f["range_k2_mm"][0] <= f["range_k2_mm"][1]
+
+
+def test_sample_run_samples_a_command(tmp_path):
+    """bench/sample_run.py on a tiny simulate: the command ran, its RSS and its frames were sampled."""
+    out = tmp_path / "s.csv"
+    rec = bench_module("sample_run").main(["--period", "0.01", "--", "simulate", "--machine", "li2018", "--n", "50",
+                                           "-o", str(out)])
+    assert rec["rc"] == 0 and out.exists()
+    assert rec["samples"] and all(rss > 0 for _, rss, _ in rec["samples"])
+    assert "peak RSS" in rec["report"]

@@ -419,19 +419,8 @@ def laser_run(laser, capsys_module):
 @pytest.fixture(scope="module")
 def capsys_module():
     """Run the command line in-process and catch what it prints (a module-scoped capsys)."""
-    import contextlib
-    import io
     from conftest import run_cli
-
-    def run(*argv):
-        out, err = io.StringIO(), io.StringIO()
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            try:
-                rc = run_cli(str(a) for a in argv)[0]
-            except SystemExit as exc:
-                rc = exc.code
-        return rc, out.getvalue(), err.getvalue()
-    return run
+    return run_cli
 
 
 @pytest.mark.slow

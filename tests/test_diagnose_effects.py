@@ -181,6 +181,17 @@ def test_the_tails_of_a_missing_effect_are_not_outliers(model):
     assert dg.to_json()["outliers"] == [] and dg.candidates[0]["id"] == "ex_x:x1"
 
 
+def test_a_backlash_a_whole_laser_run_shows_is_not_outliers(model):
+    """A reversal of X (backlash 26 um) on laser runs of X, Y, Z, both directions: against the scale of the Y and Z
+    runs every reading of the X run is beyond the outlier threshold, and the other runs show nothing of it. The
+    exam (bench/exam.py, li2018 interferometer) found it flagged as 110 outliers and 'no missing effect': the effect
+    accepted on every reading now joins the model the outliers are flagged against."""
+    sim = simulate(model, ["dx_x:xr=-0.013"], n=150, instrument="interferometer", seed=0)
+    dg = D.diagnose(model, sim.meas, top=3)
+    assert dg.to_json()["outliers"] == []
+    assert dg.verdict == "missing effect" and "dx_x:xr" in ids_of(dg.candidates[0])
+
+
 def test_outliers_by_data_row_of_the_file(capsys, model, tmp_path):
     """The rows listed are the file's data rows (1 = first row under the header), in fit and diagnose JSON."""
     path = tmp_path / "m.csv"

@@ -57,14 +57,15 @@ def lagged(grid, T, tau):
     return y
 
 
-def day(model, seed, runs, heat=True, air_shift=0.0, drop=(), base=None):
-    """A measurement file of one day (tmp CSV read back) and its truth: (Measurements, base errors, temps)."""
+def day(model, seed, runs, heat=True, air_shift=0.0, drop=(), base=None, start=20.0):
+    """A measurement file of one day (tmp CSV read back) and its truth: (Measurements, base errors, temps); the
+    machine's errors are stated at 20 degC (the spindle starts at `start`)."""
     machine = model.machine
     rng = np.random.default_rng(seed)
     n = N
     q = machine.random_poses(n, rng)
     t = np.sort(rng.uniform(0, HOURS * 3600, n))
-    grid, Ts = spindle_history(t, runs)
+    grid, Ts = spindle_history(t, runs, start=start)
     T_spindle = np.interp(t, grid, Ts)
     T_lag = np.interp(t, grid, lagged(grid, Ts, LAG))
     T_x = 20.0 + 3.0 * -np.expm1(-t / 5000.0)
@@ -267,3 +268,170 @@ def test_confounded_when_everything_rises_with_time():
     pairs = [{fx.parse(c[k], model.machine, model.errors).var for k in ("effect", "with")} for c in conf]
     assert {"temp_spindle", fx.TIME} in pairs
     assert "cool-down phase, a spindle stop or a second day" in dg.heat["confounded_note"]
+
+
+# -- the plausibility of a rate per degC (compensation.plausible.THERMAL) ---------------------------------------
+def test_a_rate_per_degC_beyond_a_machine_is_flagged_and_refused(tmp_path):
+    """A spindle growing 1.5 um/degC and an X scale of 11.5 um/m/degC pass without a word; the same readings
+    against a sensor that barely changed (its changes a hundredth: 150 um/degC fitted) are flagged by fit with the
+    hint, and a model of 1 mm/degC or 1 mm/m/degC (edited, a unit slip) is refused by compensate, nothing written."""
+    import dataclasses
+    import json
+    from conftest import run_cli
+    from fiveaxis.compensation import plausible
+    from fiveaxis.measurement.simulate import simulate
+    model = fiveaxis.load("li2018")
+    ids = ["L:temp_spindle", "dx_x:x.temp_xscale"]
+    half = 0.5 * float(np.ptp(model.machine.axis("X").model_stroke))      # mm: the scale effect's c at the end
+    sim = simulate(model, ["L:temp_spindle=0.0015", f"dx_x:x.temp_xscale={ALPHA * half}"], n=200, seed=4,
+                   duration=14400.0, temperatures={"spindle": "spindle", "xscale": "bed:rise=3,tau=5000"})
+    fm = MF.from_fit(F.fit(model, sim.meas, ids))
+    rates = {e.id: e.values[0] for e in fm.effects}
+    assert abs(rates["L:temp_spindle"] - 1.5e-3) < 0.1e-3                    # the truth, so the bound is judged on it
+    assert abs(rates["dx_x:x.temp_xscale"] / half - ALPHA) < 0.2 * ALPHA
+    assert plausible.model_findings(fm, model.machine) == []
+    # the sensor that barely changed: the same readings, its changes a hundredth (0.15 degC over the test)
+    T = sim.meas.temps["temp_spindle"]
+    slip = dataclasses.replace(sim.meas, temps=dict(sim.meas.temps, temp_spindle=T[0] + (T - T[0]) / 100.0))
+    found = plausible.model_findings(MF.from_fit(F.fit(model, slip, ids)), model.machine)
+    assert len(found) == 1 and found[0].startswith("effect L:temp_spindle: 1") and "um/degC of temp_spindle" in found[0]
+    assert plausible.unit_slip(found).endswith(plausible.TEMPERATURE_HINT)
+    eff, ctx = fx.parse("L:temp_spindle", model.machine, model.errors), fx.context(model.machine, slip.poses, slip.t,
+                                                                                 temps=slip.temps)
+    assert "NOT A MACHINE'S RATE: 150 um/degC: beyond" in eff.describe(model.machine, [0.15], ctx)   # fit's text
+    assert "NOT A MACHINE" not in eff.describe(model.machine, [0.0015], ctx)
+    # compensate refuses a model of 1 mm/degC (and reports the scale's 1 mm/m/degC beside it), nothing written
+    path = tmp_path / "m.json"
+    MF.save(fm, path)
+    data = json.loads(path.read_text())
+    for e in data["effects"]:
+        e["coefficients_mm_rad"] = {k: (1.0 if e["param"] == "L" else 1e-3 * half) for k in e["coefficients_mm_rad"]}
+    path.write_text(json.dumps(data))
+    out = tmp_path / "c"
+    out.mkdir()
+    rc, _, err = run_cli("compensate", path, "-o", out)
+    assert rc == 2 and err.count("\n") == 1 and list(out.iterdir()) == [], err
+    assert "L:temp_spindle: 1000 um/degC" in err and "(and 1 more)" in err and plausible.TEMPERATURE_HINT in err
+    assert "nothing is written for the controller" in err
+    bad = MF.load(path)
+    found = plausible.model_findings(bad, model.machine)
+    assert any(f.startswith("effect dx_x:x.temp_xscale: 1000 um/m/degC") for f in found), found
+
+
+# -- a stated reference temperature (--reference-temperature) -----------------------------------------------------
+def test_a_stated_reference_is_the_machine_at_that_temperature(tmp_path):
+    """A spindle warm from the previous shift (26 degC at the first reading) on a machine whose tool length is the
+    presetter's at 20 degC (the truth: L grows 1.5 um/degC from 20). Fitted with the stated reference 20 (the option
+    of fit and diagnose), the model holds 20 (kept in model.json as stated, the kinematics module's pin default) and
+    predicts the tool 9 um longer at a steady 26 degC, as the truth; reckoned from the first reading it predicts
+    nothing there. The option's refusals name it."""
+    from conftest import run_cli
+    from fiveaxis.commands.options import references_of
+    model = fiveaxis.load("li2018")
+    cols, _ = day(model, 7, [(0.0, 7200.0)], start=26.0, drop=("temp_air", "temp_motor"))
+    path = write(tmp_path, "warm.csv", cols)
+    meas = read(path, model.machine)
+    ids = [f"L:temp_spindle~{LAG:g}", "dx_x:x.temp_xscale"]
+    stated = meas.with_references(references_of(["20"]))
+    assert stated.references == {"temp_spindle": 20.0, "temp_xscale": 20.0}
+    fm = MF.from_fit(F.fit(model, stated, ids))
+    MF.save(fm, tmp_path / "m.json")
+    fm = MF.load(tmp_path / "m.json")
+    sc = fm.scales["temp_spindle"]
+    assert sc.centre == 20.0 and sc.stated
+    at = model.machine.random_poses(5, np.random.default_rng(0))
+    _, dL = MF.errors_at(fm, model, at, temps={"temp_spindle": 26.0, "temp_xscale": 20.0})
+    assert np.allclose(dL, GAIN_L * 6.0, rtol=0.05), dL                 # the truth: 9 um longer at 26 degC
+    first = MF.from_fit(F.fit(model, meas, ids))
+    assert not first.scales["temp_spindle"].stated and abs(first.scales["temp_spindle"].centre - 26.0) < 0.5
+    _, dL_first = MF.errors_at(first, model, at, temps={"temp_spindle": 26.0, "temp_xscale": 20.0})
+    assert np.all(np.abs(dL_first) < 1e-3)                              # under 1 um: its reference is ~26
+    assert meas.with_references(references_of(["20", "spindle=21.5"])).references == \
+        {"temp_spindle": 21.5, "temp_xscale": 20.0}                      # a channel's own after every channel's
+    for spec, said in (("foo=20", "no column temp_foo"), ("2000", "from -50 to 200 degC"), ("=20", "[NAME=]DEGC"),
+                       ("spindle=warm", "[NAME=]DEGC")):
+        rc, _, err = run_cli("fit", path, "--machine", "li2018", "--reference-temperature", spec)
+        assert rc == 2 and err.count("\n") == 1 and "--reference-temperature" in err and said in err, err
+
+
+# -- the cross-validation folds search the lags again -------------------------------------------------------------
+def test_the_folds_search_the_lags_again(monkeypatch):
+    """A lag chosen on all the readings must not enter a fold's held-out test (it has seen the held-out rows):
+    every lagged temperature candidate a fold's "add the best candidate" can choose was searched on that fold's
+    training rows; the all-data ones are left out of every fold, as the periods and time constants are."""
+    from fiveaxis.diagnosis import decision as dc
+    from fiveaxis.measurement.simulate import simulate
+    model = fiveaxis.load("li2018")
+    sim = simulate(model, [f"L:temp_spindle~{LAG:g}=0.0015"], n=300, seed=2, duration=14400.0,
+                   temperatures={"spindle": "spindle:off=7200", "air": "air:amp=1"})
+    seen = {}
+    real = dc.cross_validate
+
+    def spy(rows, lay, *args):
+        seen["lay"] = lay
+        return real(rows, lay, *args)
+    monkeypatch.setattr(dc, "cross_validate", spy)
+    dg = D.diagnose(model, sim.meas)
+    lay = seen["lay"]
+    temps = [k for k, e in enumerate(lay.effects) if isinstance(e, fx.Temperature) and e.tau > 0]
+    main = [k for k in temps if lay.fold[k] is None]
+    assert main and all(k in lay.resampled for k in main if lay.effects[k].var == "temp_spindle"
+                        and lay.effects[k].param == fx.TOOL)
+    spindle = next(k for k in main if lay.effects[k].param == fx.TOOL and lay.effects[k].var == "temp_spindle")
+    own = {}
+    for f in range(dc.K_FOLDS):
+        usable = [k for k in temps if (lay.fold[k] is None and k not in lay.resampled) or lay.fold[k] == f]
+        assert not [k for k in usable if lay.fold[k] is None and lay.effects[k].param == fx.TOOL
+                    and lay.effects[k].var == "temp_spindle"]                # the all-data lag: in no fold
+        own[f] = [lay.effects[k].tau for k in usable if lay.fold[k] == f and lay.effects[k].param == fx.TOOL
+                  and lay.effects[k].var == "temp_spindle"]
+        assert len(own[f]) == 1 and abs(own[f][0] - LAG) < 0.3 * LAG, own  # its own search finds the lag
+    print(f"all data: {lay.effects[spindle].id}; folds' own lags {own}; CV chose {dg.decision['cv_chosen']}")
+    assert len({v[0] for v in own.values()} | {lay.effects[spindle].tau}) > 1   # searched, not copied
+    assert "L:temp_spindle" in " ".join(dg.decision["accepted"])
+
+
+# -- the calibration loop says where it is (make run's heat section runs it once) --------------------------------
+def test_the_loop_reports_each_round(tmp_path):
+    """`diagnose --rounds N` prints one line per round on stderr as it goes (a loop runs for seconds to minutes):
+    its verdict, residual and the effect added next, the same as the JSON record it prints once at the end."""
+    import json
+    from conftest import run_cli
+    from fiveaxis.measurement.simulate import simulate, to_frame
+    model = fiveaxis.load("li2018")
+    sim = simulate(model, ["L:temp_spindle=0.0015"], n=120, seed=5, duration=14400.0,
+                   temperatures={"spindle": "spindle:off=7200"})
+    path = tmp_path / "h.csv"
+    to_frame(sim, model).to_csv(path, index=False)
+    rc, out, err = run_cli("diagnose", path, "--rounds", "3", "--top", "1", "--json")
+    rounds = json.loads(out)["rounds"]
+    lines = [line for line in err.splitlines() if line.startswith("fiveaxis: diagnose round")]
+    print("\n".join(lines))
+    assert rc == 0 and len(lines) == len(rounds) >= 2
+    for k, (line, r) in enumerate(zip(lines, rounds)):
+        assert line.startswith(f"fiveaxis: diagnose round {k + 1} of at most 3: {r['verdict']} (residual RMS "
+                               f"{1e3 * r['rms_mm']:.3g} um)")
+        if k + 1 < len(rounds):
+            assert line.endswith(f"adding {rounds[k + 1]['added'][-1]}")
+    assert lines[-1].endswith("the loop ends")
+    assert "L:temp_spindle" in " ".join(rounds[-1]["added"])
+
+
+def test_compensate_shows_its_stages_on_a_terminal_only(monkeypatch):
+    """compensate (seconds to a minute) draws its stages as a bar on a terminal; in a pipe or a log it stays silent
+    (a refusal there is one line)."""
+    import io
+    import sys
+    from fiveaxis.commands.compensate import _stages
+    from fiveaxis.compensation.pipeline import STAGES
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+    for stream, shown in ((Terminal(), True), (io.StringIO(), False)):
+        monkeypatch.setattr(sys, "stderr", stream)
+        with _stages(STAGES) as stage:
+            for name in STAGES:
+                stage(name)
+        text = stream.getvalue()
+        assert ("compensate: 100%" in text and all(name in text for name in STAGES)) if shown else text == ""

@@ -247,9 +247,16 @@ def test_known_etve_by_hand(tmp_path):
 # -- the command line ---------------------------------------------------------------------------------------------
 def test_command_line_text_json_plot(tmp_path, capsys):
     out = tmp_path / "sim.csv"
-    rc, _, err = run_cli("iso230-3-simulate", out, "--hours", "5", "--seed", "2", "--truth",
+    rc, _, err = run_cli("simulate", "--iso230-3", "spindle", "-o", out, "--hours", "5", "--seed", "2", "--truth",
                          tmp_path / "truth.json")
     assert rc == 0 and "wrote" in err
+    # one simulate: the test's options only with --iso230-3, a machine's readings' options never with it
+    for argv, said in ((["--hours", "5"], "--hours: an option of the ISO 230-3 test"),
+                       (["--iso230-3", "etve", "--effect", "ex_x:x1"], "--effect: an option of a machine's"),
+                       (["--iso230-3", "etve", "--machine", "li2018"], "--machine: the ISO 230-3 test"),
+                       (["--iso230-3", "etve", "--hours", "0"], "--hours")):
+        rc, _, e = run_cli("simulate", *argv, "-o", tmp_path / "no.csv")
+        assert rc == 2 and e.count("\n") == 1 and said in e and not (tmp_path / "no.csv").exists(), e
     rc, text, _ = run_cli("iso230-3", out, "--spacing", "100", "--plot", tmp_path / "plots")
     assert rc == 0 and "thermal distortion caused by a rotating spindle" in text
     assert "X to 0.1 um" in text and "A to 1 urad" in text and "running 0 to 239 min, 8000 rpm" in text
@@ -397,3 +404,32 @@ def test_parquet_and_blank_temperatures(tmp_path):
     assert (col["first_degC"], col["last_degC"], col["max_degC"]) == pytest.approx((read[0], read[-1], read.max()))
     assert any(f"temp_column: {len(read)} readings of {len(df)}" in n for n in a["notes"])
     assert a["series"]["temp_column_degC"][0] is None
+
+
+def test_files_are_read_through_the_public_table_reader(tmp_path):
+    """One reader of checked columns (`measurement.files.read_table`): no module outside measurement/files.py
+    reaches its private helpers, and the ISO 230-3 reader names a bad cell's row, line and column as it does."""
+    import ast
+    private = []
+    for path in sorted((ROOT / "src" / "fiveaxis").rglob("*.py")):
+        text = path.read_text()
+        if path.name == "files.py" and path.parent.name == "measurement" or "files" not in text:
+            continue
+        tree = ast.parse(text)
+        aliases = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").endswith("measurement.files"):
+                private += [f"{path.name}: {a.name}" for a in node.names if a.name.startswith("_")]
+            if isinstance(node, ast.ImportFrom) and (node.module or "").endswith("measurement"):
+                aliases |= {a.asname or a.name for a in node.names if a.name == "files"}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases \
+                    and node.attr.startswith("_"):
+                private.append(f"{path.name}: {node.value.id}.{node.attr}")
+    assert private == []
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,dx,temp_spindle\n0,0.001,20\n\n60,0.002,abc\n120,0.003,21\n")
+    with pytest.raises(InputError, match=r"bad.csv: data row 3 \(line 4\), column temp_spindle: expected a number, "
+                                         r"got 'abc'"):
+        from fiveaxis.iso230.thermal_file import read
+        read(bad)

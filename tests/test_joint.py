@@ -5,8 +5,6 @@ set-up (a work offset and a rotation about the table's axis) at most 20 % of bef
 does not get there. References: the true machine's tool-tip errors from the independent chain (`model/htm.py`,
 `tests/truth.py`), the simulated noises."""
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -23,7 +21,11 @@ from fiveaxis.report import text
 
 from truth import truth_model
 
-FIVEAXIS = [sys.executable, "-m", "fiveaxis.cli"]
+from conftest import run_cli  # noqa: E402
+
+
+def _cli(argv):
+    return run_cli(*argv, result=True)
 
 
 @pytest.fixture(scope="module")
@@ -147,16 +149,13 @@ def test_joint_fit_and_diagnose_on_the_command_line(trunnion, tmp_path):
         write(to_frame(s, trunnion), tmp_path / name)
     files = [str(tmp_path / "laser.csv"), str(tmp_path / "rtest.csv")]
     add = [a for i in ids for a in ("--add", i)]
-    r = subprocess.run(FIVEAXIS + ["fit", *files, "--machine", "ac_trunnion", *add, "--json"],
-                       capture_output=True, text=True)
+    r = _cli(["fit", *files, "--machine", "ac_trunnion", *add, "--json"])
     assert r.returncode == 0, r.stderr
     j = json.loads(r.stdout)
     assert len(j["files"]) == 2 and j["rms_mm"] < 1.2e-3
-    r = subprocess.run(FIVEAXIS + ["fit", files[0], files[0], "--machine", "ac_trunnion"], capture_output=True,
-                       text=True)
+    r = _cli(["fit", files[0], files[0], "--machine", "ac_trunnion"])
     assert r.returncode != 0 and "given twice" in r.stderr and len(r.stderr.strip().splitlines()) == 1
-    r = subprocess.run(FIVEAXIS + ["fit", *files, "--machine", "ac_trunnion", "--resolution", "W=0.001"],
-                       capture_output=True, text=True)
+    r = _cli(["fit", *files, "--machine", "ac_trunnion", "--resolution", "W=0.001"])
     assert r.returncode != 0 and "--resolution W" in r.stderr and len(r.stderr.strip().splitlines()) == 1
 
 

@@ -5,8 +5,6 @@ prior decided each quantity. References: the normal equations written out in pla
 sets against the fit of one with the other's posterior as its prior, and the simulations' truths."""
 import json
 import shutil
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -23,7 +21,11 @@ from fiveaxis.model.error_model import load
 from fiveaxis.model.machine import MACHINES_DIR
 from fiveaxis.report import text
 
-FIVEAXIS = [sys.executable, "-m", "fiveaxis.cli"]
+from conftest import run_cli  # noqa: E402
+
+
+def _cli(argv):
+    return run_cli(*argv, result=True)
 
 
 @pytest.fixture(scope="module")
@@ -173,28 +175,26 @@ def test_prior_from_a_model_file_on_the_command_line(trunnion, tmp_path):
     rt = simulate(trunnion, instrument="rtest", n=300, seed=7)
     write(to_frame(laser, trunnion), tmp_path / "laser.csv")
     write(to_frame(rt, trunnion), tmp_path / "rt.csv")
-    r = subprocess.run(FIVEAXIS + ["fit", str(tmp_path / "laser.csv"), "--machine", "ac_trunnion", "-o",
-                                   str(tmp_path / "laser.json")], capture_output=True, text=True)
+    r = _cli(["fit", str(tmp_path / "laser.csv"), "--machine", "ac_trunnion", "-o",
+                                   str(tmp_path / "laser.json")])
     assert r.returncode == 0, r.stderr
     fm = json.loads((tmp_path / "laser.json").read_text())
     assert "posterior_covariance_mm_rad" in fm and fm["priors_mm_rad"]["dx_x"]["source"].startswith("class")
-    r = subprocess.run(FIVEAXIS + ["fit", str(tmp_path / "rt.csv"), "--machine", "ac_trunnion", "--prior",
-                                   str(tmp_path / "laser.json"), "--json"], capture_output=True, text=True)
+    r = _cli(["fit", str(tmp_path / "rt.csv"), "--machine", "ac_trunnion", "--prior",
+                                   str(tmp_path / "laser.json"), "--json"])
     assert r.returncode == 0, r.stderr
     j = json.loads(r.stdout)
     assert j["parameters"]["dx_x"]["prior"]["source"] == "model file laser.json"
     assert j["prior"]["sources"]["model file laser.json"] == len(trunnion.errors)
     for argv, match in ((["--prior", "bogus"], "--prior bogus: expected none"),
                         (["--prior", str(tmp_path / "nope.json")], "model file not found")):
-        r = subprocess.run(FIVEAXIS + ["fit", str(tmp_path / "rt.csv"), "--machine", "ac_trunnion", *argv],
-                           capture_output=True, text=True)
+        r = _cli(["fit", str(tmp_path / "rt.csv"), "--machine", "ac_trunnion", *argv])
         assert r.returncode != 0 and len(r.stderr.strip().splitlines()) == 1 and match in r.stderr, r.stderr
     shutil.copy(tmp_path / "laser.json", tmp_path / "other.json")
-    r = subprocess.run(FIVEAXIS + ["fit", str(tmp_path / "rt.csv"), "--machine", "li2018", "--prior",
-                                   str(tmp_path / "other.json")], capture_output=True, text=True)
+    r = _cli(["fit", str(tmp_path / "rt.csv"), "--machine", "li2018", "--prior",
+                                   str(tmp_path / "other.json")])
     assert r.returncode != 0 and "fitted for machine 'ac_trunnion'" in r.stderr
-    r = subprocess.run(FIVEAXIS + ["fit", str(tmp_path / "rt.csv"), "--machine", "ac_trunnion", "--prior", "none"],
-                       capture_output=True, text=True)
+    r = _cli(["fit", str(tmp_path / "rt.csv"), "--machine", "ac_trunnion", "--prior", "none"])
     assert r.returncode == 0 and "prior:           none" in r.stdout
     assert "[[Decided by the prior]]" not in r.stdout and "[[Decided by the prior]]" in text.fit(
         to_json(F.fit(trunnion, rt.meas)))

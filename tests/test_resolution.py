@@ -3,8 +3,6 @@
 precision unless stated; and the rule on evidence: a direction whose readings stand far above what the rounding can
 create is determined. References: the simulations' noise (1 um) and hidden effects."""
 import json
-import subprocess
-import sys
 from decimal import Decimal
 
 import numpy as np
@@ -21,7 +19,11 @@ from fiveaxis.report import text
 from written import controller_csv, too_large, two_tools
 
 NOISE = 0.001
-FIVEAXIS = [sys.executable, "-m", "fiveaxis.cli"]
+from conftest import run_cli  # noqa: E402
+
+
+def _cli(argv):
+    return run_cli(*argv, result=True)
 
 
 @pytest.fixture(scope="module")
@@ -61,8 +63,7 @@ def test_parquet_is_full_precision_unless_stated(head, tmp_path):
         read(csv, head.machine, resolution={"W": 0.001})
     with pytest.raises(InputError, match="resolution of column X: expected a positive step"):
         read(csv, head.machine, resolution={"X": 0.0})
-    r = subprocess.run(FIVEAXIS + ["fit", str(csv), "--machine", "tilting_head", "--resolution", "X=-1"],
-                       capture_output=True, text=True)
+    r = _cli(["fit", str(csv), "--machine", "tilting_head", "--resolution", "X=-1"])
     assert r.returncode != 0 and len(r.stderr.strip().splitlines()) == 1 and "--resolution X=-1" in r.stderr
 
 

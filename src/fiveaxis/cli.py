@@ -33,6 +33,8 @@ COMMANDS = {
     "names": ("fiveaxis.commands.names", "the errors' project names beside their ISO 230 names, kind, unit, meaning"),
     "compensate": ("fiveaxis.commands.compensate", "compensation table, LinuxCNC files and predicted error from a "
                                                    "fitted model"),
+    "verify": ("fiveaxis.commands.verify", "check on the machine that a compensation is active with the right sign "
+                                           "and size: a short program with predicted readings, then pass/fail"),
     "plan": ("fiveaxis.commands.plan", "the measurement poses that determine the most, before measuring; CSV + G-code"),
     "dask": ("fiveaxis.commands.dask", "GSIL of a workspace grid on Dask: local worker processes or --scheduler"),
     "iso230-2": ("fiveaxis.commands.iso230", "ISO 230-2 positioning figures of a linear axis (E, M, B, R, A per "
@@ -41,8 +43,6 @@ COMMANDS = {
                                              "ballbar's diagnostic list"),
     "iso230-3": ("fiveaxis.commands.iso230_3", "ISO 230-3 thermal tests (ETVE, spindle, moving axis): drift per "
                                                "direction and phase beside the temperatures"),
-    "iso230-3-simulate": ("fiveaxis.commands.iso230_3", "a simulated ISO 230-3 test file (displacements of a "
-                                                        "five-sensor nest and temperatures over hours)"),
 }
 
 
@@ -82,7 +82,7 @@ OPTIONS = {
     "drift_um": "--drift", "temperature_deviation_K": "--temperature-deviation",
     "spacing_mm": "--spacing", "spindle_on_min": "--spindle-on", "spindle_off_min": "--spindle-off",
     "spindle_speed_rpm": "--spindle-speed", "test_hours": "--hours", "run_hours": "--run-hours",
-    "interval_s": "--interval", "speed_rpm": "--speed",
+    "interval_s": "--interval", "speed_rpm": "--speed", "reference_temperature": "--reference-temperature",
 }
 COMMAND_OPTIONS = {"lsa": {"poses": "--pose"}, "fit": {"effect": "--add"}, "diagnose": {"effect": "--add"},
                    "report": {"effect": "--add"}}

@@ -7,8 +7,10 @@ argument (`max_size={n}`) unless the caller passes the command-line spelling (e.
 """
 from __future__ import annotations
 
+import ctypes
 import math
 import os
+import sys
 
 from .exceptions import InputError
 
@@ -92,3 +94,23 @@ def check_memory(nbytes, what: str, detail: str = "") -> None:
 
 def _bytes(n) -> str:
     return f"{n / 1e9:.3g} GB" if n >= 1e8 else f"{n / 1e6:.3g} MB"
+
+
+_LIBC = []
+
+
+def give_back_memory() -> None:
+    """Return memory freed inside this process to the system: Arrow's pool (the Parquet reader's buffers) and the C
+    heaps of glibc (malloc_trim, every thread's arena); nothing where neither is present. Called after a Parquet
+    file is read and after each pass over row blocks: at 10^6 poses the reader left ~0.25 GB behind and the passes'
+    threads' heaps grew with their freed blocks."""
+    arrow = sys.modules.get("pyarrow")
+    if arrow is not None:
+        arrow.default_memory_pool().release_unused()
+    if not _LIBC:
+        try:
+            _LIBC.append(ctypes.CDLL("libc.so.6").malloc_trim)
+        except (OSError, AttributeError):      # not glibc
+            _LIBC.append(None)
+    if _LIBC[0] is not None:
+        _LIBC[0](0)

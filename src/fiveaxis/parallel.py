@@ -4,7 +4,12 @@ A pass is a list of tasks, each a call fn(*args) whose result comes back to the 
 of a GSIL grid (`fiveaxis.sensitivity.distributed`), the row blocks of a fit or a diagnosis
 (`fiveaxis.estimation.design`). Two runners:
 
-- `Local`: the tasks one after the other in this process (the default);
+- `Local`: the tasks in this process, on as many threads as the process may use cores (`threads()`; the default):
+  NumPy's BLAS and LAPACK, its large array operations and the numba kernels release the GIL, so two blocks of a
+  pass run on two cores; each thread calls the serial twins of the generated parallel kernels
+  (`fiveaxis.model.error_model.set_serial_kernels`) and BLAS is kept to one thread by the callers
+  (`fiveaxis.estimation.fit.one_blas_thread`). At most threads + 1 tasks are in flight (memory: a few
+  blocks), results in task order;
 - `OnDask`: the tasks on the workers of a `dask.distributed.Client`, at most `in_flight` submitted at a time (the
   client's memory stays bounded whatever the number of tasks), results gathered in task order. Objects that many
   passes need (the blocks of a measurement set) are sent to the workers once (`keep`), and each task can ask to
@@ -12,15 +17,21 @@ of a GSIL grid (`fiveaxis.sensitivity.distributed`), the row blocks of a fit or 
 
 `runner()` is the runner in effect: `Local`, or `OnDask` inside `on_cluster(client)`. Workers need the package and
 the machine files at the same paths as the client (they load models by path).
-Threads: numba's workqueue threading layer aborts when a parallel kernel is entered from several threads at once,
-which a threaded Dask worker does; the tasks here call serial (`nogil`) kernels unless told otherwise.
+Threads: numba's workqueue threading layer (the command line's) aborts when a parallel kernel is entered from several
+threads at once, which a pass's threads or a threaded Dask worker would do; their tasks call serial (`nogil`)
+kernels.
 """
 from __future__ import annotations
 
+import os
 from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 
+import numba
+
 from .exceptions import InputError
+from .model.error_model import set_serial_kernels
 
 #: Schemes of scheduler addresses: plain TCP, or TLS (its certificates come from the dask configuration).
 SCHEMES = ("tcp", "tls")
@@ -34,13 +45,51 @@ class Kept:
         self.where = where           # per item: the workers holding it (OnDask), or None
 
 
+#: Environment variable that sets the threads of `Local` (default: the cores this process may use).
+THREADS_ENV = "FIVEAXIS_THREADS"
+
+
+def threads() -> int:
+    """Threads the passes of this process run on: FIVEAXIS_THREADS if set (a positive integer), else the cores this
+    process may use."""
+    raw = os.environ.get(THREADS_ENV, "").strip()
+    if raw:
+        if not raw.isdigit() or int(raw) < 1:
+            raise InputError(f"{THREADS_ENV}={raw!r}: expected a positive whole number of threads")
+        return int(raw)
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def _task_thread():
+    """A pass's thread: numba on one thread (the pass's threads share the cores, not each its own team) and the
+    generated kernels' serial twins (no parallel kernel entered from two threads: numba's workqueue layer, the
+    command line's, aborts the process then)."""
+    numba.set_num_threads(1)
+    set_serial_kernels(True)
+
+
 class Local:
-    """Tasks one after the other in this process."""
+    """Tasks in this process, on `threads` threads (None: `threads()`; 1: one after the other, in the calling
+    thread)."""
+
+    def __init__(self, threads: int | None = None):
+        self.threads = threads
 
     def map(self, fn, tasks, near=None):
         """Yield fn(*task) for every task (an iterable of argument tuples), in order; near is ignored here."""
-        for task in tasks:
-            yield fn(*task)
+        n = self.threads or threads()
+        if n <= 1:
+            for task in tasks:
+                yield fn(*task)
+            return
+        with ThreadPoolExecutor(n, initializer=_task_thread) as pool:
+            pending = deque()
+            for task in tasks:
+                pending.append(pool.submit(fn, *task))
+                if len(pending) > n:
+                    yield pending.popleft().result()
+            while pending:
+                yield pending.popleft().result()
 
     def keep(self, key, make) -> Kept:
         """The objects make() returns, for the tasks of passes; in this process they are made again for each

@@ -6,10 +6,13 @@ from __future__ import annotations
 
 import json
 import math
+import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 from . import options
 from ..exceptions import InputError
+from ..progress import bar as progress_bar
 
 
 def register_compensate(p):
@@ -89,6 +92,25 @@ def _remove_empty(folder: Path) -> None:
         pass
 
 
+@contextmanager
+def _stages(stages):
+    """The stages of a compensation (`pipeline.STAGES`) as a bar on a terminal (it takes seconds to a minute);
+    nothing in a log or a pipe, where a refusal stays one line."""
+    bar = progress_bar(len(stages), enabled=sys.stderr.isatty(), desc="compensate", unit="stage")
+    started = []
+
+    def stage(name: str) -> None:
+        if started:
+            bar.update(1)                          # the stage before is done
+        started.append(name)
+        bar.set_postfix_str(name)
+    try:
+        yield stage
+        bar.update(bar.total - bar.n)
+    finally:
+        bar.close()
+
+
 def run_compensate(args) -> int:
     from ..compensation import folder as F
     from ..compensation import pipeline as P
@@ -140,9 +162,11 @@ def run_compensate(args) -> int:
     if made:
         out.mkdir()
     try:
-        comp = P.compensate(fm, model, counts, limit, P.DAMPING if args.damping is None else args.damping,
-                            args.comp_points, args.poses if args.poses is not None else P.ACCOUNT_POSES, args.seed,
-                            tool_lengths=lengths, temperatures=_temperatures(args.temperature))
+        with _stages(P.STAGES) as stage:
+            comp = P.compensate(fm, model, counts, limit, P.DAMPING if args.damping is None else args.damping,
+                                args.comp_points, args.poses if args.poses is not None else P.ACCOUNT_POSES,
+                                args.seed, tool_lengths=lengths, temperatures=_temperatures(args.temperature),
+                                progress=stage)
         record = summary(comp, str(args.model))
         F.write(comp, out, record, force=args.force, figure=figure if args.plot else None,
                 model_path=str(args.model))

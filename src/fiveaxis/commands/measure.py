@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import options
+from . import iso230_3, options
 from ..exceptions import InputError, one_line
 from ..compensation import plausible
 from ..diagnosis import preconditions
@@ -57,6 +57,7 @@ def _fit_options(p):
                    help="the resolution of a column (mm, deg), e.g. X=0.001 or A=0.0001 (repeatable): for Parquet "
                         "files, whose numbers say nothing of it (counted as full precision without), or to state a "
                         "controller's; a CSV column's is read from the digits its cells write")
+    options.reference_temperature(p)
     p.add_argument("--blocks", default="auto", choices=("auto", "on", "off"),
                    help="build the design in row blocks of 16,384 poses (bounded memory for 10^5-10^7 rows): auto "
                         "(above 16,384 poses; default), on, off (in memory)")
@@ -139,6 +140,7 @@ def register_simulate(p):
                         "spindle=spindle:rise=15,tau=900,off=7200 (warm-up, cool-down), air=air:amp=1.5, "
                         "bed=bed:rise=2, motor=mix:spindle=0.4,air=1 (docs/measurements.md); repeatable; drive "
                         "effects with --effect L:temp_spindle~600=0.0012 (mm or rad per degC)")
+    iso230_3.simulate_options(p)
     p.set_defaults(func=run_simulate)
 
 
@@ -293,6 +295,13 @@ def run_fit(args) -> int:
     return 0
 
 
+def _round_done(k: int, most: int, dg, added) -> None:
+    """One line on stderr after each round of `diagnose --rounds N` (a loop runs for seconds to minutes)."""
+    then = f"adding {added}" if added else "the loop ends"
+    print(f"fiveaxis: diagnose round {k} of at most {most}: {dg.verdict} (residual RMS "
+          f"{1e3 * dg.rms_mm:.3g} um); {then}", file=sys.stderr, flush=True)
+
+
 def run_diagnose(args) -> int:
     from ..diagnosis import rounds as loop
     from ..report import text
@@ -304,7 +313,7 @@ def run_diagnose(args) -> int:
     preconditions.check(meas)                        # enough distinct poses for the cross-validation
     with _where_blocks(args) as in_blocks:
         dgs = loop.rounds(model, meas, effects, args.rounds, top=args.top, fixed=fixed, in_blocks=in_blocks,
-                          prior=prior)
+                          prior=prior, progress=_round_done if args.rounds > 1 else None)
     if args.plot is not None:
         from ..plots.residuals import plot_residuals
         path = plot_residuals(dgs[-1], args.plot)
@@ -320,6 +329,9 @@ def run_diagnose(args) -> int:
 
 
 def run_simulate(args) -> int:
+    iso230_3.check_simulate_options(args)
+    if args.iso230_3 is not None:
+        return iso230_3.run_simulate(args)
     from ..model.error_model import load
     from ..measurement.files import in_frame, write
     from ..outputs import target, write_text

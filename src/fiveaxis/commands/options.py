@@ -7,6 +7,9 @@ whether the user named it) and `tool_lengths_of`; what an option means for the c
 from 0 to MAX_TOOL_LENGTH_MM, two lengths at least MIN_LENGTH_STEP_MM apart (a controller's resolution: 100 and
 100.0000000001 are one tool). compensate: the table's lengths (at least 2); plan: the lengths to plan with;
 simulate: each pose's length drawn uniformly between the smallest and the largest.
+
+`--reference-temperature [NAME=]DEGC` (fit, diagnose, report): the stated reference of the temperature channels,
+set on the measurements `measurements` reads (`Measurements.with_references`).
 """
 from __future__ import annotations
 
@@ -75,9 +78,38 @@ def measurements(args, machine, min_rows: int = 1, resolution: dict | None = Non
         if several and not any(name in getattr(m, "columns", ()) for m in sets):
             raise InputError(f"--resolution {name}=...: no such column in {', '.join(str(f) for f in files)}")
     meas = join(sets, machine) if several else sets[0]
+    if getattr(args, "reference_temperature", None):
+        meas = meas.with_references(references_of(args.reference_temperature))
     for w in meas.warnings:
         print(f"fiveaxis: warning: {w}", file=sys.stderr)
     return meas
+
+
+def reference_temperature(p) -> None:
+    """--reference-temperature [NAME=]DEGC (repeatable): the temperature the model's base errors are stated at."""
+    p.add_argument("--reference-temperature", action="append", default=[], metavar="[NAME=]DEGC",
+                   help="the temperature a channel's effects are reckoned from, degC (the base errors are the machine "
+                        "at it; kept in the model file, the kinematics module's pin default): DEGC for every temp_ "
+                        "channel (e.g. 20, ISO 1's), NAME=DEGC for one (e.g. spindle=20); repeatable; default: each "
+                        "channel's first reading in time")
+
+
+def references_of(specs) -> dict:
+    """{channel name or None (every channel): degC} of --reference-temperature values ([NAME=]DEGC), in order, for
+    `Measurements.with_references`; InputError naming the option for a value that is not one."""
+    out = {}
+    for spec in specs or ():
+        name, sep, raw = spec.rpartition("=")
+        try:
+            value = float(raw)
+        except ValueError:
+            value = float("nan")
+        if not math.isfinite(value) or (sep and not name.strip()):
+            raise InputError(f"--reference-temperature {spec!r}: expected [NAME=]DEGC, e.g. 20 or spindle=20")
+        key = name.strip() if sep else None
+        out.pop(key, None)
+        out[key] = value
+    return out
 
 
 def convention(p) -> None:

@@ -45,6 +45,7 @@ def register_report(p):
     p.add_argument("--dcc", nargs="?", const=True, default=None, metavar="XML",
                    help="also write the certificate as a PTB Digital Calibration Certificate (DCC 3.3.0 XML; needs "
                         "a campaign; default name: the HTML file's, .xml)")
+    options.reference_temperature(p)
     options.json_output(p, "also print the report's record (without figures) as JSON")
     options.force(p)
     p.set_defaults(func=run_report)
@@ -95,7 +96,7 @@ def run_report(args) -> int:
             sensitivity = False
     rep = record.build(args.file, args.machine, args.convention, args.add, args.compensation, args.rounds,
                        sensitivity=sensitivity, title=args.title, frame=args.frame, campaign=camp,
-                       uncertainty=statement)
+                       uncertainty=statement, references=options.references_of(args.reference_temperature))
     if thermal is not None:
         rep.record["iso230_3"], figs = thermal
         rep.figures.update(figs)

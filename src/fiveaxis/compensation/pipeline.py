@@ -44,6 +44,9 @@ class Compensation:
     module_note: str = ""      # why there is no module (one line), or ""
 
 
+#: The stages of `compensate`, in order (its progress).
+STAGES = ("the volumetric table", "LinuxCNC's files and the kinematics module", "the predicted error",
+          "the predicted error at the stated temperatures")
 #: The largest damping of rotary corrections (mu; mu^4 enters the solution: beyond this the rotary axes get no
 #: correction at all, and 1e300 overflowed).
 MAX_DAMPING = 10.0
@@ -51,13 +54,15 @@ MAX_DAMPING = 10.0
 
 def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, damping: float = DAMPING,
                comp_points: int | None = None, poses: int = ACCOUNT_POSES, seed: int = 0,
-               tool_lengths=None, temperatures=None) -> Compensation:
+               tool_lengths=None, temperatures=None, progress=None) -> Compensation:
     """The volumetric table, LinuxCNC's parameters and the predicted error account for a fitted model.
     tool_lengths: None (a table for the machine's tool length L0 only, no L column) or at least 2 ascending tool
     lengths (mm): the table gets a tool-length dimension with nodes there (see the module docstring).
     temperatures: {temp_<name>: degC} a state at which the account is also predicted (`at_temperatures`) when the
     model has temperature effects (default: each channel's highest reading in the fitted data): the table and
-    LinuxCNC's comp files hold the reference temperatures, the kinematics module reads its sensors."""
+    LinuxCNC's comp files hold the reference temperatures, the kinematics module reads its sensors. progress: None,
+    or called with the name of each stage as it starts (STAGES, in order; a compensation takes seconds)."""
+    step = progress or (lambda _stage: None)
     check_model(fm, model)
     if poses < 1:
         raise InputError(f"poses for the account: expected a positive number, got {poses}")
@@ -72,7 +77,9 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     grid = table_nodes(model.machine, dict(counts or {}), max_nodes)
     plausible.check_errors(model, errors_fn, np.stack([m.ravel() for m in np.meshgrid(*grid, indexing="ij")], axis=1),
                            getattr(fm, "source", "") or "fitted model")
+    step(STAGES[0])
     table, nodes = build_table(model, errors_fn, counts, max_nodes, None, damping, lengths)
+    step(STAGES[1])
     reversal = [v for v in model.variables if _token(model, v) in fm.reversal_variables()]
     points = comp_points or lx.COMP_POINTS
     along = profile_nodes(fm, model, points)
@@ -81,6 +88,7 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     if not note:
         values, text = ck.module_values(fm, model, damping), lk.source(model)
     module = None if values is None else (lambda q, dirs, fn: ck.predicted(fm, model, values, fn, q, dirs))
+    step(STAGES[2])
     band = (lambda q, dirs, Ls, tips, axes: prediction.band(fm, model, q, dirs, Ls, tips, axes,
                                                             fm.fit.get("noise_mm")))
     acc = account(model, errors_fn, table, lc, poses, seed, damping=damping, module=module, band=band)
@@ -90,6 +98,7 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
         acc["warnings"] = list(acc.get("warnings", [])) + [better]
     warm = stated_temperatures(fm, temperatures)
     if warm:
+        step(STAGES[3])
         hot = (None if values is None else
                lambda q, dirs, fn: ck.predicted(fm, model, values, fn, q, dirs, temps=warm))
         at = account(model, fitted_errors(fm, model, temps=warm), table, lc, poses, seed, damping=damping,

@@ -15,7 +15,9 @@ import re
 
 import numpy as np
 
+from ..effects.base import TOOL
 from ..effects.families import family
+from ..effects.temperature import RATE_BOUNDS as THERMAL, rate_beyond  # noqa: F401 (THERMAL: the bounds, here too)
 from ..exceptions import InputError
 
 #: Bounds, with why. A real machine's geometric errors are micrometres and microradians; location errors of axes
@@ -43,6 +45,9 @@ MACHINES = {
 }
 UNIT_HINT = "did you write um in a mm column?"
 
+TEMPERATURE_HINT = ("did you write um in a mm column, or a temp_ column not in degC (or a sensor that barely changed "
+                    "standing in for a drift)?")
+
 
 def deviation_bound(stroke_mm: float) -> float:
     """The largest deviation (mm) a machine shows along an axis of this stroke (mm): MACHINES' share of it, not
@@ -57,13 +62,19 @@ def _um(mm: float) -> str:
 def unit_slip(findings: list[str]) -> str:
     """One line from findings (each 'what value, beyond what'): the first, how many more, and the hint."""
     more = f" (and {len(findings) - 1} more)" if len(findings) > 1 else ""
-    return f"{findings[0]}{more}; {UNIT_HINT}"
+    return f"{findings[0]}{more}; {TEMPERATURE_HINT if '/degC' in findings[0] else UNIT_HINT}"
+
+
+def _thermal(e, quantity: str, size: float, unit: str | None) -> str | None:
+    """The finding of a temperature effect's rate beyond its family's bound (`effects.temperature.RATE_BOUNDS`)."""
+    beyond = rate_beyond(quantity, size, unit)
+    return None if beyond is None else f"effect {e.id}: {beyond.replace('/degC:', f'/degC of {e.var}:', 1)}"
 
 
 def model_findings(fm, machine) -> list[str]:
     """What a fitted model (fiveaxis.estimation.fitted_model.FittedModel) holds that no machine shows: its noise
     estimate, the backlash of its reversal effects, the change of its polynomial effects over the stroke, the
-    determined errors and combinations beyond LIMITS. Empty when all is plausible. mm and rad."""
+    rate per degC of its temperature effects (THERMAL, the family's RATE_BOUNDS), the determined errors and combinations beyond LIMITS. Empty when all is plausible. mm and rad."""
     out = []
     noise = fm.fit.get("noise_mm")
     limit, what = MACHINES["noise_mm"]
@@ -71,9 +82,17 @@ def model_findings(fm, machine) -> list[str]:
         out.append(f"noise estimate {_um(noise)} (fit.noise_mm): beyond {what}, {_um(limit)}")
     units = fm.error_units
     for e in fm.effects:
-        if units.get(e.param) != "mm" or not e.values:
+        unit = "mm" if e.param == TOOL else units.get(e.param)
+        if not e.values:
             continue
         for quantity, size, column in family(e.kind).extents(e, fm.scales):
+            if quantity in ("per_degC", "expansion_per_degC"):       # the temperature family, any parameter
+                found = _thermal(e, quantity, size, unit)
+                if found:
+                    out.append(found)
+                continue
+            if unit != "mm" or e.param == TOOL:
+                continue
             if quantity == "backlash":
                 limit, what = MACHINES["backlash_mm"]
                 if not size <= limit:

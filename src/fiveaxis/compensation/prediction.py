@@ -4,17 +4,20 @@ The account (compensation.account.account) predicts the tool-tip error left afte
 kinematics module, the table) on the fitted model, whose undetermined parameters carry the minimum-norm solution.
 The true machine differs by D = theta_true - theta_fit: to first order the error left at a pose q becomes
 e(q) + J(q) D, J the tip's derivative by the machine's parameters (errors, effect coefficients) at q (the
-compensations move the axes by far less than J changes over). D has two parts:
-- the fit's uncertainty: N(0, C), C the fit's covariance (model file: covariance_mm_rad);
-- what the data cannot see: D_u in the span of the undetermined directions B (undetermined_directions_mm_rad).
-  Its size is not in the data; it is taken from the data's own scale: the undetermined parameters are assumed as
-  large as the determined ones of their kind (`prior_scales`: RMS of the determined errors and of the determined
-  combinations of one kind, per unit of their coefficients; the machine file's [errors] where there is none).
-  With that prior, S = diag(s^2), and what the data determines known, D_u ~ N(m, B^T (B S^-1 B^T)^-1 B),
-  m = -B^T (B S^-1 B^T)^-1 B S^-1 theta_fit (the prior's best value of the undetermined part, against the fit's
-  minimum norm).
+compensations move the axes by far less than J changes over). D's distribution (`deviation`) is the fit's own:
+- a fit with priors (maximum a posteriori, fiveaxis.estimation.priors; model file: posterior_covariance_mm_rad):
+  D ~ N(0, P), P the posterior covariance, the one record of what the readings and the priors say of every
+  parameter (what the data determine: their uncertainty; what they cannot see: what the prior allows, moved by the
+  combinations the data fix). No second estimate: the prediction is as good as the priors the user gave the fit.
+- a fit without priors (`--prior none`) or a model file written before them: D = D_c + D_u, the fit's uncertainty
+  N(0, C) (covariance_mm_rad) and, in the span of the undetermined directions B, what the data cannot see, sized
+  from the data's own scale: the undetermined parameters are assumed as large as the determined ones of their kind
+  (`prior_scales`: RMS of the determined errors and of the determined combinations of one kind, per unit of their
+  coefficients; the machine file's [errors] where there is none). With S = diag(s^2) and what the data determine
+  known, D_u ~ N(m, B^T (B S^-1 B^T)^-1 B), m = -B^T (B S^-1 B^T)^-1 B S^-1 theta_fit (that scale's best value of
+  the undetermined part, against the fit's minimum norm).
 `band` gives per stage a range for the true RMS over the workspace (k = 2: the 2.275 % and 97.725 % quantiles of
-the RMS over machines drawn from D ~ N(m, C + Sigma_u); the RMS is a quadratic form of D, reduced once to the
+the RMS over machines drawn from D's distribution; the RMS is a quadratic form of D, reduced once to the
 singular values of what D does at the poses, so 20,000 draws cost little), its expected value and the parts'
 shares, raw and with the part's set-up taken out (a work offset and the alignment about the table's axis:
 compensation.part_setup); tool-axis figures the same, raw (model estimates: the axis was measured only if the data
@@ -138,6 +141,30 @@ def _undetermined_covariance(fm, S):
     return m, B.T @ G @ B
 
 
+def deviation(fm, model) -> dict:
+    """D = theta_true - theta_fit's distribution (see the module docstring): {"mean" (p,), "cov" (p, p) of the whole
+    deviation, "undetermined_mean", "undetermined_cov" (its part along what the data cannot see: the posterior
+    projected on the undetermined directions, or Sigma_u), "fit_cov" (the data's covariance C), "source" (text),
+    "scales" (mm, rad: the data-scale sizes of the fallback, else None)}."""
+    C = np.asarray(fm.covariance, float)
+    p = len(fm.parameter_names)
+    post = getattr(fm, "posterior", None)
+    if post is not None and np.shape(post) == (p, p):
+        P = np.asarray(post, float)
+        P = (P + P.T) / 2
+        # Its part along what the data cannot see (the undetermined directions B: the prior decides there).
+        B = fm.undetermined_basis
+        Pb = np.zeros((p, p)) if B is None or not len(B) else B.T @ B
+        Su = Pb @ P @ Pb
+        return {"mean": np.zeros(p), "cov": P, "undetermined_mean": np.zeros(p), "undetermined_cov": Su,
+                "fit_cov": C, "source": "the fit's posterior (the data and the priors)", "scales": None}
+    scales = prior_scales(fm, model)
+    m, Su = _undetermined_covariance(fm, np.array([scales[u] ** 2 for u in _units(fm, fm.parameter_names)]))
+    return {"mean": m, "cov": Su + C, "undetermined_mean": m, "undetermined_cov": Su, "fit_cov": C,
+            "source": f"the fit's covariance; what the data do not determine sized as {scales['from']}",
+            "scales": scales}
+
+
 def _value(fm, name) -> float:
     if name in fm.errors:
         return float(fm.errors[name])
@@ -168,7 +195,7 @@ def band(fm, model, q, dirs, L, tip_stages: dict, axis_stages: dict, noise: floa
 
     Per stage: `predicted_rms` (the fitted model, as the account), `range_k2`: the 2.275 % and 97.725 % quantiles
     of the true RMS over the poses (k = 2: 95.45 % of the machines the fit allows lie inside) for
-    D ~ N(m, C + Sigma_u), `expected_rms` (the root of its mean square). With noise (mm, one reading), the tip
+    D drawn from `deviation`, `expected_rms` (the root of its mean square). With noise (mm, one reading), the tip
     stages also get `remeasured_range_k2`: what a tip measurement of as many random poses over the workspace, with
     that noise per component, would read. The tip stages also with the part's set-up taken out (`setup_removed`, the same
     figures; compensation.part_setup)."""
@@ -179,11 +206,9 @@ def band(fm, model, q, dirs, L, tip_stages: dict, axis_stages: dict, noise: floa
     Ls = model.tool_lengths(L if L is None or np.ndim(L) == 0 else np.asarray(L, float)[:n], n)
     dirs = None if dirs is None else np.asarray(dirs, float)[:n]
     J, K = parameter_jacobians(fm, model, q, Ls, dirs)
-    scales = prior_scales(fm, model)
-    S = np.array([scales[u] ** 2 for u in _units(fm, fm.parameter_names)])
-    m, Su = _undetermined_covariance(fm, S)
-    C = np.asarray(fm.covariance, float)
-    R = _factor(Su + C)
+    dev = deviation(fm, model)
+    m, Su, C = dev["mean"], dev["undetermined_cov"], dev["fit_cov"]
+    R = _factor(dev["cov"])
     setup = SetupRemoval.at(model.machine, model.ideal_tool(q, Ls)[0])
     draws = np.random.default_rng(DRAWS_SEED).standard_normal((DRAWS, 2 + R.shape[1]))
 
@@ -211,7 +236,10 @@ def band(fm, model, q, dirs, L, tip_stages: dict, axis_stages: dict, noise: floa
     axis, axis_parts = one(axis_stages, K)
     return {"poses": int(n), "coverage": "k = 2: the 2.275 % to 97.725 % quantiles of the true RMS (see range_k2)",
             "draws": DRAWS, "part_setup": setup.describe(),
-            "prior": {"linear_mm": scales["mm"], "angular_rad": scales["rad"], "from": scales["from"]},
+            "deviation_from": dev["source"],
+            **({} if dev["scales"] is None else
+               {"prior": {"linear_mm": dev["scales"]["mm"], "angular_rad": dev["scales"]["rad"],
+                          "from": dev["scales"]["from"]}}),
             "undetermined_directions": 0 if fm.undetermined_basis is None else int(len(fm.undetermined_basis)),
             "noise_mm": noise, "tip_error_mm": tip, "tip_parts_rms_mm": tip_parts,
             "axis_error_rad": axis, "axis_parts_rms_rad": axis_parts,
@@ -231,9 +259,9 @@ def local_upper(fm, model, q, L, e, per_cell: int, setup: bool = True) -> np.nda
     n = len(q)
     Ls = model.tool_lengths(L, n)
     J, _ = parameter_jacobians(fm, model, q, Ls)
-    scales = prior_scales(fm, model)
-    m, Su = _undetermined_covariance(fm, np.array([scales[u] ** 2 for u in _units(fm, fm.parameter_names)]))
-    M = J.reshape(-1, J.shape[-1]) @ _factor(Su + np.asarray(fm.covariance, float))
+    dev = deviation(fm, model)
+    m = dev["mean"]
+    M = J.reshape(-1, J.shape[-1]) @ _factor(dev["cov"])
     a = np.asarray(e, float) + np.einsum("nkp,p->nk", J, m)
     if setup:
         sr = SetupRemoval.at(model.machine, model.ideal_tool(q, Ls)[0])

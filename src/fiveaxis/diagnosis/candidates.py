@@ -179,6 +179,7 @@ def deltas(rss, gains, N, pens, known_sigma):
 class Prior:
     """The families searched and their trials: the penalty of the decision."""
     trials: dict               # family -> M_f
+    _memo: dict = field(default_factory=dict, repr=False, compare=False)   # (family, N, k) -> penalty
 
     @property
     def F(self) -> int:
@@ -187,7 +188,10 @@ class Prior:
     def penalty(self, family: str, N: int, k: int = 1) -> float:
         """Penalty of a candidate of k coefficients of a family (a searched family's argument counts as one
         more)."""
-        return ebic_penalty(N, self.trials.get(family, 1), k + fx.family(family).SEARCHED, self.F)
+        key = (family, N, k)
+        if key not in self._memo:           # asked for thousands of times per diagnosis, a few distinct
+            self._memo[key] = ebic_penalty(N, self.trials.get(family, 1), k + fx.family(family).SEARCHED, self.F)
+        return self._memo[key]
 
     def to_json(self, N: int) -> dict:
         return {f: {"M": int(m), "penalty_one_coefficient": self.penalty(f, N, 1),
@@ -220,6 +224,7 @@ class Pool:
     n_fixed: int               # polynomial + reversal + custom candidates
     fold_found: list = field(default_factory=list)   # per CV fold: [(family, es.Found)] searched on its training rows
     resampled: set = field(default_factory=set)      # ids of candidates the folds search again (their own periods)
+    temperature_found: list = field(default_factory=list)   # es.Found of the temperature family, full data
     profiles: list = field(default_factory=list)     # per-position profiles (`fiveaxis.diagnosis.profiles`)
     profile_cols: list = field(default_factory=list)  # (N, k) weighted columns per profile
 
@@ -231,6 +236,13 @@ class Pool:
     def columns(self) -> np.ndarray:
         """The weighted columns of `items`, side by side (N, sum of their coefficients)."""
         return np.hstack([self.G, self.Gp, *self.custom_cols, *self.profile_cols])
+
+    def drop_block_columns(self) -> None:
+        """Forget the screen's columns of the multi-column candidates and of the searches' parameters (Gp,
+        custom_cols, profile_cols, P; the one-column candidates' G, the searches' results and the prior stay): the
+        decision over all readings in row blocks builds its own (at a sample of 8,192 poses: ~0.2 GB)."""
+        self.Gp = self.P = None
+        self.custom_cols, self.profile_cols = [], []
 
     @property
     def blocks(self) -> list:
@@ -256,9 +268,9 @@ class Pool:
         return out
 
 
-def candidate_matrix(block, w: np.ndarray, effects) -> np.ndarray:
-    """Weighted design columns (m_b, k) of candidate effects at a block's readings."""
-    return block.effect_columns(effects) * w[:, None]
+def candidate_matrix(block, w: np.ndarray, effects, out=None) -> np.ndarray:
+    """Weighted design columns (m_b, k) of candidate effects at a block's readings (written into out if given)."""
+    return block.effect_columns(effects, w=w, out=out)
 
 
 def param_columns(block, w: np.ndarray):
@@ -315,7 +327,7 @@ def build_pool(block, w, Q: np.ndarray, rw: np.ndarray, present: set, custom: li
     ccols = [candidate_matrix(block, w, [e]) for e in custom]
     pool = Pool(singles, fam, G, peff, Gp, list(custom), ccols, Prior(trials), params, P, bands, grid, per, therm,
                 len(poly) + len(rev) + len(custom) + len(prof), profiles=prof,
-                profile_cols=[candidate_matrix(block, w, [e]) for e in prof])
+                profile_cols=[candidate_matrix(block, w, [e]) for e in prof], temperature_found=temp)
     if folds is not None:
         fold_searches(pool, prob, *folds)
     return pool
@@ -370,15 +382,18 @@ def extend(Q: np.ndarray, G: np.ndarray) -> np.ndarray:
 
 def fold_searches(pool: Pool, prob, train_sets) -> None:
     """The period and time-constant searches of every CV fold, on its training rows, for the CV_SEARCH_PAIRS best
-    (parameter, variable) pairs of each searched family on the whole screen: the per-pose sums of all folds side by
+    (parameter, variable) pairs of each searched family on the whole screen (the temperature family's lags too:
+    `heat.fold_search`): the per-pose sums of all folds side by
     side (one parameter column per fold and parameter), searched in one pass. train_sets: per fold (training
     reading indices, orthonormal basis of the design on them, their residual of d w). Fills pool.fold_found and
     pool.resampled."""
     top_per = sorted(pool.periodic_found, key=lambda x: -x.gain)[:CV_SEARCH_PAIRS]
     top_th = sorted(pool.thermal_found, key=lambda x: -x.gain)[:CV_SEARCH_PAIRS]
+    top_temp = sorted(pool.temperature_found, key=lambda x: -x.gain)[:CV_SEARCH_PAIRS] if pool.grid is not None \
+        else []                                                  # without times no lag: nothing chosen on all data
     pool.fold_found = [[] for _ in train_sets]
-    pool.resampled = {x.effect.id for x in top_per} | {x.effect.id for x in top_th}
-    needed = sorted({x.param_index for x in top_per} | {x.param_index for x in top_th})
+    pool.resampled = {x.effect.id for x in top_per + top_th + top_temp}
+    needed = sorted({x.param_index for x in top_per + top_th + top_temp})
     if not needed:
         return
     local = {p: j for j, p in enumerate(needed)}
@@ -407,6 +422,11 @@ def fold_searches(pool: Pool, prob, train_sets) -> None:
         results += es.thermal(sums, pool.grid, cols)
     for x in results:
         pool.fold_found[x.param_index // q].append((x.effect.NAME, x))
+    keys = [(local[x.param_index], x.effect.param, x.effect.var, x.effect.axis) for x in top_temp]
+    for f, (part, (train, _, r_tr)) in enumerate(zip(parts, train_sets)):
+        for x in heat.fold_search(part, prob.ctx, prob.model.machine, pool.grid, float(r_tr @ r_tr), len(train),
+                                  keys) if keys else ():
+            pool.fold_found[f].append((x.effect.NAME, x))
 
 
 def folds_of_readings(prob, k: int, seed: int = 0) -> np.ndarray:

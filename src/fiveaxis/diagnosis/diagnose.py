@@ -30,7 +30,7 @@ from dataclasses import dataclass, field, replace
 from functools import partial
 
 import numpy as np
-from scipy.stats import chi2 as chi2_dist
+from scipy.special import chdtrc   # scipy.stats' chi-square survival function (its import: ~0.5 s a start)
 
 from .. import parallel
 from ..effects import families as fx
@@ -120,30 +120,36 @@ def diagnose(model, meas, added=(), top: int = 10, fixed=None, in_blocks: bool |
     blocks (None: above `fiveaxis.estimation.design.IN_MEMORY_POSES` poses); prior: the fit's priors
     (`fiveaxis.estimation.priors.PriorSpec`; None: the defaults)."""
     with F.one_blas_thread():
-        res = F.fit(model, meas, added, fixed=fixed, in_blocks=in_blocks, robust=False, prior=prior)
-        return diagnose_fit(robust_fit(res), top)
+        # the least-squares fit is not kept beside the robust one (10^6 poses: its problem's arrays are ~0.4 GB)
+        res = robust_fit(F.fit(model, meas, added, fixed=fixed, in_blocks=in_blocks, robust=False, prior=prior))
+        return diagnose_fit(res, top)
 
 
 def robust_fit(res: FitResult) -> FitResult:
     """The robust fit of a diagnosis from a least-squares fit: gross outliers flagged (`fiveaxis.estimation.fit`),
     then checked: readings flagged may be the largest deviations of a missing effect rather than gross errors (a
     roll error times a long lever arm has long tails), so the effects the decision's rule accepts on the other
-    readings (forward selection on the screen, without the period search) join the model, outliers are flagged
-    again against it, and the model is fitted without the readings flagged then."""
+    readings (forward selection on the screen, without the period search) and those it accepts on every reading
+    (a missing effect can be all a run shows: a backlash on a laser run of X flags the whole run against the scale
+    of the other runs, and the other readings then show nothing of it) join the model, outliers are flagged again
+    against it (a robust fit: an effect a gross outlier drew in does not hide it), and the model is fitted without
+    the readings flagged then."""
     if not F.suspects(res):
         res.outliers = no_outliers(len(res.problem.d))
         return res
     rob = F.robust(res)
     if not rob.outliers.count:
         return rob
-    accepted = accepted_effects(rob)
+    accepted = list(dict.fromkeys(accepted_effects(rob) + accepted_effects(res)))
     if not accepted:
         return rob
-    prob = res.problem
-    richer = F.fit(prob.model, prob.meas, with_effects(prob, accepted), in_blocks=res.design.in_blocks)
+    prob, in_blocks = res.problem, res.design.in_blocks
+    del rob                        # its problem without the outliers (10^6 poses: ~0.3 GB) is not needed again
+    richer = F.fit(prob.model, prob.meas, with_effects(prob, accepted), in_blocks=in_blocks)
     flags = np.zeros(len(prob.d), bool)
     flags[richer.outliers.index] = True
-    return F.fit(prob.model, prob.meas, with_effects(prob), exclude=flags, in_blocks=res.design.in_blocks)
+    del richer
+    return F.fit(prob.model, prob.meas, with_effects(prob), exclude=flags, in_blocks=in_blocks)
 
 
 @dataclass
@@ -289,11 +295,14 @@ def _columns(block, w, residual, free, fixed_vals, effects) -> np.ndarray:
     """The decision's columns on a block's readings: [A w (free) | candidates' | r w | d w]."""
     A = block.A
     d = block.prob.d - A[:, ~free] @ fixed_vals if (~free).any() else block.prob.d
-    parts = [A[:, free] * w[:, None]]
+    p = int(free.sum())
+    X = np.empty((len(w), p + sum(len(e.names) for e in effects) + 2))     # filled in place: no copies
+    np.multiply(A if free.all() else A[:, free], w[:, None], out=X[:, :p])
     if effects:
-        parts.append(cd.candidate_matrix(block, w, effects))
-    parts += [(residual * w)[:, None], (d * w)[:, None]]
-    return np.hstack(parts)
+        cd.candidate_matrix(block, w, effects, out=X[:, p:-2])
+    np.multiply(residual, w, out=X[:, -2])
+    np.multiply(d, w, out=X[:, -1])
+    return X
 
 
 def _compress_block(block, w, residual, fold, free, fixed_vals, ids, folds):
@@ -328,6 +337,7 @@ def diagnose_fit(res: FitResult, top: int = 10) -> "Diagnosis":
         X = _columns(sc.block, prob.w, res.residual, free, prob.fixed_values, effects)
         rows = dc.RawRows(X, fold, prob.obs.group == ob.LENGTH, prob.w, dc.K_FOLDS)
     else:
+        pool.drop_block_columns()               # not needed past the screen; the pass holds blocks of its own
         rows = dc.CompressedRows(lay.c, dc.K_FOLDS)
         ids = [e.id for e in effects] if isinstance(parallel.runner(), parallel.OnDask) else effects
         for part in design.map(partial(_compress_block, free=free, fixed_vals=prob.fixed_values, ids=ids,
@@ -401,7 +411,7 @@ def conclude(res: FitResult, prob, w, r_fit: np.ndarray, r_cur: np.ndarray, deci
         N, rank = decision["N"], res.idf.rank
         decision["chi2"] = rss
         decision["chi2_dof"] = N - rank
-        decision["chi2_p"] = float(chi2_dist.sf(rss, max(N - rank, 1)))
+        decision["chi2_p"] = float(chdtrc(max(N - rank, 1), rss))
     else:
         source = ("estimated from the residual after the effects the rule accepts" if forward
                   else "estimated from the residual of the fit")

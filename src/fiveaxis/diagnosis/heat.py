@@ -48,16 +48,17 @@ def channels(ctx) -> list[str]:
     return [c for c, T in ctx.temps.items() if np.isfinite(T).all() and np.ptp(T) > 0]
 
 
-def search(sums: es.RowSums, ctx, machine, grid, rss: float, N: int, present=()) -> tuple[list, int]:
+def search(sums: es.RowSums, ctx, machine, grid, rss: float, N: int, present=(), only=None) -> tuple[list, int]:
     """(found candidates `searches.Found`, trials) of the temperature family on a screen: sums over its poses (the
     parameters' columns with the residual, live poses), ctx the screen's effect context, grid the thermal search's
     `TauGrid` (None: no lags, only tau = 0), rss the weighted residual's sum of squares over N readings (a lag is
     kept only where it lowers the BIC against none: N ln((rss - g_0) / (rss - g_tau)) > ln N); present: ids of
     the model's effects: a (parameter, channel, axis) the model has already is not offered again with another lag
-    (a second time constant of one sensor on one error would model the sensor's noise, not the machine)."""
+    (a second time constant of one sensor on one error would model the sensor's noise, not the machine); only: the
+    channels to search (None: every varying one)."""
     live = sums.live
     cols = np.flatnonzero(sums.W2.sum(axis=0) > 0)
-    chans = channels(ctx)
+    chans = [c for c in channels(ctx) if only is None or c in only]
     if not len(cols) or not chans:
         return [], 0
     sub = es.RowSums(sums.params, sums.W1[live][:, cols], sums.W2[live][:, cols], sums.W3[live][:, :, cols], live)
@@ -86,6 +87,19 @@ def search(sums: es.RowSums, ctx, machine, grid, rss: float, N: int, present=())
             param, channel, _, axis = got[1]
             have.add((param, channel, axis))
     return [f for f in out if f.gain > 0 and (f.effect.param, f.effect.var, f.effect.axis) not in have], trials
+
+
+def fold_search(sums: es.RowSums, ctx, machine, grid, rss: float, N: int, keys) -> list:
+    """The lags of a cross-validation fold's own search (its training rows' sums, rss and N): for each (parameter
+    index into sums.params, parameter, channel, axis) of keys, the best lag of that candidate searched again as
+    `search` does on the whole data, so that a lag chosen on all the readings never enters a fold."""
+    out = []
+    for j, param, channel, axis in keys:
+        one = es.RowSums([sums.params[j]], sums.W1[:, [j]], sums.W2[:, [j]], sums.W3[:, :, [j]], sums.live)
+        found, _ = search(one, ctx, machine, grid, rss, N, only={channel})
+        out += [es.Found(f.effect, f.gain, j) for f in found
+                if (f.effect.param, f.effect.var, f.effect.axis) == (param, channel, axis)]
+    return out
 
 
 def _one(sub: es.RowSums, j: int) -> es.RowSums:

@@ -55,8 +55,12 @@ def distinct(values: np.ndarray, tol: float) -> np.ndarray:
     v = np.sort(np.asarray(values, float))
     if not len(v):
         return v
-    breaks = np.flatnonzero(np.diff(v) > tol) + 1
-    return np.array([part.mean() for part in np.split(v, breaks)])
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(v) > tol) + 1])
+    ends = np.append(starts[1:], len(v))
+    out = v[starts]                        # a value alone is its own centre; the means of the others below
+    for i in np.flatnonzero(ends - starts > 1):
+        out[i] = v[starts[i]:ends[i]].mean()
+    return out
 
 
 def round_to(value: float, step: float) -> float:

@@ -15,10 +15,11 @@ MAX_ROUNDS = 4
 
 
 def rounds(model, meas, effects, max_rounds: int = MAX_ROUNDS, top: int = 10, fixed=None,
-           in_blocks: bool | None = None, prior=None) -> list:
+           in_blocks: bool | None = None, prior=None, progress=None) -> list:
     """The diagnoses of the loop, in order ([Diagnosis]): round 1 with `effects`, each next round with the previous
     round's best candidate added, until a round's verdict is not "missing effect" (or it lists no candidate) or
-    `max_rounds` diagnoses ran. top, fixed, in_blocks, prior: as for `diagnose`."""
+    `max_rounds` diagnoses ran. top, fixed, in_blocks, prior: as for `diagnose`; progress: None, or called after
+    each round with (its number, max_rounds, its Diagnosis, the id added next or None: the loop ends)."""
     if isinstance(max_rounds, bool) or not isinstance(max_rounds, int) or max_rounds < 1:
         raise InputError(f"rounds: expected a whole number >= 1, got {max_rounds!r}")
     out = []
@@ -26,7 +27,10 @@ def rounds(model, meas, effects, max_rounds: int = MAX_ROUNDS, top: int = 10, fi
     for k in range(1, max_rounds + 1):
         dg = D.diagnose(model, meas, effects, top=top, fixed=fixed, in_blocks=in_blocks, prior=prior)
         out.append(dg)
-        if not (dg.missing_effect and dg.candidates) or k == max_rounds:
+        last = not (dg.missing_effect and dg.candidates) or k == max_rounds
+        if progress is not None:
+            progress(k, max_rounds, dg, None if last else dg.candidates[0]["id"])
+        if last:
             break
         effects = effects + resolve_effects(model, [dg.candidates[0]["id"]])
     return out

@@ -135,6 +135,7 @@ class Scale:
     unit: str           # unit at the interface: mm, deg, s or degC
     to_unit: float      # interface unit per model unit (180/pi for rotary axes, 1 otherwise)
     span: tuple | None = None   # a temperature channel: (lowest, highest) reading of the data (degC)
+    stated: bool = False        # a temperature channel: its reference (centre) stated, not its first reading
 
     def to_json(self) -> dict:
         return {"token": self.token, "column": self.column, "centre": self.centre, "half": self.half,
@@ -316,10 +317,11 @@ def scales(machine, t=None, tmax: float | None = None, temps=None, references=No
         out[TIME] = Scale(TIME, None, 0.0, tmax if tmax and tmax > 0 else 1.0, "s", 1.0)
     for name, T in (temps or {}).items():
         first = int(np.argmin(t)) if t is not None and len(t) else 0
-        ref = float((references or {}).get(name, T[first]))
+        stated = name in (references or {})
+        ref = float(references[name] if stated else T[first])
         read = np.asarray(T, float)[np.isfinite(T)]
         out[name] = Scale(name, name, ref, 1.0, "degC", 1.0,
-                          (float(read.min()), float(read.max())) if len(read) else None)
+                          (float(read.min()), float(read.max())) if len(read) else None, stated)
     return out
 
 
@@ -339,13 +341,16 @@ def filled(temps: dict, t) -> dict:
     return out
 
 
-def context(machine, poses, t=None, dirs=None, sc=None, temps=None, steady: bool = False) -> EffectContext:
+def context(machine, poses, t=None, dirs=None, sc=None, temps=None, steady: bool = False,
+            references=None) -> EffectContext:
     """An EffectContext at poses (n, nvar; mm, rad) with times t (s), approach directions dirs and temperatures
-    temps ({temp_<name>: (n,) degC, NaN: not read}); sc: the scales (default: from the machine and these data);
-    steady: the temperatures are a steady state (lags settled)."""
+    temps ({temp_<name>: (n,) degC, NaN: not read}); sc: the scales (default: from the machine and these data, the
+    channels about references {temp_<name>: degC} where stated, else their first reading); steady: the temperatures
+    are a steady state (lags settled)."""
     temps = filled(temps, t)
     return EffectContext(tuple(machine.variables), np.asarray(poses, dtype=float), t, dict(dirs or {}),
-                         sc if sc is not None else scales(machine, t, temps=temps), temps, Series(t, temps),
+                         sc if sc is not None else scales(machine, t, temps=temps, references=references), temps,
+                         Series(t, temps),
                          None, steady)
 
 

@@ -18,7 +18,7 @@ import numpy as np
 from ..model import provenance
 from ..exceptions import InputError
 from .base import EFFECT_LINEAR_MM, EffectRecord, unit_of
-from ..model.error_model import _import_file, cache_dir
+from ..model.error_model import _import_file, cache_dir, kernel
 from ..model.numba_cache import private_folder
 
 
@@ -91,7 +91,7 @@ class CustomEffect:
         n = ctx.n
         v = np.column_stack([ctx.poses, np.zeros(n) if ctx.t is None else np.asarray(ctx.t, float)])
         out = np.empty((n, len(self.params)))
-        self.kernels.basis(np.ascontiguousarray(v), out)
+        kernel(self.kernels, "basis")(np.ascontiguousarray(v), out)
         return out
 
     def physical(self, machine, coefs, sc) -> list:

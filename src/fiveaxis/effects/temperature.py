@@ -1,6 +1,6 @@
 """The temperature-driven family `<param>:[<axis>.]temp_<name>[~<tau>]`: an error or the tool length changing
-linearly with a temperature channel's change from its reference (the channel's first reading in time, or a stated
-one), optionally times an axis position (a scale expanding with its temperature) and through a first-order lag of
+linearly with a temperature channel's change from its reference (the channel's first reading in time, or one stated
+with `--reference-temperature`: `Measurements.references`), optionally times an axis position (a scale expanding with its temperature) and through a first-order lag of
 time constant tau (a sensor on the spindle housing lagging the spindle nose):
 
     param += c (T_lag - T_ref)                     L:temp_spindle, L:temp_spindle~600
@@ -29,6 +29,35 @@ from ..model.columns import TEMPERATURE_RE
 from ..units import human
 from . import base
 from .base import TIME, TOOL, EffectContext, EffectRecord, axis_of_token, describe_param, is_positioning
+
+#: What a machine's thermal effects show per degC of a sensor (`extents`' quantities; judged by
+#: `fiveaxis.compensation.plausible` and said by `describe`): a rate beyond is
+#: not heat but a unit slip (um in a mm column) or a channel that barely changed standing in for a drift. (bound,
+#: what it is; mm/degC, rad/degC, 1/degC.) Steel expands 11.5 um/m/degC, aluminium 23; a spindle grows tens of um
+#: over tens of degC (1 to 3 um/degC); a sensor off the hot spot reads a fraction of its change (a larger gain).
+RATE_BOUNDS = {
+    "per_degC_mm": (0.1, "a machine's thermal growth per degC of a sensor (steel 11.5 um/m/degC: 23 um/degC over a "
+                         "2 m structure; a spindle grows tens of um over tens of degC)"),
+    "per_degC_rad": (1e-3, "a machine's thermal tilt per degC of a sensor (a 2 m column 0.5 m deep, 1 degC warmer "
+                           "at the back: 46 urad/degC)"),
+    "expansion_per_degC": (1e-4, "the expansion of a scale or screw (steel 11.5 um/m/degC, aluminium 23 um/m/degC)"),
+}
+
+
+def rate_beyond(quantity: str, size: float, unit: str | None) -> str | None:
+    """'150 um/degC: beyond <what it is>, 100 um/degC' for a rate of `extents` (quantity, size; unit: of the
+    parameter, mm or rad) beyond RATE_BOUNDS, else None."""
+    if quantity == "expansion_per_degC":
+        limit, what = RATE_BOUNDS[quantity]
+        shown, per = f"{1e6 * size:.4g} um/m/degC", f"{1e6 * limit:g} um/m/degC"
+    elif unit == "rad":
+        limit, what = RATE_BOUNDS["per_degC_rad"]
+        shown, per = f"{1e6 * size:.4g} urad/degC", f"{1e6 * limit:g} urad/degC"
+    else:
+        limit, what = RATE_BOUNDS["per_degC_mm"]
+        shown, per = f"{1e3 * size:.4g} um/degC", f"{1e3 * limit:g} um/degC"
+    return None if size <= limit else f"{shown}: beyond {what}, {per}"
+
 
 _FORM = re.compile(rf"^(?:([A-Za-z][A-Za-z0-9]*)\.)?({TEMPERATURE_RE})(?:~([^~]*))?$")
 
@@ -133,11 +162,17 @@ class Temperature(base.VocabularyEffect):
             return f"{what} changing with {self.var}{lag}{along}{note}"
         rate, unit = self.physical(machine, np.ravel(coefs)[:1], sc)[0]
         text = f"{what} changing by {human(rate, unit, 2)} of {self.var}{lag}{along}"
+        if getattr(sc[self.var], "stated", False):
+            text += f", from the stated reference {sc[self.var].centre:g} degC"
         if ctx is not None and ctx.n and self.var in ctx.temps and not self.axis:
             T = ctx.lagged(self.var, self.arg)
             size = float(np.ravel(coefs)[0]) * (float(np.max(T)) - float(np.min(T)))
             text += (f": {human(abs(size), self.unit_of(machine), 2)} over the measured range "
                      f"({np.min(T):.3g} to {np.max(T):.3g} degC)")
+        beyond = [b for q, s, _ in self.extents(self.record(np.ravel(coefs)[:1]), sc)
+                  for b in [rate_beyond(q, s, self.unit_of(machine))] if b]
+        if beyond:
+            text += f"; NOT A MACHINE'S RATE: {beyond[0]} (a unit slip, or a sensor that barely changed?)"
         return text + note
 
     def _note(self, machine) -> str:
@@ -161,6 +196,21 @@ class Temperature(base.VocabularyEffect):
         if rec.arg:
             out[cls.ARG_KEY] = rec.arg
         return out
+
+    @classmethod
+    def extents(cls, rec, scales):
+        """Its rate, judged by `fiveaxis.compensation.plausible.THERMAL`: ("per_degC", |c| in mm/degC or
+        rad/degC, None) for an effect of the channel alone; a scale effect on a linear axis ("expansion_per_degC",
+        |c| / half-stroke in 1/degC (mm per mm of position per degC), the axis' column); on a rotary axis its
+        change at the end of the stroke per degC ("per_degC")."""
+        if not rec.values:
+            return []
+        c = abs(float(rec.values[0]))
+        axis = cls._axis_of_id(rec.id, rec.var)
+        s = scales.get(axis) if axis else None
+        if s is not None and s.unit == "mm" and s.half > 0:
+            return [("expansion_per_degC", c / s.half, s.column)]
+        return [("per_degC", c, s.column if s is not None else None)]
 
     @classmethod
     def evaluated_in(cls, rec, ctx):

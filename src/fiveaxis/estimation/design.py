@@ -25,13 +25,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import numba
 import numpy as np
 
 from .. import parallel
 from ..effects import families as fx
 from ..exceptions import InputError
+from ..guards import give_back_memory
 from ..measurement import observations as ob
-from ..model.error_model import load
+from ..model.error_model import load, serial_kernels
 from .problem import Problem, resolve_effects
 
 #: Above this many poses, fit and diagnose build the design in row blocks instead of in memory (in memory, a
@@ -81,20 +83,23 @@ class Block:
             return ob.tip_column(self.prob.obs, self.prob.tool_dir if tool_dir is None else tool_dir)
         return (self.base if base is None else base)[:, list(self.prob.model.errors).index(param)]
 
-    def effect_columns(self, effects, base=None, tool_dir=None) -> np.ndarray:
+    def effect_columns(self, effects, base=None, tool_dir=None, w=None, out=None) -> np.ndarray:
         """Design columns (m_b, sum of coefficients) of effects at these readings: the column of each effect's
-        parameter times its basis functions at the reading's pose."""
+        parameter times its basis functions at the reading's pose; times the weights w (m_b,) if given; written
+        into out (m_b, sum of coefficients) if given (no temporary of that size)."""
         effects = list(effects)
         pb = self.prob
+        k = sum(len(e.names) for e in effects)
+        out = np.empty((pb.obs.m, k)) if out is None else out
         if not effects:
-            return np.empty((pb.obs.m, 0))
+            return out
         bases = [fx.basis_of(e, pb.ctx) for e in effects]              # per pose
         params = list(dict.fromkeys(e.param for e in effects))
         PC = np.column_stack([self.param_column(p, base, tool_dir) for p in params])
         where = {p: i for i, p in enumerate(params)}
-        idx = [where[e.param] for e, b in zip(effects, bases) for _ in range(b.shape[1])]
-        with np.errstate(invalid="ignore", over="ignore"):     # non-finite columns are reported by the fit
-            return PC[:, idx] * np.hstack(bases)[pb.obs.row]
+        idx = np.array([where[e.param] for e, b in zip(effects, bases) for _ in range(b.shape[1])], dtype=np.int64)
+        effect_rows()(PC, idx, np.hstack(bases), pb.obs.row, np.ones(1) if w is None else w, w is not None, out)
+        return out
 
     @property
     def A(self) -> np.ndarray:
@@ -141,6 +146,34 @@ class Block:
         if pb.setups.q:
             parts.append(np.zeros((obs.m, pb.setups.q)))
         return np.hstack(parts) if len(parts) > 1 else parts[0]
+
+
+def _effect_rows(PC, idx, H, row, w, weighted, out):
+    """out[o, j] = PC[o, idx[j]] * H[row[o], j] (times w[o] if weighted): the effect columns in one sweep, no
+    temporaries (the same products, in the same order, as the NumPy expression)."""
+    for o in range(out.shape[0]):
+        r = row[o]
+        if weighted:
+            wo = w[o]
+            for j in range(out.shape[1]):
+                out[o, j] = (PC[o, idx[j]] * H[r, j]) * wo
+        else:
+            for j in range(out.shape[1]):
+                out[o, j] = PC[o, idx[j]] * H[r, j]
+
+
+_EFFECT_ROWS = []
+
+
+def effect_rows():
+    """The compiled row loop of `Block.effect_columns` (numba; compiled on first use, cached on disk where numba
+    can write)."""
+    if not _EFFECT_ROWS:
+        try:
+            _EFFECT_ROWS.append(numba.njit(cache=True, nogil=True)(_effect_rows))
+        except RuntimeError:              # no folder numba can cache in: compile for this process only
+            _EFFECT_ROWS.append(numba.njit(nogil=True)(_effect_rows))
+    return _EFFECT_ROWS[0]
 
 
 def _finite(X: np.ndarray, pb: Problem, names) -> np.ndarray:
@@ -214,7 +247,10 @@ class RowBlocks:
         prob = self.prob
         where = (str(prob.model.machine.path), prob.model.convention)
         if isinstance(run, parallel.Local):
-            return [fn(Block(pb, rows), *(a[rows] for a in arrays)) for rows, pb in self.blocks()]
+            out = list(run.map(_in_process, ((fn, pb, rows, *(a[rows] for a in arrays))
+                                             for rows, pb in self.blocks())))
+            give_back_memory()             # the blocks' temporaries, freed in the threads' heaps
+            return out
         key = (id(prob.obs), tuple(e.id for e in prob.effects), tuple(prob.names), self.size)
         kept = run.keep(key, lambda: [spec for spec, _ in self._specs()])
         rows = [r for r, _ in self.blocks(design=False)]
@@ -228,11 +264,18 @@ class RowBlocks:
         return RowBlocks(prob, self.size)
 
 
+def _in_process(fn, pb: Problem, rows, *arrays):
+    """One block in this process (on one of `parallel.Local`'s threads)."""
+    return fn(Block(pb, rows), *arrays)
+
+
 def _on_worker(spec: Problem, where, fn, *arrays):
-    """One block on a worker: the model loaded (once per worker process), the effects resolved."""
+    """One block on a worker: the model loaded (once per worker process), the effects resolved; the kernels' serial
+    twins (a worker may run several blocks at once on its threads)."""
     model = load(where[0], where[1], derive=False)
     pb = replace(spec, model=model, effects=resolve_effects(model, spec.effects))
-    return fn(Block(pb, slice(0, pb.obs.m)), *arrays)
+    with serial_kernels():
+        return fn(Block(pb, slice(0, pb.obs.m)), *arrays)
 
 
 def backend(prob: Problem, in_blocks: bool | None = None):

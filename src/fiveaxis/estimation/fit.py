@@ -77,6 +77,10 @@ def fit(model, meas, added=(), refine: bool = True, max_iter: int = 6, fixed=Non
     with one_blas_thread():
         prob = added if isinstance(added, Problem) else build(model, meas, added, fixed, prior)
         design = dsg.backend(prob, in_blocks)
+        if exclude is not None and np.any(exclude) and not _variance_components(prob):
+            # the fit of every reading would only be thrown away (it sets no weights the refit starts from)
+            return _refit_without(prob, design, np.asarray(exclude, bool), refine, max_iter,
+                                  outlier_threshold(len(prob.d)), prob.known_sigma)
         res = fit_problem(prob, design, refine, max_iter)
         if exclude is not None:
             return _without_outliers(res, refine, max_iter, np.asarray(exclude, bool))
@@ -84,6 +88,15 @@ def fit(model, meas, added=(), refine: bool = True, max_iter: int = 6, fixed=Non
             res.outliers = no_outliers(len(prob.d))
             return res
         return _without_outliers(res, refine, max_iter)
+
+
+def _variance_components(prob: Problem) -> bool:
+    """Whether a fit of prob reweights its noise groups (each kind of reading, mm or rad, of each file:
+    `noise_groups`) by their noise estimated from the residual: several groups, one at least without a sigma column
+    (`fit_problem`'s rule)."""
+    groups = noise_groups(prob)
+    present = np.unique(groups)
+    return len(present) > 1 and any(not prob.known[groups == g].all() for g in present)
 
 
 def fit_problem(prob: Problem, design, refine: bool = True, max_iter: int = 6) -> FitResult:
@@ -183,10 +196,10 @@ def _prior(prob: Problem):
 def _solve(design, w, free, fixed_vals, refine, max_iter, known=False, prior=None, sigma2=None):
     """(theta, identifiability, first-order residual, refinement, posterior or None) for the current weights (the
     prior weighted by sigma2, or by the first-order least-squares fit's variance factor)."""
-    theta, idf, r_first, post = sv.least_squares(design, w, free, fixed_vals, known=known, prior=prior,
-                                                 sigma2=sigma2)
+    theta, idf, r_first, post, at = sv.least_squares(design, w, free, fixed_vals, known=known, prior=prior,
+                                                     sigma2=sigma2, exact_too=refine)
     if refine:
-        ref = sv.refine(design, w, free, theta, idf, r_first, max_iter, post)
+        ref = sv.refine(design, w, free, theta, idf, r_first, max_iter, post, at)
     else:
         ref = sv.Refinement(theta, r_first, 0, False)
     return theta, idf, r_first, ref, post
@@ -235,7 +248,7 @@ def _without_outliers(res: FitResult, refine, max_iter, flags=None) -> FitResult
         if not flags.any():
             res.outliers = no_outliers(N)
             return res
-        return _refit_without(res, flags, refine, max_iter, thr, known)
+        return _refit_without(res.problem, res.design, flags, refine, max_iter, thr, known)
     if not suspects(res):
         res.outliers = no_outliers(N)
         return res
@@ -264,12 +277,12 @@ def _without_outliers(res: FitResult, refine, max_iter, flags=None) -> FitResult
     if not flags.any():
         res.outliers = no_outliers(N)
         return res
-    return _refit_without(res, flags, refine, max_iter, thr, known)
+    return _refit_without(res.problem, res.design, flags, refine, max_iter, thr, known)
 
 
-def _refit_without(res: FitResult, flags, refine, max_iter, thr, known) -> FitResult:
-    """The least-squares fit without the flagged readings; the outliers' residuals and z at its parameters."""
-    prob, design = res.problem, res.design
+def _refit_without(prob: Problem, design, flags, refine, max_iter, thr, known) -> FitResult:
+    """The least-squares fit of prob (on its design backend) without the flagged readings; the outliers' residuals
+    and z at its parameters."""
     keep = ~flags
     sub = prob.subset(keep)
     out = fit_problem(sub, design.subset(sub, keep), refine, max_iter)

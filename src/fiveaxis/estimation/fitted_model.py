@@ -19,7 +19,8 @@ The file is JSON, mm and rad, with the unit in every key that holds a number:
      "undetermined": [names], "policy": "...", "combinations": [{"formula", "terms", "value_mm_rad", "std_mm_rad"}],
      "effects": [{"id", "kind", "param", "variable", "degree", "coefficients_mm_rad": {name: value},
                   "std_mm_rad": {name: value}}],
-     "scales": {token: {"variable", "centre_<unit>", "half_range_<unit>"}},
+     "scales": {token: {"variable", "centre_<unit>", "half_range_<unit>"}},   (a temperature channel: centre_degC
+                its reference, "reference": "stated" (--reference-temperature) or "first reading", range_degC)
      "fit": {"n_poses", "rms_mm", "noise_mm", "rank", "n_parameters", "measured_tool_lengths_mm": [min, max]},
      "covariance_mm_rad": {"names": [...], "matrix": [[...]]},
      "undetermined_directions_mm_rad": {"names": [...], "basis": [[...], ...]},
@@ -342,7 +343,8 @@ def to_json(fm: FittedModel, folder=None) -> dict:
         unit = _SCALE_UNIT[sc.unit]
         scales[tok] = {"variable": sc.column if sc.column is not None else "t",
                        f"centre_{unit}": float(sc.centre), f"half_range_{unit}": float(sc.half),
-                       **({f"range_{unit}": [float(x) for x in sc.span]} if sc.span else {})}
+                       **({f"range_{unit}": [float(x) for x in sc.span]} if sc.span else {}),
+                       **({"reference": "stated" if sc.stated else "first reading"} if unit == "degC" else {})}
     effects = []
     for e in fm.effects:
         rec = {"id": e.id, "kind": e.kind, "param": e.param, **fx.family(e.kind).write_json(e)}
@@ -406,14 +408,14 @@ def _get(d, key, kind, where):
 ARG_RANGE = (1e-3, 1e6)
 
 
-def _check_id(ident, family, param, var, deg, arg, where) -> None:
+def _check_id(ident, family, param, var, deg, arg, where, toks=()) -> None:
     """An effect's id must follow its family's grammar for its own variable and say what the entry's keys say
     (parameter, degree, period / time constant / spacing), that argument within ARG_RANGE; InputError naming the
     file, the entry and the key. Custom effects (no variable) are the machine file's: checked there."""
     if var is None:
         return
-    got = split_id(ident, [var], (family,))
-    if got is None or got[1][0] != param:
+    got = split_id(ident, [var, *toks], (family,))      # toks: the file's other variables (a scale effect's axis)
+    if got is None or got[1][0] != param or got[1][1] != var:
         raise InputError(f"{where}: key 'id': {ident!r} is not a {family.NAME} effect of {param} along {var} "
                          f"(expected <param>:<var>{family.GRAMMAR}, e.g. {family.EXAMPLE})")
     said = got[1][2]
@@ -424,7 +426,7 @@ def _check_id(ident, family, param, var, deg, arg, where) -> None:
         if arg is not None and float(arg) != said:
             raise InputError(f"{where}: key '{key}': {arg:g} where the id {ident!r} says {said:g}")
         lo, hi = ARG_RANGE
-        if not lo <= said <= hi:
+        if said != 0 and not lo <= said <= hi:       # 0: an id without one (a temperature effect without a lag)
             raise InputError(f"{where}: key '{key}': {said:g}: expected {lo:g} to {hi:g} (the variable's unit: mm, "
                              f"deg or s)")
 
@@ -467,8 +469,12 @@ def load(path) -> FittedModel:
                 isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in span)):
             raise InputError(f"{where}: key 'range_{unit}': expected [lowest, highest] reading, got "
                              f"{json.dumps(span)[:40]}")
+        stated = sc.get("reference", "first reading")
+        if stated not in ("stated", "first reading"):
+            raise InputError(f"{where}: key 'reference': expected \"stated\" or \"first reading\", got "
+                             f"{json.dumps(stated)[:40]}")
         scales[tok] = fx.Scale(tok, None if var == "t" else var, centre, half, iface, to_unit,
-                               tuple(float(x) for x in span) if span else None)
+                               tuple(float(x) for x in span) if span else None, stated == "stated")
     effects = []
     for i, e in enumerate(_get(data, "effects", "list", w)):
         where = f"{w}: effects[{i}]"
@@ -483,7 +489,7 @@ def load(path) -> FittedModel:
         stds = tuple(float(_get(sd, n, "num", f"{where}: std_mm_rad")) if n in sd else None for n in names)
         param = _get(e, "param", "str", where)
         var, deg, arg = fx.family(kind).read_json(e, values, scales, where)
-        _check_id(ident, fx.family(kind), param, var, deg, arg, where)
+        _check_id(ident, fx.family(kind), param, var, deg, arg, where, [k for k in scales if k != var])
         effects.append(EffectRecord(ident, kind, param, var, deg, names, values, stds, arg))
     combos = tuple(c for c in data.get("combinations", []) if isinstance(c, dict))
     fit = data.get("fit", {}) if isinstance(data.get("fit", {}), dict) else {}

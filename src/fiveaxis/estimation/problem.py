@@ -156,7 +156,7 @@ def build(model, meas, added=(), fixed=None, prior=None) -> Problem:
     effects = resolve_effects(model, list(added))
     obs = ob.build(meas, model.machine)
     tip, tool_dir = model.ideal_tool(meas.poses, meas.L)
-    ctx = fx.context(model.machine, meas.poses, meas.t, meas.dirs, temps=meas.temps)
+    ctx = fx.context(model.machine, meas.poses, meas.t, meas.dirs, temps=meas.temps, references=meas.references)
     sb = su.block(obs, meas, model.machine, tip)
     names = list(model.errors) + [nm for e in effects for nm in e.names] + list(sb.names)
     w, known = initial_weights(obs)

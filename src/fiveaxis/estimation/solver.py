@@ -453,6 +453,24 @@ def residual(design, w, theta, free, exact_model: bool = True) -> np.ndarray:
     return exact(design, w, theta, free, grad=False)[0] if exact_model else linear(design, w, theta, free)[0]
 
 
+def _linear_exact_block(block, w, theta, free):
+    A = block.A
+    Af = A[:, free]
+    r = block.prob.d - A @ theta
+    r_exact = block.prob.d - block.prob.exact(theta)
+    return r, Af.T @ (w ** 2 * r), r_exact, Af.T @ (w ** 2 * r_exact)
+
+
+def linear_and_exact(design, w, theta, free):
+    """One pass: the first-order residual (m,) and gradient (A_free w)^T (r w), and the exact model's residual (m,)
+    and gradient (`linear` and `exact` at the same theta, each block's design built once)."""
+    parts = design.map(partial(_linear_exact_block, theta=theta, free=free), (w,))
+    if not parts:
+        return np.zeros(0), None, np.zeros(0), None
+    return (np.concatenate([p[0] for p in parts]), np.sum([p[1] for p in parts], axis=0),
+            np.concatenate([p[2] for p in parts]), np.sum([p[3] for p in parts], axis=0))
+
+
 def _stack(parts):
     r = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0)
     gs = [p[1] for p in parts if p[1] is not None]
@@ -460,12 +478,14 @@ def _stack(parts):
 
 
 def least_squares(design, w, free, fixed_vals, floor: float | None = None, known: bool = False, prior=None,
-                  sigma2: float | None = None):
+                  sigma2: float | None = None, exact_too: bool = False):
     """The first-order weighted least-squares fit: (theta (p,), identifiability, first-order residual (m,),
-    posterior or None). prior: (mean, precision) of the free parameters (`fiveaxis.estimation.priors`), or None:
+    posterior or None, at). prior: (mean, precision) of the free parameters (`fiveaxis.estimation.priors`), or None:
     the minimum-norm solution along what the data do not determine; with it, the maximum a posteriori estimate
     (`Posterior`), the prior weighted by the data's variance factor (1 with a sigma column, else the residual's of
-    this least-squares fit, or sigma2 where given)."""
+    this least-squares fit, or sigma2 where given). at: with exact_too, the exact model's residual and gradient at
+    theta (`exact`) from the same pass as the first-order residual; None without exact_too or without a step of
+    iterative refinement."""
     idf, g, ev = factor(design, w, free, fixed_vals, floor, known, evidence=True)
     theta = np.zeros(len(free))
     theta[~free] = fixed_vals
@@ -475,12 +495,17 @@ def least_squares(design, w, free, fixed_vals, floor: float | None = None, known
                          else sigma2)
     theta[free] = solve(idf, g) if post is None else post.step(g, np.zeros(int(free.sum())))
     r, g1 = linear(design, w, theta, free)
+    at = None
     if idf.rank or post is not None:    # one step of iterative refinement of the semi-normal equations
         theta[free] += solve(idf, g1) if post is None else post.step(g1, theta[free])
-        r, g1 = linear(design, w, theta, free)
+        if exact_too:
+            r, g1, r_exact, g_exact = linear_and_exact(design, w, theta, free)
+            at = (r_exact, g_exact)
+        else:
+            r, g1 = linear(design, w, theta, free)
     if post is not None:
         post.gradient = g1
-    return theta, idf, r, post
+    return theta, idf, r, post, at
 
 
 def ls_variance(idf: Identifiability, ev: "Evidence") -> float:
@@ -512,15 +537,16 @@ class Refinement:
 
 
 def refine(design, w, free, theta0, idf: Identifiability, r_first, max_iter: int,
-           post: "Posterior | None" = None) -> Refinement:
+           post: "Posterior | None" = None, at=None) -> Refinement:
     """Gauss-Newton steps on the exact model from the first-order solution theta0, in the determined subspace
     (with a posterior: maximum a posteriori steps, the prior's term in the cost), with a line search; the
-    first-order result when the exact model cannot get below it (weighted RMS within EXACT_TOLERANCE)."""
+    first-order result when the exact model cannot get below it (weighted RMS within EXACT_TOLERANCE). at: the
+    exact model's (residual, gradient) at theta0 if known (`least_squares`)."""
     def prior_cost(th):
         return 0.0 if post is None else post.prior_cost(th[free])
 
     theta = theta0.copy()
-    r, g = exact(design, w, theta, free)
+    r, g = exact(design, w, theta, free) if at is None else at
     cost = float(np.sum((r * w) ** 2)) + prior_cost(theta)
     iterations = 0
     for it in range(1, max_iter + 1):

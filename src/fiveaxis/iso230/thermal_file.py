@@ -92,7 +92,8 @@ def _step(cells, keep, values) -> float | None:
 def read(path) -> ThermalData:
     """Read and check an ISO 230-3 test file (see the module docstring)."""
     path = Path(path)
-    names, cols, lines, types = F._read_table(regular_file(path, "an ISO 230-3 test file"))
+    tab = F.read_table(regular_file(path, "an ISO 230-3 test file"))
+    names, cols = tab.names, tab.cols
     known = (*TIME_COLUMNS, *SENSORS, *UPPER, SPINDLE, *POSITIONS)
     warnings = check_columns(path, names, (), known)
     for c in names:
@@ -121,22 +122,12 @@ def read(path) -> ThermalData:
     if len(positions) > 1:
         raise InputError(f"{path}: header: columns {', '.join(positions)}: expected the position of one moving "
                          f"linear axis (the test of thermal distortion caused by a moving linear axis)")
-    nrows = len(cols[names[0]]) if names else 0
-    filled = np.zeros(nrows, bool)
-    for c in cols.values():
-        filled |= ~np.isnan(c) if isinstance(c, np.ndarray) else np.fromiter((not F._blank(v) for v in c), bool,
-                                                                              count=nrows)
-    keep = np.flatnonzero(filled)
+    keep = tab.keep
     if len(keep) < MIN_ROWS:
         raise InputError(f"{path}: {len(keep)} data row(s) (expected one row per reading time over the test, at "
                          f"least {MIN_ROWS})")
 
-    def numbers(name, blank_ok=False):
-        return F._numbers(path, name, cols[name], lines, keep, blank_ok, types)
-
-    def where(i):
-        return F._where(path, int(keep[i]) + 1, lines)
-
+    numbers, where = tab.numbers, tab.where
     tcol = times[0]
     t_raw = numbers(tcol)
     t = t_raw * TIME_COLUMNS[tcol]
@@ -168,10 +159,7 @@ def read(path) -> ThermalData:
         sensors[c] = v
     temps = {}
     for c in (c for c in names if c.startswith(TEMPERATURE_PREFIX)):
-        v = numbers(c, blank_ok=True)
-        column = temperature_column(c)                  # the bound every measurement file's channel has
-        F._range_check(path, c, np.where(np.isnan(v), column.bound[0], v), keep, lines, *column.bound,
-                       column.bound_text)
+        v = tab.cells(temperature_column(c))            # blank: not read; the bound every measurement file's has
         read_ = v[~np.isnan(v)]
         if not len(read_):
             raise InputError(f"{path}: column {c}: no reading in any row (expected temperatures in degC; a blank "

@@ -28,8 +28,10 @@ from pathlib import Path
 import numpy as np
 
 from ..exceptions import InputError
+from ..guards import give_back_memory
 from ..model.columns import (AXIS_DEVIATIONS, BY_NAME, COLUMNS, DEVIATIONS, DIRECTION, DIRECTION_PREFIX, FRAMES, LINE,
-                             READINGS, SETUP_KINDS, TEMPERATURE_PREFIX, TEMPERATURE_RE, temperature_column)
+                             READINGS, SETUP_KINDS, TEMPERATURE_PREFIX, TEMPERATURE_RANGE_DEGC, TEMPERATURE_RE,
+                             temperature_column)
 from ..inputs import MAX_TABLE_BYTES, open_file
 from .column_names import check as check_columns
 
@@ -67,6 +69,7 @@ class Measurements:
     quantum: dict | None = None         # resolution of the file's numbers: "poses" (n, nvar), "L" (n,), "u" (n, 3)
     #                                     model units, half a unit of the last digit (None: full precision)
     temps: dict = field(default_factory=dict)         # temp_<name> -> (n,) degC, NaN where not read
+    references: dict = field(default_factory=dict)    # temp_<name> -> stated reference (degC; else the first reading)
     source: np.ndarray | None = None    # (n,) index into `sources` of each row's file (None: one file)
     sources: tuple = ()                 # the files of a joint set (`join`), in order
     columns: tuple = ()                 # the file's column names (as read)
@@ -100,6 +103,30 @@ class Measurements:
                        dirs={k: v[rows] for k, v in self.dirs.items()}, rows=self.rows[rows], warnings=[],
                        temps={k: v[rows] for k, v in self.temps.items()}, source=pick(self.source),
                        quantum=None if self.quantum is None else {k: pick(v) for k, v in self.quantum.items()})
+
+    def with_references(self, stated: dict) -> "Measurements":
+        """The same readings with stated reference temperatures (the temperature effects reckoned from them, not from
+        each channel's first reading): stated {temp_<name> or <name>: degC; None: every channel}, later entries over
+        earlier ones. InputError (key reference_temperature) for a channel the data do not have or a temperature
+        outside the plausible range."""
+        out = dict(self.references)
+        lo, hi = TEMPERATURE_RANGE_DEGC
+        for name, value in stated.items():
+            if not lo <= value <= hi:
+                raise InputError(f"reference_temperature: {value:g} degC: expected a temperature from {lo:g} to {hi:g} "
+                                 f"degC", key="reference_temperature")
+            if not self.temps:
+                raise InputError(f"reference_temperature: {self.path} has no temperature column (temp_<name>)",
+                                 key="reference_temperature")
+            if name is None:
+                out.update({c: float(value) for c in self.temps})
+                continue
+            channel = name if name.startswith(TEMPERATURE_PREFIX) else TEMPERATURE_PREFIX + name
+            if channel not in self.temps:
+                raise InputError(f"reference_temperature: no column {channel} in {self.path} (expected one of: "
+                                 f"{', '.join(self.temps)})", key="reference_temperature")
+            out[channel] = float(value)
+        return replace(self, references=out)
 
     def with_poses(self, poses, L=None) -> "Measurements":
         """The same readings at other poses (mm, rad) and tool lengths (mm): what another plan would measure."""
@@ -302,6 +329,8 @@ def _read_table(path: Path):
             numeric = pat.is_floating(t) or pat.is_integer(t)
             cols[n] = (np.asarray(table.column(n).to_numpy(zero_copy_only=False), dtype=float) if numeric
                        else table.column(n).to_pylist())
+        del table
+        give_back_memory()             # Arrow's buffers (10^6 rows: ~0.25 GB otherwise kept by the process)
         return names, cols, None, types
     if suffix not in (".csv", ".txt"):
         raise InputError(f"{path}: unknown file type '{suffix}' (expected .csv or .parquet)")
@@ -489,10 +518,7 @@ def read(path, machine, min_rows: int = 1, frame: str | None = None, setup_kind:
         cols.update({n: np.full(nrows, np.nan) for n in LINE_DIRECTION})
     _check_header(path, cols, variables, readings_required)
     # Rows that are entirely empty (blank lines) are skipped; row numbers stay those of the file.
-    filled = np.zeros(nrows, bool)
-    for c in cols.values():
-        filled |= ~np.isnan(c) if isinstance(c, np.ndarray) else np.fromiter((not _blank(v) for v in c), bool,
-                                                                              count=nrows)
+    filled = _filled(cols)
     keep = np.flatnonzero(filled)
     if not len(keep):
         raise InputError(f"{path}: no data rows (expected one row per measured pose under the header)")
@@ -576,13 +602,76 @@ def _check_header(path, cols, variables, readings_required):
 
 
 @dataclass
-class _File:
-    """A measurement file being read: its raw cells, the rows kept, the checked columns (data) and warnings."""
+class Table:
+    """A file's table of checked columns, the public reader every file of the package uses (measurement files
+    here, ISO 230-3 test files in `fiveaxis.iso230.thermal_file`): the raw cells per column (str or number;
+    Parquet numbers as float arrays), the CSV line of each data row (None: Parquet), the Parquet type of each
+    column (None: CSV) and the rows kept (0-based: those with a cell in any column; blank lines are skipped, row
+    numbers stay the file's). `numbers` and `cells` give a column checked cell by cell; every bad cell is an
+    InputError naming the file, the data row (its line in a CSV file) and the column."""
     path: Path
     cols: dict
     lines: list | None
     types: dict | None
     keep: np.ndarray
+
+    @property
+    def names(self) -> list:
+        """The header's column names, in order."""
+        return list(self.cols)
+
+    def where(self, i: int) -> str:
+        """'file: data row 3 (line 4)' of the i-th kept row."""
+        return _where(self.path, self.keep[i] + 1, self.lines)
+
+    def numbers(self, name: str, blank_ok: bool = False) -> np.ndarray:
+        return _numbers(self.path, name, self.cols[name], self.lines, self.keep, blank_ok, self.types)
+
+    def in_range(self, name: str, values: np.ndarray, lo: float, hi: float, what: str) -> None:
+        """InputError at the first kept row whose value (of `values`, one per kept row) is outside [lo, hi]: 'file:
+        data row 3 (line 4), column name: what, got value'."""
+        _range_check(self.path, name, values, self.keep, self.lines, lo, hi, what)
+
+    def cells(self, column) -> np.ndarray:
+        """A column of the table, checked: numbers (blank where allowed, within its bound) or texts (among its
+        values)."""
+        if column.kind == "text":
+            vals = _texts(self.path, column.name, self.cols[column.name], self.lines, self.keep, self.types)
+            if column.values:
+                for i, v in enumerate(vals):
+                    if v is not None and v not in column.values:
+                        raise InputError(f"{self.where(i)}, column {column.name}: unknown value {_echo(v)} (expected "
+                                         f"one of: {', '.join(column.values)})")
+            return vals
+        vals = self.numbers(column.name, column.blank)
+        if column.bound is not None and column.group != "sigma":       # a sigma's range: where it is needed
+            x = np.abs(vals) if column.absolute else vals
+            self.in_range(column.name, np.where(np.isnan(x), column.bound[0], x), *column.bound, column.bound_text)
+        return vals
+
+
+def read_table(path) -> Table:
+    """The Table of a CSV or Parquet file: its header checked (each column once, comma-separated), its cells as
+    written, the rows with a cell kept. InputError for a file that is missing, a folder, of another type, not valid
+    CSV or Parquet, or beyond the size bound."""
+    path = Path(path)
+    names, cols, lines, types = _read_table(path)
+    return Table(path, cols, lines, types, np.flatnonzero(_filled(cols)))
+
+
+def _filled(cols: dict) -> np.ndarray:
+    """(nrows,) bool: the rows with a cell in any column."""
+    nrows = len(next(iter(cols.values()))) if cols else 0
+    filled = np.zeros(nrows, bool)
+    for c in cols.values():
+        filled |= ~np.isnan(c) if isinstance(c, np.ndarray) else np.fromiter((not _blank(v) for v in c), bool,
+                                                                              count=nrows)
+    return filled
+
+
+@dataclass
+class _File(Table):
+    """A measurement file being read: its table, the checked columns (data) and warnings."""
     machine: object
     variables: tuple
     readings_required: bool
@@ -608,31 +697,6 @@ class _File:
         if not isinstance(cells, np.ndarray) and len(self.keep) != len(cells):
             cells = [cells[i] for i in self.keep]
         return quantum(values, written_digits(cells))
-
-    def where(self, i: int) -> str:
-        """'file: data row 3 (line 4)' of the i-th kept row."""
-        return _where(self.path, self.keep[i] + 1, self.lines)
-
-    def numbers(self, name: str, blank_ok: bool = False) -> np.ndarray:
-        return _numbers(self.path, name, self.cols[name], self.lines, self.keep, blank_ok, self.types)
-
-    def cells(self, column) -> np.ndarray:
-        """A column of the table, checked: numbers (blank where allowed, within its bound) or texts (among its
-        values)."""
-        if column.kind == "text":
-            vals = _texts(self.path, column.name, self.cols[column.name], self.lines, self.keep, self.types)
-            if column.values:
-                for i, v in enumerate(vals):
-                    if v is not None and v not in column.values:
-                        raise InputError(f"{self.where(i)}, column {column.name}: unknown value {_echo(v)} (expected "
-                                         f"one of: {', '.join(column.values)})")
-            return vals
-        vals = self.numbers(column.name, column.blank)
-        if column.bound is not None and column.group != "sigma":       # a sigma's range: where it is needed
-            x = np.abs(vals) if column.absolute else vals
-            _range_check(self.path, column.name, np.where(np.isnan(x), column.bound[0], x), self.keep, self.lines,
-                         *column.bound, column.bound_text)
-        return vals
 
     def blank(self, name: str) -> np.ndarray:
         return np.isnan(self.data[name]) if name in self.data else np.ones(self.n, bool)

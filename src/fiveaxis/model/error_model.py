@@ -14,6 +14,8 @@ import importlib.util
 import os
 import re
 import sys
+import threading
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -25,6 +27,34 @@ from ..exceptions import InputError
 from .machine import Machine, data_dir, load_machine, module_name
 from .numba_cache import ensure_writable, private_folder
 from .iso_names import canonical_keys
+
+
+_THREAD = threading.local()
+
+
+def set_serial_kernels(on: bool) -> None:
+    """This thread calls the serial (`nogil`) twins of the generated parallel kernels (`<name>_serial`, the same
+    loop and arithmetic on one thread) when on: for a thread that is one of several calling kernels at once (a
+    pass's thread, `fiveaxis.parallel.Local`; a threaded Dask worker). numba's workqueue threading layer, the command
+    line's, aborts the process when two threads enter a parallel kernel."""
+    _THREAD.serial = bool(on)
+
+
+@contextmanager
+def serial_kernels():
+    """Within: this thread calls the serial twins of the parallel kernels (`set_serial_kernels`)."""
+    old = getattr(_THREAD, "serial", False)
+    _THREAD.serial = True
+    try:
+        yield
+    finally:
+        _THREAD.serial = old
+
+
+def kernel(module: ModuleType, name: str):
+    """The kernel `name` of a generated module, or its serial twin on a thread that asked for them
+    (`set_serial_kernels`)."""
+    return getattr(module, f"{name}_serial" if getattr(_THREAD, "serial", False) else name)
 
 
 def cache_dir() -> Path:
@@ -175,7 +205,7 @@ class Model:
         n = len(q)
         J = np.empty((n, len(self.errors), 3))
         K = np.empty_like(J)
-        self.kernels.jk(q, self.tool_lengths(L, n), J, K)
+        kernel(self.kernels, "jk")(q, self.tool_lengths(L, n), J, K)
         return J, K
 
     def J(self, *pose, L=None):
@@ -209,7 +239,7 @@ class Model:
             raise ValueError(f"errors must have 1 or {len(q)} rows, got {E.shape[0]}")
         P = np.empty((len(q), 3))
         V = np.empty((len(q), 3))
-        (self.kernels.errors_exact if exact else self.kernels.errors_first)(q, Ls, E, P, V)
+        kernel(self.kernels, "errors_exact" if exact else "errors_first")(q, Ls, E, P, V)
         return P, V
 
     def position_error(self, poses, errors=None, L=None, exact: bool = False) -> np.ndarray:
@@ -225,7 +255,7 @@ class Model:
         q, Ls = self._broadcast_pose_args(poses, L)
         P = np.empty((len(q), 3))
         V = np.empty((len(q), 3))
-        self.kernels.tips(q, Ls, P, V)
+        kernel(self.kernels, "tips")(q, Ls, P, V)
         return P, V
 
 

@@ -8,9 +8,10 @@ fails (residuals), how the missing effects were found (diagnosis rounds), which 
 """
 from __future__ import annotations
 
-import base64
-import re
-from html import escape
+from .iso230_3 import section_html
+from .markup import (code_name as _name, escape as _e, figure as _figure, get as _get, number as _v, prose as _t,
+                     table as _table, unit as _unit)
+
 
 CSS = """
 :root { --ink: #1d232a; --muted: #5b6570; --line: #d5dbe1; --ok: #1f7a3a; --warn: #a05a00; --bg-soft: #f4f6f8; }
@@ -65,65 +66,6 @@ footer { margin-top: 40px; color: var(--muted); font-size: 0.85em; border-top: 1
 }
 @page { size: A4; margin: 14mm 12mm; }
 """
-
-
-def _e(text) -> str:
-    return escape(str(text), quote=True)
-
-
-def _t(text) -> str:
-    """Escaped prose whose ASCII units (um, urad) are shown as people write them (µm, µrad)."""
-    return _e(re.sub(r"(?<=[0-9] )u(m|rad)\b", "\u00b5\\1", str(text)))
-
-
-def _unit(unit: str) -> str:
-    """um -> µm, urad -> µrad for people (also inside 'urad/mm')."""
-    return unit.replace("urad", "\u00b5rad").replace("um", "\u00b5m") if unit else ""
-
-
-def _get(rec: dict, key: str):
-    """The value at a dotted key of the record ("fit.parameters.3.value": list items by index)."""
-    obj = rec
-    for part in key.split("."):
-        obj = obj[int(part)] if isinstance(obj, list) else obj[part]
-    return obj
-
-
-def _v(rec: dict, key: str, fmt: str = ".4g", scale: float = 1.0) -> str:
-    """A number of the record for people: `<data value="the record's value" data-k="its key" data-f="format">` around
-    the value (times scale: 1e3 for mm -> um, 100 for a share in %) formatted; an en dash for None. Every number
-    the page shows from the record goes through here, so a test can check each against the JSON record."""
-    value = _get(rec, key)
-    if value is None:
-        return "&ndash;"
-    x = f' data-x="{scale!r}"' if scale != 1.0 else ""
-    return (f'<data value="{float(value)!r}" data-k="{_e(key)}" data-f="{fmt}"{x}>'
-            f"{format(value * scale if scale != 1.0 else value, fmt)}</data>")
-
-
-def _name(name: str, iso_name) -> str:
-    return f'<span class="code">{_e(name)}</span>' + (f' <span class="code">({_e(iso_name)})</span>'
-                                                      if iso_name else "")
-
-
-def _figure(figures: dict, key: str, alt: str, caption: str) -> str:
-    if key not in figures:
-        return ""
-    data = base64.b64encode(figures[key]).decode("ascii")
-    return (f'<figure id="fig-{_e(key)}"><img alt="{_e(alt)}" src="data:image/png;base64,{data}">'
-            f"<figcaption>{caption}</figcaption></figure>")
-
-
-def _table(head: list[str], rows: list[list[str]], table_id: str = "", numeric=(), row_class=None) -> str:
-    """A table from already escaped cells; columns in `numeric` are right-aligned."""
-    ths = "".join(f'<th class="num">{h}</th>' if i in numeric else f"<th>{h}</th>" for i, h in enumerate(head))
-    body = []
-    for r, row in enumerate(rows):
-        cls = f' class="{row_class[r]}"' if row_class and row_class[r] else ""
-        tds = "".join(f'<td class="num">{c}</td>' if i in numeric else f"<td>{c}</td>" for i, c in enumerate(row))
-        body.append(f"<tr{cls}>{tds}</tr>")
-    ident = f' id="{table_id}"' if table_id else ""
-    return f"<table{ident}><thead><tr>{ths}</tr></thead><tbody>{''.join(body)}</tbody></table>"
 
 
 # -- sections -----------------------------------------------------------------------------------------------------
@@ -681,8 +623,7 @@ def _has_iso(rec: dict, key: str) -> bool:
 
 
 def _iso230_3(rec: dict, figs: dict) -> str:
-    """The ISO 230-3 section (`report --iso230-3 FILE`), built in its own module on this one's helpers."""
-    from .iso230_3 import section_html   # imported here: that module imports this one's helpers
+    """The ISO 230-3 section (`report --iso230-3 FILE`), built in its own module on the same pieces (`markup`)."""
     return section_html(rec, figs)
 
 

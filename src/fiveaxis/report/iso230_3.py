@@ -7,7 +7,7 @@ import math
 from ..iso230 import thermal as T
 from ..plots.thermal import thermal_figure
 from .figures import png
-from .html import _e, _figure, _get, _table, _v
+from .markup import escape as _e, figure as _figure, get as _get, number as _v, table as _table
 
 #: The rows of a direction's figures: key, label.
 ROWS = (("max_drift", "maximum drift"), ("max_drift_t_min", "  at (min)"), ("range", "range (max - min)"),
@@ -154,7 +154,7 @@ def section_html(rec: dict, figs: dict) -> str:
     numeric = tuple(range(1, len(head)))
 
     def rows_of(base):
-        """The rows of the directions at `base` (a key of the record); every number the record's (report.html._v)."""
+        """The rows of the directions at `base` (a key of the record); every number the record's (report.markup.number)."""
         rows = []
         for n, d in enumerate(_get(rec, base)):
             fmt = f".{places[d['direction']]}f"

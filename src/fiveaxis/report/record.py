@@ -254,7 +254,7 @@ def _found(obj, effect_id: str, fit: dict) -> dict:
 def build(data, machine="li2018", convention: str = "equations", added=(), compensation=None,
           max_rounds: int = MAX_ROUNDS, sensitivity: bool = True, title: str | None = None,
           frame: str | None = None, campaign: dict | None = None, uncertainty: U.Statement | None = None,
-          today: _dt.date | None = None) -> Report:
+          today: _dt.date | None = None, references: dict | None = None) -> Report:
     """Run the analyses of a measurement file (or of several: one joint fit, `measurement.files.join`) and collect
     the report's record and figures.
 
@@ -264,7 +264,7 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
     file's, else workpiece). campaign: a checked campaign (`report.campaign.load`): the record becomes a
     calibration certificate (`record["certificate"]`); uncertainty: the ISO 230-9 statement of the ISO 230-2
     figures (default: the campaign's iso230_9 keys, else none); today: the issue date when the campaign gives
-    none."""
+    none; references: stated reference temperatures of the channels (`Measurements.with_references`)."""
     if uncertainty is None:
         uncertainty = U.Statement(**{k: v for k, v in (campaign or {}).get("iso230_9", {}).items()})
     U.check(uncertainty)
@@ -273,6 +273,8 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
     paths = list(data) if isinstance(data, (list, tuple)) else [data]
     meas = join([read(p, model.machine, min_rows=2 if len(paths) == 1 else 1, frame=frame) for p in paths],
                 model.machine)
+    if references:
+        meas = meas.with_references(references)
     effects = resolve_effects(model, machine_effects(model) + list(added))
     design_size.check(model, meas, effects)
     preconditions.check(meas)

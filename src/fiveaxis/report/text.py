@@ -475,7 +475,7 @@ def prediction_lines(unc: dict, warnings: list) -> list[str]:
     if not unc:
         return ["  the prediction's uncertainty: unknown (the model file has no covariance: fit it again with this "
                 "version)"]
-    p, parts = unc["prior"], unc["tip_parts_rms_mm"]
+    p, parts = unc.get("prior"), unc["tip_parts_rms_mm"]
     setup = unc.get("part_setup") or {}
     span = (lambda r: f"{1e3 * r[0]:.3f} to {1e3 * r[1]:.3f}")
     lines = [f"  the true machine's RMS tool-tip error over the workspace, k = 2 range (um):  {'raw':22s} after the "
@@ -497,8 +497,9 @@ def prediction_lines(unc: dict, warnings: list) -> list[str]:
     sr = parts.get("setup_removed", parts)
     lines.append(f"  what the range holds (RMS at the tip after the part's set-up): the fit's uncertainty "
                  f"{1e3 * sr['fit']:.3g} um, the {unc['undetermined_directions']} undetermined directions "
-                 f"{1e3 * math.hypot(sr['undetermined'], sr['undetermined_best_value']):.3g} um (their size taken "
-                 f"as the determined ones': {1e3 * p['linear_mm']:.3g} um, {1e6 * p['angular_rad']:.3g} urad)")
+                 f"{1e3 * math.hypot(sr['undetermined'], sr['undetermined_best_value']):.3g} um "
+                 + (f"(their size taken as the determined ones': {1e3 * p['linear_mm']:.3g} um, "
+                    f"{1e6 * p['angular_rad']:.3g} urad)" if p else "(what the fit's priors allow there)"))
     ax = unc["axis_error_rad"]
     if "after_table" in ax:
         lo, hi = ax["after_table"]["range_k2"]

@@ -1,7 +1,8 @@
 """GSIL beyond one machine: chunks of a grid on the workers of a Dask cluster, each running the numba kernel, summed.
 
-Each task asks the grid for its slice of poses (`grid.poses(start, stop)`, never the whole grid), runs the exact
-GSIL kernel on it and returns 41 sums and a left-out count, so memory is bounded by the chunk size on every
+The pass is `fiveaxis.sensitivity.indices.gsil`'s (GSIL is written once; the runner is its argument): each task
+asks the grid for its slice of poses (`grid.poses(start, stop)`, never the whole grid), runs the exact GSIL kernel
+on it and returns 41 sums and a left-out count, so memory is bounded by the chunk size on every
 worker and by the number of tasks in flight on the client (`fiveaxis.parallel`, the one runner of passes). Workers
 load the model by machine file and convention (`fiveaxis.load(..., derive=False)`), so each needs the package, the
 machine file at the same path, and its generated module (shipped machines: in the package; others: `fiveaxis derive
@@ -15,31 +16,17 @@ the grid is the sum over the reduced grid times the number of points on those ax
 """
 from __future__ import annotations
 
-import math
 import time
-from pathlib import Path
 
 import numpy as np
 
 from .. import parallel
 from ..exceptions import InputError
-from ..model.error_model import load
-from ..progress import bar as progress_bar
-from .indices import SensitivityResult, error_values, reduce_grid
+from . import indices
 
 #: Poses per task: 2**20 poses are 40 MB of poses (li2018; ~130 MB while the grid builds them) and about
 #: 0.1 s of kernel time on one core.
 CHUNK = 1 << 20
-
-
-def _chunk_sum(machine_path, convention, grid, start, stop, lo, hi, E, rel_tiny, worker_kernel):
-    """One task: (sum over poses start..stop-1 of W_i (41,), left-out poses, poses), on a worker."""
-    model = load(machine_path, convention, derive=False)
-    q = np.ascontiguousarray(grid.poses(start, stop))
-    W = np.zeros(len(E))
-    kernel = model.kernels.gsil_sum if worker_kernel == "parallel" else model.kernels.gsil_range
-    skipped = kernel(q, lo, hi, E, rel_tiny, W) if len(q) else 0
-    return W, int(skipped), stop - start
 
 
 def warm(model) -> float:
@@ -58,51 +45,27 @@ def warm(model) -> float:
 
 def gsil(model, grid, client, errors=None, L0=None, LE=None, rel_tiny=1e-12, chunk=CHUNK, reduce=True,
          worker_kernel="serial", progress=None, max_in_flight=None):
-    """GSIL_i (Eq. 14, exact in L) of a grid on a Dask client: a `fiveaxis.sensitivity.indices.SensitivityResult`.
+    """GSIL_i (Eq. 14, exact in L) of a grid on a Dask client: `fiveaxis.sensitivity.indices.gsil` with the
+    cluster as its runner (the same code, chunks on the workers), plus what the cluster did (settings["dask"]).
 
-    Same values as `fiveaxis.sensitivity.indices.gsil(..., order="exact")`, summed in a different order. `reduce`
-    drops the axes that appear in no J_i first (exact). `max_in_flight` bounds the tasks submitted at a time
-    (default 4 per worker thread), so the client's memory stays bounded whatever the grid size.
+    `reduce` drops the axes that appear in no J_i first (exact). `max_in_flight` bounds the tasks submitted at a
+    time (default 4 per worker thread), so the client's memory stays bounded whatever the grid size. The size
+    limits are the caller's (`fiveaxis dask --max-poses`): none here.
     """
     if worker_kernel not in ("serial", "parallel"):
         raise InputError(f"worker_kernel: expected 'serial' or 'parallel', got {worker_kernel!r}", key="worker_kernel")
-    if int(chunk) != chunk or chunk < 1:
+    if isinstance(chunk, bool) or int(chunk) != chunk or chunk < 1:
         raise InputError(f"chunk: expected a positive number of poses, got {chunk}", key="chunk")
-    L0 = model.machine.tool_length if L0 is None else float(L0)
-    LE = model.machine.cutting_length if LE is None else float(LE)
-    if not (math.isfinite(L0) and math.isfinite(LE) and LE > 0 and L0 > 0):
-        raise InputError(f"L0/LE: expected positive tool and cutting lengths in mm, got {L0} and {LE}",
-                         key=("L0", "LE"))
-    E, label = error_values(model, errors)
-    if grid.size == 0:
-        raise InputError("the grid has no poses")
-    t0 = time.perf_counter()
-    work, factor = reduce_grid(model, grid) if reduce else (grid, 1)
-    path = str(Path(model.machine.path).resolve())
-    starts = range(0, work.size, int(chunk))
-    tasks = ((path, model.convention, work, s, min(s + int(chunk), work.size), L0 - LE, L0, E, rel_tiny,
-              worker_kernel) for s in starts)
-    total = np.zeros(len(E))
-    skipped = 0
-    run = parallel.OnDask(client, max_in_flight)
-    with progress_bar(grid.size, progress, "GSIL (dask)", "pose", long=work.size >= 4 * int(chunk)) as bar:
-        for W, s, size in run.map(_chunk_sum, tasks):
-            total += W
-            skipped += s
-            bar.update(factor * size)
-    values = total * factor / grid.size
+    with parallel.on_cluster(client, max_in_flight) as run:
+        res = indices.gsil(model, grid, errors, L0, LE, order="exact", rel_tiny=rel_tiny, chunk=int(chunk),
+                           progress=progress, check=False, reduce=reduce, max_size=max(1, grid.size), runner=run,
+                           kernel=worker_kernel)
     try:
         peaks = client.run(parallel.peak_rss_mb)
     except Exception:   # noqa: BLE001 - a worker without the package (or gone): the result stands without it
         peaks = {}
-    settings = {"machine": model.machine.name, "convention": model.convention, "L0_mm": L0, "LE_mm": LE,
-                "quadrature": {"rule": "exact integral over L", "order": "exact"}, "rel_tiny": rel_tiny,
-                "errors": label, "kind": "GSIL",
-                "poses": grid.size, "evaluated_poses": work.size, "reduced_factor": factor,
-                "skipped_poses": skipped * factor, "seconds": round(time.perf_counter() - t0, 3),
-                "dask": {"workers": len(client.nthreads()), "threads": sum(client.nthreads().values()),
-                         "chunk": int(chunk), "tasks": len(starts), "worker_kernel": worker_kernel,
-                         "worker_peak_rss_mb": sorted(round(v, 1) for v in peaks.values())}}
-    if hasattr(grid, "describe"):
-        settings["grid"] = grid.describe(model.machine.rotary)
-    return SensitivityResult("GSIL", model.errors, values, settings)
+    work = res.settings["evaluated_poses"]
+    res.settings["dask"] = {"workers": len(client.nthreads()), "threads": sum(client.nthreads().values()),
+                            "chunk": int(chunk), "tasks": -(-work // int(chunk)), "worker_kernel": worker_kernel,
+                            "worker_peak_rss_mb": sorted(round(v, 1) for v in peaks.values())}
+    return res

@@ -25,10 +25,13 @@ import math
 import sys
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
+from .. import parallel
 from ..exceptions import InputError
+from ..model.error_model import load
 from ..model.columns import MAX_TOOL_LENGTH_MM     # beyond, no tool (and the integrals' products overflow)
 from .grid import Grid, GridAxis
 from ..progress import bar
@@ -66,13 +69,15 @@ def has_exact(model) -> bool:
     return hasattr(model.kernels, "gsil_sum") and hasattr(model.kernels, "gsil_each")
 
 
-def kernel_w(model, poses, E, L0, LE, order, rel_tiny=REL_TINY, normals=None, mode=0, each=False):
+def kernel_w(model, poses, E, L0, LE, order, rel_tiny=REL_TINY, normals=None, mode=0, each=False, serial=False):
     """The one place that calls the generated sensitivity kernels.
 
     order "exact": the closed-form integral over L (gsil_sum / gsil_each; mode 0 only; left-out counts are
     poses); an int: Gauss-Legendre of that order (sensitivity_sum / sensitivity_each; left-out counts are nodes).
     each=False: (sum over poses of W_i (41,), left-out count); each=True: (W (n, 41) per pose, left-out counts
-    per pose (n,)), with normals (n, 3) or (1, 3) used in mode 1.
+    per pose (n,)), with normals (n, 3) or (1, 3) used in mode 1. serial: the exact sum in the serial `nogil`
+    kernel (gsil_range), for a task on a threaded worker (numba's workqueue layer aborts when a parallel kernel is
+    entered from several threads at once).
     """
     k = model.kernels
     poses = np.ascontiguousarray(poses, dtype=float)
@@ -88,7 +93,8 @@ def kernel_w(model, poses, E, L0, LE, order, rel_tiny=REL_TINY, normals=None, mo
                 k.gsil_each(poses, lo, hi, E, float(rel_tiny), W, skipped)
             return W, skipped
         W_sum = np.zeros(len(E))
-        skipped = k.gsil_sum(poses, lo, hi, E, float(rel_tiny), W_sum) if len(poses) else 0
+        kernel = k.gsil_range if serial else k.gsil_sum
+        skipped = kernel(poses, lo, hi, E, float(rel_tiny), W_sum) if len(poses) else 0
         return W_sum, int(skipped)
     nodes, weights = quadrature(L0, LE, order)
     if each:
@@ -250,9 +256,18 @@ def _validate(L0, LE, order):
     quadrature(L0, LE, order)
 
 
+def _chunk_sum(model, grid, start, stop, E, L0, LE, order, rel_tiny, kernel):
+    """One task of a GSIL pass: (sum over poses start..stop-1 of W_i (41,), left-out count, poses). model: the model
+    itself in this process, or (machine file, convention) on a worker, which loads it (`derive=False`)."""
+    if isinstance(model, tuple):
+        model = load(*model, derive=False)
+    W, skipped = kernel_w(model, grid.poses(start, stop), E, L0, LE, order, rel_tiny, serial=kernel == "serial")
+    return W, skipped, stop - start
+
+
 def gsil(model, grid, errors=None, L0=None, LE=None, order=None, rel_tiny=REL_TINY,
          chunk=CHUNK, progress=None, check=True, reduce=True, max_size=None,
-         how: str = "max_size={n}") -> SensitivityResult:
+         how: str = "max_size={n}", runner=None, kernel: str = "parallel") -> SensitivityResult:
     """GSIL_i (Eq. 14): the mean of W_i over every pose of a grid or pose list, in chunks of `chunk` poses.
 
     reduce: a grid axis that appears in no J_i (X for li2018) changes no W_i, so the grid is evaluated at one
@@ -263,7 +278,14 @@ def gsil(model, grid, errors=None, L0=None, LE=None, order=None, rel_tiny=REL_TI
     progress: None = a bar on stderr for long runs (fiveaxis.progress), True/False to force.
     max_size: the most poses evaluated (after the reduction) and the most points of one axis
     (fiveaxis.guards; None: its default); how: how the caller's user asks for more.
+    runner: where the chunks run (`fiveaxis.parallel`: None = the runner in effect, this process unless inside
+    `on_cluster`); on a cluster each task loads the model by machine file. kernel: "parallel" (numba's threads in
+    one task) or "serial" (one thread per task: for threaded workers).
     """
+    if kernel not in ("serial", "parallel"):
+        raise InputError(f"kernel: expected 'serial' or 'parallel', got {kernel!r}", key="worker_kernel")
+    if isinstance(chunk, bool) or not isinstance(chunk, (int, np.integer)) or chunk < 1:
+        raise InputError(f"chunk: expected a positive number of poses, got {chunk}", key="chunk")
     L0 = model.machine.tool_length if L0 is None else float(L0)
     LE = model.machine.cutting_length if LE is None else float(LE)
     if order is None:
@@ -279,15 +301,19 @@ def gsil(model, grid, errors=None, L0=None, LE=None, order=None, rel_tiny=REL_TI
     work, factor = reduce_grid(model, grid) if reduce else (grid, 1)
     detail = " x ".join(f"{a.name} {a.count}" for a in work.axes if a.count > 1) if isinstance(work, Grid) else ""
     check_size(work.size, "poses", max_size, how, detail)
+    run = parallel.runner() if runner is None else runner
+    if isinstance(run, parallel.Local) and kernel == "parallel":
+        run = parallel.Local(1)     # the parallel kernel takes the cores itself, entered from this thread alone
+    ref = model if isinstance(run, parallel.Local) else (str(Path(model.machine.path).resolve()), model.convention)
+    tasks = ((ref, work, s, min(s + int(chunk), work.size), E, L0, LE, order, rel_tiny, kernel)
+             for s in range(0, work.size, int(chunk)))
     total = np.zeros(len(E))
     skipped = 0
     with _progress(work.size, progress, "GSIL") as bar:
-        for start in range(0, work.size, chunk):
-            stop = min(start + chunk, work.size)
-            W, s = kernel_w(model, work.poses(start, stop), E, L0, LE, order, rel_tiny)
+        for W, s, size in run.map(_chunk_sum, tasks):
             total += W
             skipped += s
-            bar.update(stop - start)
+            bar.update(size)
     values = total * float(factor) / float(grid.size)
     if not np.sum(values) > 0:
         raise InputError(why_zero(model, E, L0, LE, _sample(grid, 16)))

@@ -1,0 +1,93 @@
+"""The runner of passes in this process (`fiveaxis.parallel.Local`): threads, results in task order, bounded in
+flight, and the same numbers as one thread."""
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import fiveaxis
+from fiveaxis import parallel
+from fiveaxis.diagnosis.diagnose import diagnose
+from fiveaxis.estimation import design as dsg
+from fiveaxis.estimation import fit as F
+from fiveaxis.exceptions import InputError
+from fiveaxis.measurement.simulate import simulate
+
+
+def test_results_in_task_order_and_bounded_in_flight():
+    running, most = [0], [0]
+    lock = threading.Lock()
+
+    def task(i, pause):
+        with lock:
+            running[0] += 1
+            most[0] = max(most[0], running[0])
+        time.sleep(pause)
+        with lock:
+            running[0] -= 1
+        return i
+
+    pauses = [0.02 * ((7 * i) % 5) for i in range(12)]          # tasks end out of order
+    assert list(parallel.Local(3).map(task, ((i, p) for i, p in enumerate(pauses)))) == list(range(12))
+    assert 1 < most[0] <= 3
+    assert list(parallel.Local(1).map(task, ((i, 0.0) for i in range(5)))) == list(range(5))
+
+
+def test_threads_from_the_environment(monkeypatch):
+    monkeypatch.setenv(parallel.THREADS_ENV, "3")
+    assert parallel.threads() == 3
+    for bad in ("0", "two", "-1"):
+        monkeypatch.setenv(parallel.THREADS_ENV, bad)
+        with pytest.raises(InputError, match="FIVEAXIS_THREADS"):
+            parallel.threads()
+    monkeypatch.delenv(parallel.THREADS_ENV)
+    assert parallel.threads() >= 1
+
+
+@pytest.mark.slow
+def test_row_blocks_on_two_threads_give_the_numbers_of_one(monkeypatch):
+    """Blocks of 200 poses on 1 and 2 threads: the same fit and diagnosis to the last bit (the blocks' parts are
+    combined in block order whatever thread made them)."""
+    model = fiveaxis.load("li2018")
+    meas = simulate(model, ["dz_x:x2"], n=1200, noise=1e-3, seed=5).meas
+    monkeypatch.setattr(dsg, "BLOCK_POSES", 200)
+    out = {}
+    for threads in ("1", "2"):
+        monkeypatch.setenv(parallel.THREADS_ENV, threads)
+        res = F.fit(model, meas, in_blocks=True)
+        out[threads] = (res.theta, res.residual, diagnose(model, meas, in_blocks=True).to_json())
+    assert np.array_equal(out["1"][0], out["2"][0]) and np.array_equal(out["1"][1], out["2"][1])
+    assert out["1"][2]["decision"] == out["2"][2]["decision"]
+    assert out["1"][2]["candidates"] == out["2"][2]["candidates"]
+
+
+
+
+def test_threads_of_a_pass_under_the_command_lines_threading_layer(tmp_path):
+    """The command line's numba layer (workqueue) aborts the process when two threads enter a parallel kernel: a
+    fit in blocks on two threads (the design's kernels and the exact model's) runs there, its threads on the
+    kernels' serial twins, with the numbers of one thread to the last bit."""
+    import os
+    import subprocess
+    import sys
+    code = """
+import os
+import numba
+import numpy as np
+import fiveaxis
+from fiveaxis.estimation import design as dsg, fit as F
+from fiveaxis.measurement.simulate import simulate
+model = fiveaxis.load("li2018")
+meas = simulate(model, ["dz_x:x2"], n=900, seed=5).meas
+dsg.BLOCK_POSES = 150
+fits = []
+for n in ("1", "2"):
+    os.environ["FIVEAXIS_THREADS"] = n
+    fits.append(F.fit(model, meas, ["dz_x:x2"], in_blocks=True))
+print(numba.threading_layer(), int(np.array_equal(fits[0].theta, fits[1].theta)))
+"""
+    env = dict(os.environ, NUMBA_THREADING_LAYER="workqueue")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-1500:]
+    assert out.stdout.split() == ["workqueue", "1"]
