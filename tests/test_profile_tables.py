@@ -17,11 +17,13 @@ from fiveaxis.diagnosis import profiles as DP
 from fiveaxis.effects import families as fx
 from fiveaxis.estimation import fit as F
 from fiveaxis.estimation import fitted_model as MF
+from fiveaxis.estimation import result as R
 from fiveaxis.exceptions import InputError
 from fiveaxis.linuxcnc import configuration as lx
 from fiveaxis.measurement import instruments as ins
 from fiveaxis.measurement.files import read
 from fiveaxis.measurement.simulate import simulate, to_frame
+from fiveaxis.report import text
 
 NOISE = 1e-3
 TARGETS = np.arange(-360.0, 361.0, 90.0)          # mm, 9 targets every 90 mm
@@ -93,6 +95,8 @@ def test_diagnosis_offers_knots_at_the_targets_and_comp_lines_there(model, log, 
     ids = {i for c in dg.candidates for i in (c["id"], *c["aliases"])}
     assert "dx_x:xk90from-360" in ids, ids
     res = F.fit(model, log, ["dx_x:xk90from-360"])
+    printed = [ln for ln in text.fit(R.to_json(res)).splitlines() if "xk90from-360@" in ln and " = " in ln]
+    assert printed and all(" um +- " in ln for ln in printed), printed        # the knots' values in um, not "scaled"
     fm = MF.load(MF.save(MF.from_fit(res), tmp_path / "model.json"))
     (rec,) = fm.effects
     assert rec.id == "dx_x:xk90from-360" and rec.arg == 90.0
