@@ -53,9 +53,9 @@ def _empty(folder):
 
 
 # -- issue 34 ---------------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("value", ["abc", [1], None])
+@pytest.mark.parametrize("value", ["abc", [1], None, -1.0])
 def test_an_effects_std_that_is_no_number(files, tmp_path, capsys, value):
-    """std "abc" or a list ended in a ValueError / TypeError traceback."""
+    """std "abc" or a list ended in a ValueError / TypeError traceback; a negative one was taken as it stood."""
     def edit(d):
         e = d["effects"][0]
         e["std_mm_rad"] = {k: value for k in e["coefficients_mm_rad"]}

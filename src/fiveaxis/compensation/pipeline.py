@@ -82,8 +82,8 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     step(STAGES[1])
     reversal = [v for v in model.variables if _token(model, v) in fm.reversal_variables()]
     points = comp_points or lx.COMP_POINTS
-    lc = lx.fit(tip_error_function(model, errors_fn), model, points, reversal=reversal,
-                nodes=profile_nodes(fm, model, points))
+    along = profile_nodes(fm, model, points)
+    lc = lx.fit(tip_error_function(model, errors_fn), model, points, reversal=reversal, nodes=along)
     values, text, note = None, "", lk.unsupported(model.machine, model.convention or "equations") or ""
     if not note:
         values, text = ck.module_values(fm, model, damping), lk.source(model)
@@ -92,6 +92,10 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     band = (lambda q, dirs, Ls, tips, axes: prediction.band(fm, model, q, dirs, Ls, tips, axes,
                                                             fm.fit.get("noise_mm")))
     acc = account(model, errors_fn, table, lc, poses, seed, damping=damping, module=module, band=band)
+    better = table_warning(model, table, acc, {c.variable: lx.comp_file_name(c) for c in lc.comps
+                                               if c.variable in along}, along)
+    if better:
+        acc["warnings"] = list(acc.get("warnings", [])) + [better]
     warm = stated_temperatures(fm, temperatures)
     if warm:
         step(STAGES[3])
@@ -152,6 +156,30 @@ def profile_nodes(fm, model, points: int) -> dict:
                              f"{len(knots)} lines (LinuxCNC reads at most {MAX_COMP_POINTS}); a wider spacing")
         out[v] = knots
     return out
+
+
+#: The volumetric table is said to be worse than LinuxCNC's comp files when its largest predicted tool-tip error
+#: exceeds theirs by this factor (and by 0.1 um).
+WORSE_TABLE = 1.5
+
+
+def table_warning(model, table: Table, acc: dict, names: dict, along: dict) -> str | None:
+    """Where the model has per-position profiles (along: {variable: the comp file's nominals}, profile_nodes) and
+    the volumetric table's evenly spaced nodes leave a larger predicted tool-tip error than LinuxCNC's comp files
+    (largest over the account's poses, by WORSE_TABLE and 0.1 um): a warning naming the better files and the
+    table's nodes that would carry the profiles (names: {variable: comp file name}); None otherwise."""
+    tip = acc.get("tip_error_mm", {})
+    t, c = tip.get("after_table"), tip.get("after_linuxcnc")
+    if not along or t is None or c is None or not (t["max"] > WORSE_TABLE * c["max"] and t["max"] - c["max"] > 1e-4):
+        return None
+    counts = {v: len(table.nodes[model.variables.index(v)]) for v in along}
+    files = ", ".join(f"linuxcnc/{names[v]}" for v in along if v in names)
+    more = ", ".join(f"{v}={len(k)}" for v, k in along.items())
+    now = ", ".join(f"{n} along {v}" for v, n in counts.items())
+    return (f"the volumetric table ({now} nodes, evenly spaced) leaves a tool-tip error up to {1e3 * t['max']:.3g} um "
+            f"where LinuxCNC's comp files ({files}, lines at the profiles' knots) leave {1e3 * c['max']:.3g} um: "
+            f"load the comp files, or give the table nodes for the profiles (--nodes {more}, evenly spaced, still "
+            f"not at the knots)")
 
 
 def _token(model, variable):

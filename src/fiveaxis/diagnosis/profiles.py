@@ -3,7 +3,10 @@ determine, offered beside the polynomials (`fiveaxis.diagnosis.candidates.build_
 candidates of a family of their own, `profile`: k ln N + 2 ln(F M) for k coefficients).
 
 A profile is the parameter's value at knots every `spacing` over the stroke, interpolated linearly
-(`fiveaxis.effects.families`). Per axis, the candidates are the axis' own six error motions (positioning,
+(`fiveaxis.effects.families`). Where the measured positions are targets evenly spaced over the stroke (an ISO
+230-2 log: -20, -15, ..., 20 mm on a stroke of [-21, 21] mm, the first and last within a spacing of its ends), the
+knots are the targets (`dx_x:xk5from-20`), so that the profile's table and a compensation file's lines are at the
+measured positions and nothing is extrapolated. Per axis, the candidates are the axis' own six error motions (positioning,
 straightness, angular: ISO 230-1's E_XX ... E_CX) as functions of its own position, as a laser, a ballbar or a
 step gauge sees them. The spacing is the finest (at most MAX_KNOTS knots over the stroke) at which every knot is
 determined by the measured positions: a measured position within half a spacing of every knot, and the hat
@@ -24,6 +27,7 @@ import math
 import numpy as np
 
 from ..effects import families as fx
+from ..exceptions import InputError
 
 #: Knots of a candidate profile at most (the penalty grows with them; a lead-screw log has about 10 targets).
 MAX_KNOTS = 17
@@ -59,13 +63,44 @@ def distinct(values: np.ndarray, tol: float) -> np.ndarray:
     return out
 
 
+def round_to(value: float, step: float) -> float:
+    """value rounded to SPACING_DIGITS significant figures of step (same unit)."""
+    scale = 10.0 ** (math.floor(math.log10(step)) - SPACING_DIGITS + 1)
+    return float(round(value / scale) * scale)
+
+
+def target_spacing(machine, token: str, points: np.ndarray, lo: float, hi: float):
+    """fiveaxis.effects.profile.Spacing of knots at the distinct positions `points` (interface unit) where they are
+    MIN_KNOTS to MAX_KNOTS targets evenly spaced (within 1e-3 of a spacing), the first and last within a spacing of
+    the stroke's ends [lo, hi]; its origin None where the knots from the stroke's low end are the targets; None
+    where the positions are not such targets."""
+    if not MIN_KNOTS <= len(points) <= MAX_KNOTS:
+        return None
+    step = round_to(float(np.mean(np.diff(points))), float(np.mean(np.diff(points))))
+    if step <= 0 or points[0] - lo > step or hi - points[-1] > step:
+        return None
+    origin = round_to(float(points[0]), step)
+    origin = None if abs(origin - lo) <= 1e-3 * step else origin
+    try:
+        knots = fx.profile_knots(machine, token, step, origin=origin)
+    except InputError:
+        return None
+    if len(knots) != len(points) or np.max(np.abs(knots - points)) > 1e-3 * step:
+        return None
+    return fx.Spacing(step, origin)
+
+
 def spacing_for(machine, token: str, positions: np.ndarray) -> float | None:
-    """The finest knot spacing (interface unit) over the stroke whose knots the positions determine (see the module
-    docstring), or None if not even MIN_KNOTS knots are determined."""
+    """The knot spacing (interface unit, a fiveaxis.effects.profile.Spacing: with its first knot where the knots are
+    the measured targets) whose knots the positions determine (see the module docstring), or None if not even
+    MIN_KNOTS knots are determined."""
     name = next(v for v in machine.variables if fx.var_token(machine, v) == token)
     lo, hi = (float(x) for x in machine.axis(name).stroke)
     span = hi - lo
     points = distinct(positions, SAME_POSITION * span)
+    at_targets = target_spacing(machine, token, points, lo, hi)
+    if at_targets is not None:
+        return at_targets
     for k in range(min(MAX_KNOTS, len(points)) - 1, MIN_KNOTS - 2, -1):
         spacing = nice_spacing(span, k)
         knots = fx.profile_knots(machine, token, spacing)
@@ -76,7 +111,7 @@ def spacing_for(machine, token: str, positions: np.ndarray) -> float | None:
             continue
         s = np.linalg.svd(fx.hat_basis(points, knots), compute_uv=False)
         if s[-1] > 0 and s[0] / s[-1] < MAX_CONDITION:
-            return spacing
+            return fx.Spacing(spacing)
     return None
 
 
@@ -112,5 +147,5 @@ def profile_candidates(block, w, present, unseen=()) -> list:
                 continue
             offered.append(col)
             if not any(p.startswith(f"{param}:{tok}k") for p in present):
-                out.append(fx.profile(machine, param, tok, spacing, "diagnose"))
+                out.append(fx.profile(machine, param, tok, spacing, "diagnose", spacing.origin))
     return out

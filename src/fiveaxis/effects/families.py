@@ -29,7 +29,7 @@ from .base import (TIME, TOOL, Effect, EffectContext, EffectRecord, Scale, chain
 from .custom import CustomEffect
 from .periodic import Periodic
 from .polynomial import DEGREES, Polynomial, vocabulary  # noqa: F401
-from .profile import Profile, hat_basis, profile, profile_knots  # noqa: F401
+from .profile import Profile, Spacing, hat_basis, profile, profile_knots  # noqa: F401
 from .reversal import Reversal, reversals  # noqa: F401
 from .temperature import Temperature
 from .thermal import Thermal

@@ -396,9 +396,12 @@ def _get(d, key, kind, where):
         raise InputError(f"{where}: missing key '{key}'")
     v = d[key]
     ok = {"str": isinstance(v, str), "dict": isinstance(v, dict), "list": isinstance(v, list),
-          "num": isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)}[kind]
+          "num": isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)}
+    ok["std"] = ok["num"] and v >= 0              # a standard uncertainty: -1 is no one's
+    ok = ok[kind]
     if not ok:
-        expected = {"str": "a string", "dict": "an object", "list": "a list", "num": "a finite number"}[kind]
+        expected = {"str": "a string", "dict": "an object", "list": "a list", "num": "a finite number",
+                    "std": "a finite number >= 0 (a standard uncertainty)"}[kind]
         raise InputError(f"{where}: key '{key}': expected {expected}, got {json.dumps(v)[:40]}")
     return v
 
@@ -448,7 +451,7 @@ def load(path) -> FittedModel:
     errs = _get(data, "errors_mm_rad", "dict", w)
     errors = {k: float(_get(errs, k, "num", f"{w}: errors_mm_rad")) for k in errs}
     units = {k: str(v) for k, v in _get(data, "error_units", "dict", w).items()}
-    std = {k: float(_get(data["std_mm_rad"], k, "num", f"{w}: std_mm_rad"))
+    std = {k: float(_get(data["std_mm_rad"], k, "std", f"{w}: std_mm_rad"))
            for k in _get(data, "std_mm_rad", "dict", w)}
     undetermined = tuple(str(x) for x in _get(data, "undetermined", "list", w))
     scales = {}
@@ -486,7 +489,7 @@ def load(path) -> FittedModel:
         names = tuple(coefs)
         values = tuple(float(_get(coefs, n, "num", f"{where}: coefficients_mm_rad")) for n in names)
         sd = _get(e, "std_mm_rad", "dict", where) if "std_mm_rad" in e else {}
-        stds = tuple(float(_get(sd, n, "num", f"{where}: std_mm_rad")) if n in sd else None for n in names)
+        stds = tuple(float(_get(sd, n, "std", f"{where}: std_mm_rad")) if n in sd else None for n in names)
         param = _get(e, "param", "str", where)
         var, deg, arg = fx.family(kind).read_json(e, values, scales, where)
         _check_id(ident, fx.family(kind), param, var, deg, arg, where, [k for k in scales if k != var])

@@ -201,12 +201,17 @@ def check_fixed(model, names, fixed: dict) -> dict:
 
 
 def unit(prob: Problem, name: str) -> str:
-    """The unit of a parameter: mm or rad for errors and setup unknowns, '' for effect coefficients (scaled)."""
+    """The unit of a parameter: mm or rad for errors, setup unknowns and a profile's values at its knots, '' for
+    other effect coefficients (scaled)."""
     model = prob.model
     if name in model.errors:
         return "rad" if model.machine.is_angular(name) else "mm"
     if su.is_setup_param(name):
         return prob.setups.unit(name.split("[")[0])
+    ident, at, _ = name.rpartition("@")          # a profile's value at a knot (`<id>@<knot>`): its parameter's unit
+    param = ident.partition(":")[0]
+    if at and param in model.errors:
+        return "rad" if model.machine.is_angular(param) else "mm"
     return ""
 
 
