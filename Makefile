@@ -51,10 +51,11 @@ warm: install
 ## everything but the scale tests (the slow ones too: the browser, full grids, null-set series)
 test: install
 	@$(MAKE) --no-print-directory -j2 system-deps warm     # the Debian packages download while the kernels compile
-	$(PYTEST) -m "not scale"
+	$(PYTEST) -m "not scale" --durations=15
 	$(BIN)/lint-imports
 
-## the scale tests: 400,000 poses in row blocks, Dask clusters, the installed wheel (CI runs them after make test)
+## the scale tests: 400,000 poses in row blocks, Dask clusters, the installed wheel, diagnoses in row blocks against
+## the same in memory, bench_scale's smoke run (CI runs them after make test)
 test-scale: install warm
 	$(PYTEST) -m scale
 

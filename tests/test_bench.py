@@ -112,7 +112,7 @@ def test_bench_plan_programs_tiny(tmp_path, rs274):
     assert row[5].startswith("0 moves outside")      # a program plan writes keeps every move in the strokes
 
 
-@pytest.mark.slow
+@pytest.mark.scale      # row blocks against memory, in processes: `make test-scale` (CI runs it)
 def test_bench_scale_tiny(tmp_path):
     """Three processes (simulate, fit, diagnose in row blocks; the in-memory comparison is
     tests/test_row_blocks.py's); the hidden effect is found."""

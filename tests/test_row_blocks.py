@@ -115,7 +115,7 @@ def _decision(j):
     return (j["verdict"], d["best"], d["passes"], [f["id"] for f in j["forward"]])
 
 
-@pytest.mark.slow
+@pytest.mark.scale      # row blocks against memory, in processes: `make test-scale` (CI runs it)
 def test_diagnose_in_blocks_equals_in_memory(tmp_path, small_blocks):
     """A hidden roll of X (its tails look like outliers at first): same verdict, best candidate, extended BIC,
     cross-validation, forward steps, listing (RMS after, aliases) and outliers as in memory."""
@@ -144,7 +144,7 @@ def test_diagnose_in_blocks_equals_in_memory(tmp_path, small_blocks):
     assert b["decision"]["in_blocks"]["sample_poses"] == 1500
 
 
-@pytest.mark.slow
+@pytest.mark.scale      # row blocks against memory, in processes: `make test-scale` (CI runs it)
 def test_diagnose_in_blocks_without_sigma_null_and_periodic(tmp_path, small_blocks):
     """No sigma column (the noise estimated), a null set and a hidden screw error (its period searched on the
     sample): the same answers as in memory. (On the null set the best candidate that fails is noise and may differ:
