@@ -106,3 +106,13 @@ def test_the_map_names_every_package_and_the_modules_of_the_growing_ones():
     modules = [f"{pkg}/{m.stem}" for pkg in ("diagnosis", "report", "iso230", "effects")
                for m in sorted((src / pkg).glob("*.py")) if m.stem != "__init__"]
     assert [m for m in modules if m.split("/")[1] not in block] == []
+
+
+def test_every_package_of_the_source_is_in_the_wheel():
+    """pyproject.toml lists the packages the wheel holds: a package of src/ missing there installs a package that
+    cannot import (measurement/instruments/ was missing: `make test-scale`'s installed wheel failed at start)."""
+    import tomllib
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    src = ROOT / "src"
+    found = {".".join(p.parent.relative_to(src).parts) for p in src.rglob("__init__.py")}
+    assert found <= listed, sorted(found - listed)
