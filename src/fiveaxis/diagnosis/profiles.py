@@ -6,7 +6,9 @@ A profile is the parameter's value at knots every `spacing` over the stroke, int
 (`fiveaxis.effects.families`). Where the measured positions are targets evenly spaced over the stroke (an ISO
 230-2 log: -20, -15, ..., 20 mm on a stroke of [-21, 21] mm, the first and last within a spacing of its ends), the
 knots are the targets (`dx_x:xk5from-20`), so that the profile's table and a compensation file's lines are at the
-measured positions and nothing is extrapolated. Per axis, the candidates are the axis' own six error motions (positioning,
+measured positions and nothing is extrapolated; where such targets are irregularly spaced (as ISO 230-2 recommends,
+to catch periodic errors), the knots are the targets themselves (`dx_x:xkT9`: at the 9 measured targets, their
+positions kept in the effect). Per axis, the candidates are the axis' own six error motions (positioning,
 straightness, angular: ISO 230-1's E_XX ... E_CX) as functions of its own position, as a laser, a ballbar or a
 step gauge sees them. The spacing is the finest (at most MAX_KNOTS knots over the stroke) at which every knot is
 determined by the measured positions: a measured position within half a spacing of every knot, and the hat
@@ -36,7 +38,7 @@ MIN_KNOTS = 7
 #: Largest condition number of the hat functions at the distinct measured positions.
 MAX_CONDITION = 100.0
 #: Positions closer than this share of the stroke count as one (targets that jitter around the nominal).
-SAME_POSITION = 1e-4
+SAME_POSITION = fx.SAME_POSITION
 #: Parameter columns whose |cos| exceeds this are the same candidate on this data.
 PARALLEL_COS = 0.999
 #: Significant figures of a candidate's spacing (ids stay short: 625, 33.34).
@@ -48,19 +50,6 @@ def nice_spacing(span: float, intervals: int) -> float:
     raw = span / intervals
     scale = 10.0 ** (math.floor(math.log10(raw)) - SPACING_DIGITS + 1)
     return math.ceil(raw / scale - 1e-9) * scale
-
-
-def distinct(values: np.ndarray, tol: float) -> np.ndarray:
-    """Sorted cluster centres of values whose neighbours are closer than tol (same unit)."""
-    v = np.sort(np.asarray(values, float))
-    if not len(v):
-        return v
-    starts = np.concatenate([[0], np.flatnonzero(np.diff(v) > tol) + 1])
-    ends = np.append(starts[1:], len(v))
-    out = v[starts]                        # a value alone is its own centre; the means of the others below
-    for i in np.flatnonzero(ends - starts > 1):
-        out[i] = v[starts[i]:ends[i]].mean()
-    return out
 
 
 def round_to(value: float, step: float) -> float:
@@ -90,17 +79,37 @@ def target_spacing(machine, token: str, points: np.ndarray, lo: float, hi: float
     return fx.Spacing(step, origin)
 
 
-def spacing_for(machine, token: str, positions: np.ndarray) -> float | None:
+def irregular_targets(points: np.ndarray, lo: float, hi: float, rounded: np.ndarray):
+    """fiveaxis.effects.profile.Targets at the distinct positions `points` (interface unit; `rounded`: as knots
+    write them) where they are MIN_KNOTS to MAX_KNOTS targets over the stroke [lo, hi] as an ISO 230-2 log has
+    them irregularly spaced: the first and last within the mean spacing of the stroke's ends, no gap wider than
+    twice the mean spacing; else None."""
+    if not MIN_KNOTS <= len(points) <= MAX_KNOTS or len(rounded) != len(points):
+        return None
+    gaps = np.diff(points)
+    mean = float(np.mean(gaps))
+    if points[0] - lo > mean or hi - points[-1] > mean or float(np.max(gaps)) > 2 * mean:
+        return None
+    return fx.Targets(len(points), rounded)
+
+
+def spacing_for(machine, token: str, positions: np.ndarray, alone: bool = False) -> float | None:
     """The knot spacing (interface unit, a fiveaxis.effects.profile.Spacing: with its first knot where the knots are
     the measured targets) whose knots the positions determine (see the module docstring), or None if not even
-    MIN_KNOTS knots are determined."""
+    MIN_KNOTS knots are determined. alone: the axis moved alone (the other axes still: an ISO 230-2 log), where
+    irregular targets are the knots (fiveaxis.effects.profile.Targets); elsewhere (an R-test's rotary positions,
+    each with other poses) a knot at every position would leave none to check it: a cross-validation fold without
+    a position cannot determine its knot."""
     name = next(v for v in machine.variables if fx.var_token(machine, v) == token)
     lo, hi = (float(x) for x in machine.axis(name).stroke)
     span = hi - lo
-    points = distinct(positions, SAME_POSITION * span)
+    points = fx.distinct(positions, SAME_POSITION * span)
     at_targets = target_spacing(machine, token, points, lo, hi)
     if at_targets is not None:
         return at_targets
+    irregular = irregular_targets(points, lo, hi, fx.measured_targets(positions, span)) if alone else None
+    if irregular is not None:
+        return irregular
     for k in range(min(MAX_KNOTS, len(points)) - 1, MIN_KNOTS - 2, -1):
         spacing = nice_spacing(span, k)
         knots = fx.profile_knots(machine, token, spacing)
@@ -134,7 +143,9 @@ def profile_candidates(block, w, present, unseen=()) -> list:
         axis = machine.axis(name)
         tok = fx.var_token(machine, name)
         to_unit = prob.scales[tok].to_unit
-        spacing = spacing_for(machine, tok, prob.meas.poses[:, i] * to_unit)
+        others = np.delete(prob.meas.poses, i, axis=1)
+        alone = not others.size or bool(np.all(np.ptp(others, axis=0) == 0))
+        spacing = spacing_for(machine, tok, prob.meas.poses[:, i] * to_unit, alone)
         if spacing is None:
             continue
         offered = []                 # columns of the parameters offered, or with a profile along tok already
@@ -147,5 +158,6 @@ def profile_candidates(block, w, present, unseen=()) -> list:
                 continue
             offered.append(col)
             if not any(p.startswith(f"{param}:{tok}k") for p in present):
-                out.append(fx.profile(machine, param, tok, spacing, "diagnose", spacing.origin))
+                out.append(fx.at_targets(machine, param, tok, spacing, "diagnose") if isinstance(spacing, fx.Targets)
+                           else fx.profile(machine, param, tok, spacing, "diagnose", spacing.origin))
     return out

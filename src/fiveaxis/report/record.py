@@ -275,7 +275,7 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
                 model.machine)
     if references:
         meas = meas.with_references(references)
-    effects = resolve_effects(model, machine_effects(model) + list(added))
+    effects = resolve_effects(model, machine_effects(model) + list(added), poses=meas.poses)
     design_size.check(model, meas, effects)
     preconditions.check(meas)
     diags = loop.rounds(model, meas, effects, max_rounds, top=TOP, fixed=dict(model.machine.fixed) or None)
