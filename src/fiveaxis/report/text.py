@@ -405,6 +405,16 @@ def _unexplained_lines(u: dict) -> list[str]:
     return lines
 
 
+#: Below this (urad), a model's tool-axis error is the arithmetic's, not the machine's: printed as 0.
+AXIS_DUST_URAD = 1e-3
+
+
+def _urad(rad: float) -> str:
+    """A tool-axis error (rad) in urad, 3 significant figures; 0 below AXIS_DUST_URAD (no 9.7e-15 urad printed)."""
+    v = 1e6 * rad
+    return "0" if abs(v) < AXIS_DUST_URAD else f"{v:.3g}"
+
+
 def compensation(rec: dict, folder: str = "") -> str:
     """The text of a compensation (um, urad), built from its record (`compensation.record.summary`, what
     summary.json holds); folder: where it was written, for the last line."""
@@ -432,8 +442,8 @@ def compensation(rec: dict, folder: str = "") -> str:
             s = tip[key]
             lines.append(f"    {label:56s} {1e3 * s['max']:8.3f} {1e3 * s['rms']:8.3f} {1e3 * s['p95']:8.3f}"
                          + (f" {1e3 * setup[key]['rms']:28.3f}" if key in setup else ""))
-    lines.append(f"  tool-axis error RMS (urad, model estimates): before {1e6 * ax['before']['rms']:.3g}, after the "
-                 f"table {1e6 * ax['after_table']['rms']:.3g} (damping {tab['damping']:g} near singular poses)")
+    lines.append(f"  tool-axis error RMS (urad, model estimates): before {_urad(ax['before']['rms'])}, after the "
+                 f"table {_urad(ax['after_table']['rms'])} (damping {tab['damping']:g} near singular poses)")
     warm = rec.get("predicted_at_temperatures")
     if warm:
         temps = ", ".join(f"{k} {v:g} degC (reference {warm['references_degC'][k]:g})"
