@@ -99,8 +99,9 @@ def test_diagnosis_offers_knots_at_the_targets_and_comp_lines_there(model, log, 
     ids = {i for c in dg.candidates for i in (c["id"], *c["aliases"])}
     assert "dx_x:xk90from-360" in ids, ids
     res = F.fit(model, log, ["dx_x:xk90from-360"])
-    printed = [ln for ln in text.fit(R.to_json(res)).splitlines() if "xk90from-360@" in ln and " = " in ln]
-    assert printed and all(" um +- " in ln for ln in printed), printed        # the knots' values in um, not "scaled"
+    printed = text.fit(R.to_json(res))              # the knots' values in a table (um), not "scaled" combinations
+    assert "xk90from-360@" not in printed and "relative to the error at X = 0 mm (the datum knot)" in printed
+    assert "X (mm)   error (um)    U (um)" in printed
     fm = MF.load(MF.save(MF.from_fit(res), tmp_path / "model.json"))
     (rec,) = fm.effects
     assert rec.id == "dx_x:xk90from-360" and rec.arg == 90.0
@@ -177,3 +178,97 @@ def test_irregular_targets_are_the_knots_kept_in_model_json(model, irregular_log
     with pytest.raises(InputError, match=r"effects\[0\]: key 'coefficients_mm_rad': a profile has one coefficient "
                                          r"per knot \(8\), got 9"):
         MF.load(tmp_path / "bad.json")
+
+
+def test_profile_table_one_record_three_views(model, irregular_log, tmp_path):
+    """Position, error relative to the datum knot and U (k = 2): in the fit's JSON, its text and the comp file's
+    comments, from one record; the errors against the simulated truth, the slope-removed view against np.polyfit."""
+    targets, log = irregular_log
+    res = F.fit(model, log, ["dx_x:xkT9"])
+    j = R.to_json(res)
+    (t,) = j["profiles"]
+    d = int(np.argmin(np.abs(targets)))
+    assert t["datum"] == f"relative to the error at X = {t['rows'][d]['position_mm']:g} mm"
+    pos = np.array([r["position_mm"] for r in t["rows"]])
+    err = np.array([r["error_um"] for r in t["rows"]])
+    U = np.array([r["U_k2_um"] for r in t["rows"]])
+    assert np.allclose(pos, targets, atol=1e-3) and err[d] == 0 and U[d] == 0
+    truth = 1e3 * (VALUES - VALUES[d])
+    others = np.arange(9) != d
+    assert np.all(U[others] > 0.3) and np.all(U[others] < 3)                   # 1 um noise, 10 readings a target
+    chi2 = np.sum(((err - truth)[others] / (U[others] / 2)) ** 2)
+    assert chi2 < 26.1, (err, truth, U)                                        # chi2(8) at 0.999
+    slope, icpt = np.polyfit(pos, err, 1)
+    assert t["slope_um_per_m"] == pytest.approx(1e3 * slope, rel=1e-9)
+    flat = np.array([r["error_slope_removed_um"] for r in t["rows"]])
+    assert np.allclose(flat, err - (icpt + slope * pos), atol=1e-9)
+    printed = text.fit(j)
+    assert "relative to the error at X = " in printed and "X (mm)   error (um)" in printed
+    assert "@" not in printed.partition("[[Determined by this data only as combinations]]")[2].partition("[[")[0]
+    assert f"slope {t['slope_um_per_m']:.4g} um/m" in printed
+    fm = MF.load(MF.save(MF.from_fit(res), tmp_path / "model.json"))
+    comp = CP.compensate(fm, model, counts={v: 11 if v == "X" else 2 for v in model.variables}, poses=50)
+    (tmp_path / "comp").mkdir()
+    CF.write(comp, tmp_path / "comp", summary(comp))
+    path = tmp_path / "comp" / "linuxcnc" / "joint0-X.comp"
+    nominal, _, _ = lx.read_comp_file(path)                 # LinuxCNC's reading stops before the comments
+    assert len(nominal) == 11
+    notes = [ln[2:] for ln in path.read_text().splitlines() if ln.startswith("# ")]
+    assert notes[1:] == fx.table_lines(t, indent="")         # the fit's record, through model.json
+    assert t["datum"] in notes[1]
+
+
+def test_rotary_profile_table_in_deg_and_urad(model):
+    eff = fx.parse("ez_C:Ck45", model.machine, model.errors)
+    c = 1e-6 * np.arange(9.0) ** 2                                            # rad at -180, -135, ..., 180 deg
+    t = eff.table(model.machine, c, np.diag(np.full(9, 1e-12)))              # 1 urad each
+    assert t["datum"] == "relative to the error at C = 0 deg" and t["error_unit"] == "urad"
+    r = t["rows"][0]
+    assert r["position_deg"] == -180 and r["error_urad"] == pytest.approx(0 - 16) and \
+        r["U_k2_urad"] == pytest.approx(2 * np.sqrt(2))
+    assert t["slope_urad_per_deg"] == pytest.approx(1e6 * np.polyfit(eff.knots, c, 1)[0])
+
+
+def test_no_profile_that_is_the_alias_of_a_constant():
+    """A profile whose values the data determine only up to what a constant of its parameter explains is not
+    offered (a parameter seen at one target gives a profile at any level: 0.097 rad as well as 0)."""
+    x = np.repeat(TARGETS, 10)
+    assert DP.beyond_constant(np.ones_like(x), x, TARGETS)                       # a laser's own positioning error
+    assert DP.beyond_constant(1 + x / 400, x, TARGETS)                           # seen more at one end: still all
+    at_one = np.where(x == 90.0, 1.0, 0.0)                                      # seen at one target only
+    assert not DP.beyond_constant(at_one, x, TARGETS)
+    at_two = np.where(np.isin(x, (-360.0, 90.0)), 1.0, 0.0)                     # two knots of nine
+    assert not DP.beyond_constant(at_two, x, TARGETS)
+    assert not DP.beyond_constant(np.ones(10), np.full(10, 90.0), TARGETS)      # one position, seen everywhere
+
+
+def test_slope_removed_view_of_iso230_2(model, irregular_log, capsys):
+    """iso230-2 --remove-slope: the least-squares line through the mean bidirectional deviations removed from
+    every reading and the figures computed again (against a hand computation), its slope in um/m; the standard's
+    figures stay first; the slope and the slope-removed means agree with the fit's profile table within U."""
+    from conftest import run_cli
+    from fiveaxis.iso230 import positioning as P
+    targets, log = irregular_log
+    (ev,) = P.evaluate(log, model)
+    flat = P.slope_removed(ev)
+    b, a = np.polyfit(ev.targets, ev.figures["mean_bidirectional"], 1)
+    assert flat["slope_um_per_m"] == pytest.approx(b * 1e6, rel=1e-12)
+    means = {d: np.array([np.mean(x - (a + b * p)) for x, p in zip(ev.x[d], ev.targets)]) for d in ("fwd", "bwd")}
+    both = np.r_[means["fwd"], means["bwd"]]
+    assert flat["E_um"] == pytest.approx(1e3 * np.ptp(both), rel=1e-9)
+    assert flat["E_fwd_um"] == pytest.approx(1e3 * np.ptp(means["fwd"]), rel=1e-9)
+    assert flat["B_um"] == pytest.approx(1e3 * ev.figures["B"], rel=1e-9)          # the line is the same both ways
+    assert flat["E_um"] < 1e3 * ev.figures["E"]
+    (t,) = R.to_json(F.fit(model, log, ["dx_x:xkT9"]))["profiles"]
+    # the same readings computed two ways (the fit's profile, ISO 230-2's means): a tenth of U apart (the priors)
+    assert abs(flat["slope_um_per_m"] - t["slope_um_per_m"]) < 0.1 * t["U_k2_slope_um_per_m"]
+    fit_flat = np.array([r["error_slope_removed_um"] for r in t["rows"]])
+    U = np.array([r["U_k2_slope_removed_um"] for r in t["rows"]])
+    assert np.all(np.abs(np.array(flat["mean_bidirectional_um"]) - fit_flat) < 0.1 * U)
+    rc, out, err = run_cli("iso230-2", log.path, "--machine", "ac_trunnion", "--remove-slope")
+    assert rc == 0, err
+    head, _, tail = out.partition("with the slope removed (not ISO 230-2's figures): slope ")
+    assert f"  E         {ev.figures['E'] * 1e3:9.2f}" in head and tail.startswith(f"{b * 1e6:.4g} um/m")
+    assert f"  E         {flat['E_um']:9.2f}" in tail
+    rc, out, err = run_cli("iso230-2", log.path, "--machine", "ac_trunnion")
+    assert rc == 0 and "slope removed" not in out                                   # the standard's figures alone

@@ -19,7 +19,9 @@ the family prior of the decision (uniform over families, then over each family's
 with the polynomials on small data sets (an R-test of 20 poses: a 5-knot profile of the A axis beat ex_A:A2 in 2
 of 3 simulations); at 7 knots it costs at least 6 ln N against ln N + 2 ln(M_poly / M_profile). A parameter whose
 readings' column is zero, or parallel to that of a parameter already offered (a pitch error seen through a
-constant Abbe offset is the positioning error again), is not offered.
+constant Abbe offset is the positioning error again), is not offered; nor a profile the data see only as a constant
+of its parameter (beyond_constant: a parameter seen at one position would give a profile at any level, the alias of
+that constant).
 Units: positions in the axis' interface unit (mm, degrees).
 """
 from __future__ import annotations
@@ -39,6 +41,10 @@ MIN_KNOTS = 7
 MAX_CONDITION = 100.0
 #: Positions closer than this share of the stroke count as one (targets that jitter around the nominal).
 SAME_POSITION = fx.SAME_POSITION
+#: Largest condition number of a profile's weighted columns once what a constant of its parameter explains is
+#: removed (its k - 1 other directions): beyond it the data determine its values only up to that constant (a
+#: parameter seen at one position: the profile would be offered as the alias of a constant, at any level).
+ALIAS_CONDITION = 1e3
 #: Parameter columns whose |cos| exceeds this are the same candidate on this data.
 PARALLEL_COS = 0.999
 #: Significant figures of a candidate's spacing (ids stay short: 625, 33.34).
@@ -124,6 +130,30 @@ def spacing_for(machine, token: str, positions: np.ndarray, alone: bool = False)
     return None
 
 
+def beyond_constant(col: np.ndarray, positions: np.ndarray, knots) -> bool:
+    """Whether the data see a profile beyond what a constant of its parameter explains: its columns (col (m,): the
+    parameter's weighted column per reading; positions (m,) the axis' position per reading, interface unit) with
+    their sum (the constant's column) projected out keep len(knots) - 1 directions, condition below ALIAS_CONDITION.
+    The Gram matrix is summed over the readings' two hat functions each (O(m))."""
+    knots = np.asarray(knots, float)
+    K = len(knots)
+    x = np.clip(np.asarray(positions, float), knots[0], knots[-1])
+    j = np.clip(np.searchsorted(knots, x, side="right") - 1, 0, K - 2)
+    t = (x - knots[j]) / (knots[j + 1] - knots[j])
+    c2 = np.asarray(col, float) ** 2
+    G = np.zeros((K, K))
+    np.add.at(G, (j, j), c2 * (1 - t) ** 2)
+    np.add.at(G, (j + 1, j + 1), c2 * t ** 2)
+    np.add.at(G, (j, j + 1), c2 * (1 - t) * t)
+    G = np.triu(G) + np.triu(G, 1).T
+    g1 = G.sum(axis=1)                                   # B^T (B 1): the constant's column against each knot's
+    total = float(g1.sum())
+    if total <= 0:
+        return False
+    lam = np.linalg.eigvalsh(G - np.outer(g1, g1) / total)[::-1]   # descending; the last ~0 (the constant)
+    return bool(lam[0] > 0 and lam[K - 2] > lam[0] / ALIAS_CONDITION ** 2)
+
+
 def own_first(machine, axis) -> list[str]:
     """The axis' error motions, its own positioning error first (dx_x for X, ez_C for C)."""
     own = [p for p in axis.pdge if fx.is_positioning(machine, p, fx.var_token(machine, axis.name))]
@@ -157,7 +187,10 @@ def profile_candidates(block, w, present, unseen=()) -> list:
             if norm == 0 or any(abs(col @ c) > PARALLEL_COS * norm * np.linalg.norm(c) for c in offered):
                 continue
             offered.append(col)
-            if not any(p.startswith(f"{param}:{tok}k") for p in present):
-                out.append(fx.at_targets(machine, param, tok, spacing, "diagnose") if isinstance(spacing, fx.Targets)
-                           else fx.profile(machine, param, tok, spacing, "diagnose", spacing.origin))
+            if any(p.startswith(f"{param}:{tok}k") for p in present):
+                continue
+            eff = (fx.at_targets(machine, param, tok, spacing, "diagnose") if isinstance(spacing, fx.Targets)
+                   else fx.profile(machine, param, tok, spacing, "diagnose", spacing.origin))
+            if beyond_constant(col, prob.meas.poses[prob.obs.row, i] * to_unit, eff.knots):
+                out.append(eff)
     return out

@@ -30,7 +30,7 @@ from .custom import CustomEffect
 from .periodic import Periodic
 from .polynomial import DEGREES, Polynomial, vocabulary  # noqa: F401
 from .profile import (Profile, Spacing, Targets, at_targets, bind_targets, distinct, hat_basis,  # noqa: F401
-                      SAME_POSITION, measured_targets, profile, profile_knots)
+                      SAME_POSITION, measured_targets, profile, profile_knots, table_lines)
 from .reversal import Reversal, reversals  # noqa: F401
 from .temperature import Temperature
 from .thermal import Thermal

@@ -51,7 +51,7 @@ class Profile(base.VocabularyEffect):
                               "stroke's low end or from the first knot; kT<n>: at the n measured targets)")
     EXAMPLE: ClassVar[str] = "dx_x:xk100"
     SUFFIX: ClassVar[str] = "k.*"
-    RATE_SHOWN: ClassVar[bool] = True   # (the first knot's value is printed beside the description)
+    RATE_SHOWN: ClassVar[bool] = False  # (a knot's value alone has no datum: the description spans them)
     MODULE_REASON: ClassVar[str] = (
         "a per-position profile is not in the module yet (../joint*.comp carry it as trims at its knots, but they "
         "belong to the stock kinematics)")
@@ -185,14 +185,73 @@ class Profile(base.VocabularyEffect):
         text = (f"{head} (piecewise linear, {where} from {knots[0]:g} to {knots[-1]:g} {unit}"
                 + ("" if self.at_targets else f", {len(knots)} knots")
                 + (", held constant beyond them" if held else "") + ")")
-        if c is not None and len(c):
-            text += f" spanning {human(max(c) - min(c), size_unit, 2)} ({human(min(c), size_unit, 2)} to " \
-                    f"{human(max(c), size_unit, 2)})"
+        if c is not None and len(c) == len(knots):
+            d = int(np.argmin(np.abs(np.asarray(knots))))        # the datum knot: the data see no constant level
+            r = [v - c[d] for v in c]
+            text += f" spanning {human(max(c) - min(c), size_unit, 2)} ({human(min(r), size_unit, 2)} to " \
+                    f"{human(max(r), size_unit, 2)} relative to the error at {name} = {knots[d]:g} {unit})"
         if not own:
             return text
         cause = ("lead-screw, scale or encoder errors" if unit == "mm" else
                  "encoder, worm-gear or bearing errors of the rotary axis")
         return text + f" — {cause} that are not a low polynomial"
+
+
+    def table(self, machine, values, cov) -> dict:
+        """The profile as the table a practitioner keeps (one record: the fit's and model.json's `profiles`, the
+        text, the report and the comp files' comments are built from it): per knot its position (mm or deg), the
+        error there relative to the error at the datum knot (the knot nearest 0: "relative to the error at X = 0
+        mm") and its expanded uncertainty U (k = 2) from the covariance of the knot values; and the same with the
+        least-squares line through the knots' errors removed (what laser software calls the slope-removed view),
+        the line's slope with its U. values (k,) mm or rad, cov (k, k) mm^2 or rad^2 (the fit's). Errors in um
+        (or urad for an angular parameter)."""
+        name, pu = var_words(machine, self.var)
+        angular = self.unit_of(machine) == "rad"
+        eu, to_e = ("urad", 1e6) if angular else ("um", 1e3)
+        x = np.asarray(self.knots, float)
+        c = np.asarray(values, float)
+        C = np.asarray(cov, float)
+        k = len(x)
+        d = int(np.argmin(np.abs(x)))
+        D = np.eye(k)
+        D[:, d] -= 1.0                                   # c_j - c_d
+        A = np.column_stack([np.ones(k), x])
+        H = A @ np.linalg.pinv(A)                        # the least-squares line through the knots
+        S = (np.eye(k) - H) @ D                          # its residual (independent of the datum)
+        slope_row = np.linalg.pinv(A)[1] @ D             # its slope, error unit per position unit
+        per, scale = ("m", 1e3) if pu == "mm" else ("deg", 1.0)
+        sd = lambda M: np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", M, C, M), 0.0))   # noqa: E731
+        err, U = D @ c * to_e, 2 * sd(D) * to_e
+        flat, Uf = S @ c * to_e, 2 * sd(S) * to_e
+        slope = float(slope_row @ c) * to_e * scale
+        U_slope = 2 * float(np.sqrt(max(slope_row @ C @ slope_row, 0.0))) * to_e * scale
+        rows = [{f"position_{pu}": float(x[j]), f"error_{eu}": float(err[j]), f"U_k2_{eu}": float(U[j]),
+                 f"error_slope_removed_{eu}": float(flat[j]), f"U_k2_slope_removed_{eu}": float(Uf[j])}
+                for j in range(k)]
+        return {"id": self.id, "param": self.param, "quantity": describe_param(machine, self.param),
+                "axis": name, "names": list(self.names), "position_unit": pu, "error_unit": eu,
+                f"datum_position_{pu}": float(x[d]),
+                "datum": f"relative to the error at {name} = {x[d]:g} {pu}",
+                "rows": rows, f"slope_{eu}_per_{per}": slope, f"U_k2_slope_{eu}_per_{per}": U_slope,
+                "slope_removed": "the least-squares line through the errors at the knots removed"}
+
+
+def table_lines(rec: dict, indent: str = "    ") -> list[str]:
+    """A profile's table record (Profile.table) as text lines: the head saying what, where the datum is and what U
+    is; one row per knot (position, error, U, slope-removed error, U); the slope removed. Units in every column."""
+    pu, eu = rec["position_unit"], rec["error_unit"]
+    per = "m" if pu == "mm" else "deg"
+    iso = f" ({rec['iso']})" if rec.get("iso") else ""
+    out = [f"{indent}{rec['id']}{iso}: {rec['quantity']} at its {len(rec['rows'])} knots, {rec['datum']} (the "
+           f"datum knot); U: expanded uncertainty (k = 2)",
+           f"{indent}  {rec['axis'] + ' (' + pu + ')':>12s} {'error (' + eu + ')':>12s} {'U (' + eu + ')':>9s}"
+           f" {'slope removed (' + eu + ')':>20s} {'U (' + eu + ')':>9s}"]
+    for r in rec["rows"]:
+        out.append(f"{indent}  {r[f'position_{pu}']:12.6g} {r[f'error_{eu}']:12.4g} {r[f'U_k2_{eu}']:9.2g}"
+                   f" {r[f'error_slope_removed_{eu}']:20.4g} {r[f'U_k2_slope_removed_{eu}']:9.2g}")
+    out.append(f"{indent}  slope {rec[f'slope_{eu}_per_{per}']:.4g} {eu}/{per} +- "
+               f"{rec[f'U_k2_slope_{eu}_per_{per}']:.2g} {eu}/{per} (k = 2): {rec['slope_removed']}")
+    return out
 
 
 class Spacing(float):
