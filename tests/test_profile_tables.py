@@ -1,8 +1,10 @@
 """Profiles as the table a practitioner keeps (issue 32 point 3): on an ISO 230-2 log whose targets are evenly
 spaced (every 90 mm from -360 to 360 mm on ac_trunnion's X stroke of [-400, 400] mm), the profile's knots are the
 targets (`dx_x:xk90from-360`), not the stroke split in 8; the comp file's lines are at the targets (and the stroke's
-ends, where the end values are held, as LinuxCNC holds them); irregular targets keep the knots over the stroke; a
-rotary axis' profile is said to be an angular one."""
+ends, where the end values are held, as LinuxCNC holds them); irregular targets are the knots themselves
+(`dx_x:xkT9`, kept in model.json); a rotary axis' profile is said to be an angular one; the profile as a table
+(position, error relative to the datum knot, U (k = 2), slope removed) in the fit's JSON, text and comp file; no
+profile the data see only as a constant; iso230-2 --remove-slope."""
 import dataclasses
 import json
 
@@ -13,12 +15,13 @@ import fiveaxis
 from fiveaxis.compensation import folder as CF
 from fiveaxis.compensation import pipeline as CP
 from fiveaxis.compensation.record import summary
-from fiveaxis.diagnosis import diagnose as D
 from fiveaxis.diagnosis import profiles as DP
 from fiveaxis.effects import families as fx
 from fiveaxis.estimation import fit as F
 from fiveaxis.estimation import fitted_model as MF
 from fiveaxis.estimation import result as R
+from fiveaxis.estimation.design import InMemory
+from fiveaxis.estimation.problem import build
 from fiveaxis.exceptions import InputError
 from fiveaxis.linuxcnc import configuration as lx
 from fiveaxis.measurement import instruments as ins
@@ -95,8 +98,8 @@ def log(model, tmp_path_factory):
 
 
 def test_diagnosis_offers_knots_at_the_targets_and_comp_lines_there(model, log, tmp_path):
-    dg = D.diagnose(model, log, top=3)
-    ids = {i for c in dg.candidates for i in (c["id"], *c["aliases"])}
+    prob = build(model, log, [])                  # the profiles diagnose offers (tests/test_profiles.py: the rule)
+    ids = [e.id for e in DP.profile_candidates(InMemory(prob).block, prob.w, [])]
     assert "dx_x:xk90from-360" in ids, ids
     res = F.fit(model, log, ["dx_x:xk90from-360"])
     printed = text.fit(R.to_json(res))              # the knots' values in a table (um), not "scaled" combinations
@@ -144,29 +147,39 @@ def irregular_log(model, tmp_path_factory):
     return targets, read(path, model.machine)
 
 
-def test_irregular_targets_are_the_knots_kept_in_model_json(model, irregular_log, tmp_path):
+@pytest.fixture(scope="module")
+def irregular_fit(model, irregular_log, tmp_path_factory):
+    """The irregular log fitted with its profile at the 9 targets, saved as model.json, read back and compensated
+    (11 nodes along X): (fit result, model.json path, comp file joint0-X.comp)."""
+    _, log = irregular_log
+    res = F.fit(model, log, ["dx_x:xkT9"])
+    folder = tmp_path_factory.mktemp("irregular_fit")
+    path = MF.save(MF.from_fit(res), folder / "model.json")
+    comp = CP.compensate(MF.load(path), model, counts={v: 11 if v == "X" else 2 for v in model.variables}, poses=50)
+    (folder / "comp").mkdir()
+    CF.write(comp, folder / "comp", summary(comp))
+    return res, path, folder / "comp" / "linuxcnc" / "joint0-X.comp"
+
+
+def test_irregular_targets_are_the_knots_kept_in_model_json(model, irregular_log, irregular_fit, tmp_path):
     targets, log = irregular_log
+    res, path, comp_file = irregular_fit
     with pytest.raises(InputError, match=r"takes its knots from the measurements"):
         fx.parse("dx_x:xkT9", model.machine, model.errors)
     with pytest.raises(InputError, match=r"hold 9 distinct positions of X, expected 8 targets \(dx_x:xkT9\)"):
         F.fit(model, log, ["dx_x:xkT8"])
-    dg = D.diagnose(model, log, top=3)
-    assert dg.candidates[0]["id"] == "dx_x:xkT9", [c["id"] for c in dg.candidates]
-    res = F.fit(model, log, ["dx_x:xkT9"])
+    prob = build(model, log, [])                 # what diagnose offers (tests/test_profiles.py: it is the top)
+    assert "dx_x:xkT9" in [e.id for e in DP.profile_candidates(InMemory(prob).block, prob.w, [])]
     (eff,) = res.problem.effects
     assert np.allclose(eff.knots, targets, atol=1e-3) and "knots at the 9 measured targets" in eff.describe(
         model.machine)
-    path = MF.save(MF.from_fit(res), tmp_path / "model.json")
     fm = MF.load(path)
     (rec,) = fm.effects
     assert np.allclose(rec.arg.knots, targets, atol=1e-3)
     assert np.allclose(json.loads(path.read_text())["effects"][0]["knots_mm"], targets, atol=1e-3)
     v = np.array(rec.values)                                   # the profile up to the model's constant
     assert np.allclose(v - v[4], VALUES - VALUES[4], atol=3 * NOISE)
-    comp = CP.compensate(fm, model, counts={v: 11 if v == "X" else 2 for v in model.variables}, poses=50)
-    (tmp_path / "comp").mkdir()
-    CF.write(comp, tmp_path / "comp", summary(comp))
-    nominal, fwd, rev = lx.read_comp_file(tmp_path / "comp" / "linuxcnc" / "joint0-X.comp")
+    nominal, fwd, rev = lx.read_comp_file(comp_file)
     assert np.allclose(nominal, [-400.0, *targets, 400.0], atol=1e-3)   # the comp file's lines at the targets
     # its trims follow the hidden profile at the targets (against its error; the base errors add a little), held
     assert np.corrcoef(fwd[1:-1], VALUES)[0, 1] < -0.97, (fwd, VALUES)
@@ -180,11 +193,11 @@ def test_irregular_targets_are_the_knots_kept_in_model_json(model, irregular_log
         MF.load(tmp_path / "bad.json")
 
 
-def test_profile_table_one_record_three_views(model, irregular_log, tmp_path):
+def test_profile_table_one_record_three_views(model, irregular_log, irregular_fit):
     """Position, error relative to the datum knot and U (k = 2): in the fit's JSON, its text and the comp file's
     comments, from one record; the errors against the simulated truth, the slope-removed view against np.polyfit."""
     targets, log = irregular_log
-    res = F.fit(model, log, ["dx_x:xkT9"])
+    res, _, path = irregular_fit
     j = R.to_json(res)
     (t,) = j["profiles"]
     d = int(np.argmin(np.abs(targets)))
@@ -206,11 +219,6 @@ def test_profile_table_one_record_three_views(model, irregular_log, tmp_path):
     assert "relative to the error at X = " in printed and "X (mm)   error (um)" in printed
     assert "@" not in printed.partition("[[Determined by this data only as combinations]]")[2].partition("[[")[0]
     assert f"slope {t['slope_um_per_m']:.4g} um/m" in printed
-    fm = MF.load(MF.save(MF.from_fit(res), tmp_path / "model.json"))
-    comp = CP.compensate(fm, model, counts={v: 11 if v == "X" else 2 for v in model.variables}, poses=50)
-    (tmp_path / "comp").mkdir()
-    CF.write(comp, tmp_path / "comp", summary(comp))
-    path = tmp_path / "comp" / "linuxcnc" / "joint0-X.comp"
     nominal, _, _ = lx.read_comp_file(path)                 # LinuxCNC's reading stops before the comments
     assert len(nominal) == 11
     notes = [ln[2:] for ln in path.read_text().splitlines() if ln.startswith("# ")]
@@ -242,7 +250,7 @@ def test_no_profile_that_is_the_alias_of_a_constant():
     assert not DP.beyond_constant(np.ones(10), np.full(10, 90.0), TARGETS)      # one position, seen everywhere
 
 
-def test_slope_removed_view_of_iso230_2(model, irregular_log, capsys):
+def test_slope_removed_view_of_iso230_2(model, irregular_log, irregular_fit):
     """iso230-2 --remove-slope: the least-squares line through the mean bidirectional deviations removed from
     every reading and the figures computed again (against a hand computation), its slope in um/m; the standard's
     figures stay first; the slope and the slope-removed means agree with the fit's profile table within U."""
@@ -259,7 +267,7 @@ def test_slope_removed_view_of_iso230_2(model, irregular_log, capsys):
     assert flat["E_fwd_um"] == pytest.approx(1e3 * np.ptp(means["fwd"]), rel=1e-9)
     assert flat["B_um"] == pytest.approx(1e3 * ev.figures["B"], rel=1e-9)          # the line is the same both ways
     assert flat["E_um"] < 1e3 * ev.figures["E"]
-    (t,) = R.to_json(F.fit(model, log, ["dx_x:xkT9"]))["profiles"]
+    (t,) = R.to_json(irregular_fit[0])["profiles"]
     # the same readings computed two ways (the fit's profile, ISO 230-2's means): a tenth of U apart (the priors)
     assert abs(flat["slope_um_per_m"] - t["slope_um_per_m"]) < 0.1 * t["U_k2_slope_um_per_m"]
     fit_flat = np.array([r["error_slope_removed_um"] for r in t["rows"]])
