@@ -464,7 +464,7 @@ def compensation(rec: dict, folder: str = "") -> str:
             lines.append(f"    {r['tool_length_mm']:10.3f} {'node' if r['table_node'] else 'mid':6s} "
                          f"{1e3 * b['rms']:11.3f} {1e3 * a['rms']:16.3f} {1e3 * a['max']:9.3f} "
                          f"{1e3 * e['rms']:16.3f}")
-        lines += [f"  warning: {w}" for w in rec.get("warnings", [])]
+    lines += [f"  warning: {w}" for w in rec.get("warnings", [])]
     if lc.get("kinematics"):
         pins = ", ".join(f"{k} {v:+.4f}" for k, v in lc["trt_pins_mm"].items())
         o = lc["workpiece_origin_g54_mm"]
