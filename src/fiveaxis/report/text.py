@@ -265,7 +265,7 @@ def diagnosis(j: dict) -> str:
         coef = "" if c["coefficient"] is None or not fx.family(c["family"]).RATE_SHOWN \
             else f"coef {c['coefficient']:.3g} {c['unit']}: "
         shown = f"{c['id']} ({c['iso']})" if c.get("iso") else c["id"]
-        if c.get("plausible") is False:
+        if c.get("plausible") is False and not c.get("implausible_rate"):     # a rate: its description says it
             lines.append(f"    {k:2d}. {shown:18s} -> {c['rms_mm'] * 1000:.4g} um ({c['explained']:.1%}) its size over "
                          f"the data: {IMPLAUSIBLE}")
             continue
