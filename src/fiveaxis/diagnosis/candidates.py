@@ -113,8 +113,10 @@ def score_blocks(Q: np.ndarray, Z: np.ndarray, cols: list, rw: np.ndarray) -> li
 
 def project_off(Q: np.ndarray, G: np.ndarray) -> np.ndarray:
     """G's columns projected off span(Q) (Q orthonormal), twice for accuracy; column-major (LAPACK's layout: a
-    block of its columns is factored without a copy)."""
-    Pt = np.ascontiguousarray(G.T)
+    block of its columns is factored without a copy). G is left as it is (G.T of a column-major G was contiguous:
+    the projection was made in G's own memory, and a set selection's later scores saw its blocks projected off
+    every extension tried before, members since removed included)."""
+    Pt = np.array(G.T, order="C")
     Pt -= (Pt @ Q) @ Q.T
     Pt -= (Pt @ Q) @ Q.T
     return Pt.T

@@ -317,6 +317,11 @@ def _columns(Z, lay: Layout, ks) -> np.ndarray:
     return np.take(Z, cols, axis=1)
 
 
+#: Smallest eigenvalue of a block's Gram matrix off an extension (`_Scorer._block_gains`) for its gain from the
+#: k x k matrices (their rounding errors ~1e-16 / it relative); below, from the block's rows.
+_SMALL_S = 1e-6
+
+
 class _Scorer:
     """The candidates ks scored against the model's basis Q and against Q extended by the columns of a set: their
     columns gathered once from Z, with what does not depend on the extension (the one-column candidates' squared
@@ -341,6 +346,66 @@ class _Scorer:
         self.b_norms = np.linalg.norm(Gb, axis=0)
         at = np.cumsum([0] + [width[k] for k in self.blocks])
         self.spans = list(zip(at[:-1], at[1:]))
+        self._factors = None
+
+    def _block_factors(self):
+        """The blocks' factors off Q, made once (a set selection scores them against tens of residuals): per
+        block the kept columns of its orthonormal basis (as `candidates.factor_blocks` keeps them), the R factor of
+        the kept columns and whether they are the leading columns, clear of the threshold either way; the kept bases
+        of those blocks side by side."""
+        if self._factors is None:
+            fac = []
+            for a, b in self.spans:
+                Qb, R = np.linalg.qr(self.Pb[:, a:b])
+                tol = cd.ABSORBED * np.maximum(self.b_norms[a:b], 1e-300)
+                diag = np.abs(np.diag(R))
+                keep = diag > tol
+                m = int(keep.sum())
+                # the kept columns lead (those dropped: the combinations the model holds, found last), clear of
+                # the threshold: the factor of the kept columns is the leading part of the block's
+                clear = bool(keep[:m].all() and np.all(diag[:m] > 4 * tol[:m]) and np.all(diag[m:] < 0.25 * tol[m:]))
+                fac.append((Qb[:, keep], R[:m, :m], clear))
+            whole = [f[0] for f in fac if f[2]]
+            QB = np.hstack(whole) if whole else np.zeros((self.Pb.shape[0], 0))
+            self._factors = (fac, QB)
+        return self._factors
+
+    def _block_gains(self, rw, Qg=None) -> list:
+        """The blocks' gains (`candidates.factor_blocks`) against rw, with the model's basis extended by Qg.
+
+        A block kept whole, of orthonormal basis Qb off Q, has P' = (Qb - Qg C) R off [Q, Qg], C = Qg^T Qb; with
+        rw orthogonal to Qg, P'^T rw = R^T Qb^T rw and the Gram matrix of Qb - Qg C is S = I - C^T C: the gain is
+        y^T S^-1 y (y = Qb^T rw) and the R factor of P' that of T R (S = T^T T), from k x k matrices instead of a
+        QR of the block's rows per residual. Where S is near singular (the block nearly in span(Qg)), a column
+        would be dropped or nearly so, or the kept columns are not the leading ones: the block's rows, as
+        factor_blocks. Columns dropped off Q (combinations the model holds) stay dropped off [Q, Qg]."""
+        fac, QB = self._block_factors()
+        if Qg is None or not Qg.shape[1]:
+            return [float(y @ y) for y in (f[0].T @ rw for f in fac)]
+        Y = QB.T @ rw
+        C = Qg.T @ QB
+        out, at = [], 0
+        for (a, b), (Qk, R, whole) in zip(self.spans, fac):
+            gain = None
+            if whole:
+                k = Qk.shape[1]
+                c = C[:, at:at + k]
+                y = Y[at:at + k]
+                at += k
+                S = np.eye(k) - c.T @ c
+                if not k:                                      # every column held by the model
+                    gain = 0.0
+                elif np.linalg.eigvalsh(S)[0] > _SMALL_S:
+                    L = np.linalg.cholesky(S)
+                    R1 = np.linalg.qr(L.T @ R, mode="r")
+                    if np.all(np.abs(np.diag(R1)) > 4 * cd.ABSORBED * np.maximum(self.b_norms[a:a + k], 1e-300)):
+                        z = np.linalg.solve(L, y)
+                        gain = float(z @ z)
+            if gain is None:
+                gain = cd.factor_blocks(cd.project_off(Qg, self.Pb[:, a:b]), self.b_norms[a:b], [(0, b - a)],
+                                        rw)[0].gain
+            out.append(gain)
+        return out
 
     def gains(self, rw, Qg=None) -> dict:
         """Drop of the weighted RSS when each candidate joins alone the model of basis [Q, Qg] (Qg orthonormal and
@@ -356,8 +421,7 @@ class _Scorer:
             QtG = np.vstack([self.QtGp, Qg.T @ self.Gp]) if extra else self.QtGp
             out.update({k: float(g) for k, g in zip(self.pairs, cd.pair_gains(Qc, self.Gp, rw, self.gram, QtG))})
         if self.blocks:
-            P = cd.project_off(Qg, self.Pb) if extra else self.Pb
-            out.update({k: b.gain for k, b in zip(self.blocks, cd.factor_blocks(P, self.b_norms, self.spans, rw))})
+            out.update(zip(self.blocks, self._block_gains(rw, Qg if extra else None)))
         return out
 
 
