@@ -352,11 +352,10 @@ class _Scorer:
         """The blocks' factors off Q, made once (a set selection scores them against tens of residuals): per
         block the kept columns of its orthonormal basis (as `candidates.factor_blocks` keeps them), the R factor of
         the kept columns and whether they are the leading columns, clear of the threshold either way; the kept bases
-        of those blocks side by side."""
+        of those blocks side by side, and those blocks by their number of kept columns (k x k matrices stacked)."""
         if self._factors is None:
             fac = []
-            for a, b in self.spans:
-                Qb, R = np.linalg.qr(self.Pb[:, a:b])
+            for (a, b), (Qb, R) in zip(self.spans, cd.qr_blocks(self.Pb, self.spans)):
                 tol = cd.ABSORBED * np.maximum(self.b_norms[a:b], 1e-300)
                 diag = np.abs(np.diag(R))
                 keep = diag > tol
@@ -364,10 +363,20 @@ class _Scorer:
                 # the kept columns lead (those dropped: the combinations the model holds, found last), clear of
                 # the threshold: the factor of the kept columns is the leading part of the block's
                 clear = bool(keep[:m].all() and np.all(diag[:m] > 4 * tol[:m]) and np.all(diag[m:] < 0.25 * tol[m:]))
-                fac.append((Qb[:, keep], R[:m, :m], clear))
+                fac.append((Qb if keep.all() else Qb[:, keep], R[:m, :m], clear))
             whole = [f[0] for f in fac if f[2]]
             QB = np.hstack(whole) if whole else np.zeros((self.Pb.shape[0], 0))
-            self._factors = (fac, QB)
+            groups, at = {}, 0
+            for i, ((a, _), (Qk, R, clear)) in enumerate(zip(self.spans, fac)):
+                if clear:
+                    groups.setdefault(Qk.shape[1], []).append((i, at, a))
+                    at += Qk.shape[1]
+            stacked = {}
+            for k, members in groups.items():
+                i_, at_, a_ = (np.array(v, np.intp) for v in zip(*members))
+                stacked[k] = (i_, at_[:, None] + np.arange(k), np.stack([fac[i][1] for i in i_]),
+                              4 * cd.ABSORBED * np.maximum(self.b_norms[a_[:, None] + np.arange(k)], 1e-300))
+            self._factors = (fac, QB, stacked)
         return self._factors
 
     def _block_gains(self, rw, Qg=None) -> list:
@@ -375,36 +384,38 @@ class _Scorer:
 
         A block kept whole, of orthonormal basis Qb off Q, has P' = (Qb - Qg C) R off [Q, Qg], C = Qg^T Qb; with
         rw orthogonal to Qg, P'^T rw = R^T Qb^T rw and the Gram matrix of Qb - Qg C is S = I - C^T C: the gain is
-        y^T S^-1 y (y = Qb^T rw) and the R factor of P' that of T R (S = T^T T), from k x k matrices instead of a
-        QR of the block's rows per residual. Where S is near singular (the block nearly in span(Qg)), a column
-        would be dropped or nearly so, or the kept columns are not the leading ones: the block's rows, as
-        factor_blocks. Columns dropped off Q (combinations the model holds) stay dropped off [Q, Qg]."""
-        fac, QB = self._block_factors()
+        y^T S^-1 y (y = Qb^T rw) and the R factor of P' that of T R (S = T^T T), from k x k matrices (the blocks of
+        one k stacked) instead of a QR of the block's rows per residual. Where S is near singular (the block nearly
+        in span(Qg)), a column would be dropped or nearly so, or the kept columns are not the leading ones: the
+        block's rows, as factor_blocks. Columns dropped off Q (combinations the model holds) stay dropped off
+        [Q, Qg]."""
+        fac, QB, stacked = self._block_factors()
         if Qg is None or not Qg.shape[1]:
             return [float(y @ y) for y in (f[0].T @ rw for f in fac)]
         Y = QB.T @ rw
         C = Qg.T @ QB
-        out, at = [], 0
-        for (a, b), (Qk, R, whole) in zip(self.spans, fac):
-            gain = None
-            if whole:
-                k = Qk.shape[1]
-                c = C[:, at:at + k]
-                y = Y[at:at + k]
-                at += k
-                S = np.eye(k) - c.T @ c
-                if not k:                                      # every column held by the model
-                    gain = 0.0
-                elif np.linalg.eigvalsh(S)[0] > _SMALL_S:
-                    L = np.linalg.cholesky(S)
-                    R1 = np.linalg.qr(L.T @ R, mode="r")
-                    if np.all(np.abs(np.diag(R1)) > 4 * cd.ABSORBED * np.maximum(self.b_norms[a:a + k], 1e-300)):
-                        z = np.linalg.solve(L, y)
-                        gain = float(z @ z)
-            if gain is None:
-                gain = cd.factor_blocks(cd.project_off(Qg, self.Pb[:, a:b]), self.b_norms[a:b], [(0, b - a)],
-                                        rw)[0].gain
-            out.append(gain)
+        out = [None] * len(fac)
+        for k, (idx, cols, R, tol) in stacked.items():
+            if not k:                                              # every column held by the model
+                for i in idx:
+                    out[i] = 0.0
+                continue
+            c = C[:, cols].transpose(1, 0, 2)                     # (blocks, g, k)
+            S = np.eye(k) - np.matmul(c.transpose(0, 2, 1), c)
+            fine = np.linalg.eigvalsh(S)[:, 0] > _SMALL_S
+            if not fine.any():
+                continue
+            L = np.linalg.cholesky(S[fine])
+            R1 = np.linalg.qr(np.matmul(L.transpose(0, 2, 1), R[fine]), mode="r")
+            kept = np.all(np.abs(np.diagonal(R1, axis1=1, axis2=2)) > tol[fine], axis=1)
+            z = np.linalg.solve(L, Y[cols[fine]][..., None])[..., 0]
+            for i, ok, zi in zip(idx[fine], kept, z):
+                if ok:
+                    out[i] = float(zi @ zi)
+        for i, ((a, b), g) in enumerate(zip(self.spans, out)):
+            if g is None:
+                out[i] = cd.factor_blocks(cd.project_off(Qg, self.Pb[:, a:b]), self.b_norms[a:b], [(0, b - a)],
+                                          rw)[0].gain
         return out
 
     def gains(self, rw, Qg=None) -> dict:
