@@ -287,7 +287,7 @@ def diagnosis(j: dict) -> str:
         coef = "" if c["coefficient"] is None or not fx.family(c["family"]).RATE_SHOWN \
             else f"coef {c['coefficient']:.3g} {c['unit']}: "
         shown = f"{c['id']} ({c['iso']})" if c.get("iso") else c["id"]
-        if c.get("plausible") is False:
+        if c.get("plausible") is False and not c.get("implausible_rate"):     # a rate: its description says it
             lines.append(f"    {k:2d}. {shown:18s} -> {c['rms_mm'] * 1000:.4g} um ({c['explained']:.1%}) its size over "
                          f"the data: {IMPLAUSIBLE}")
             continue
@@ -486,7 +486,7 @@ def compensation(rec: dict, folder: str = "") -> str:
             lines.append(f"    {r['tool_length_mm']:10.3f} {'node' if r['table_node'] else 'mid':6s} "
                          f"{1e3 * b['rms']:11.3f} {1e3 * a['rms']:16.3f} {1e3 * a['max']:9.3f} "
                          f"{1e3 * e['rms']:16.3f}")
-        lines += [f"  warning: {w}" for w in rec.get("warnings", [])]
+    lines += [f"  warning: {w}" for w in rec.get("warnings", [])]
     if lc.get("kinematics"):
         pins = ", ".join(f"{k} {v:+.4f}" for k, v in lc["trt_pins_mm"].items())
         o = lc["workpiece_origin_g54_mm"]
