@@ -255,7 +255,7 @@ def test_rotary_profile_table_in_deg_and_urad(model):
     assert t["slope_urad_per_deg"] == pytest.approx(1e6 * np.polyfit(eff.knots, c, 1)[0])
 
 
-def test_no_profile_that_is_the_alias_of_a_constant():
+def test_no_profile_that_is_the_alias_of_a_constant(model, irregular_log):
     """A profile whose values the data determine only up to what a constant of its parameter explains is not
     offered (a parameter seen at one target gives a profile at any level: 0.097 rad as well as 0)."""
     x = np.repeat(TARGETS, 10)
@@ -266,6 +266,16 @@ def test_no_profile_that_is_the_alias_of_a_constant():
     at_two = np.where(np.isin(x, (-360.0, 90.0)), 1.0, 0.0)                     # two knots of nine
     assert not DP.beyond_constant(at_two, x, TARGETS)
     assert not DP.beyond_constant(np.ones(10), np.full(10, 90.0), TARGETS)      # one position, seen everywhere
+    # the candidates diagnose offers: the laser's positioning error made visible at one target only is not named
+    _, log = irregular_log
+    prob = build(model, log, [])
+    block = InMemory(prob).block
+    offered = [e.id for e in DP.profile_candidates(block, prob.w, [])]
+    assert "dx_x:xkT9" in offered, offered
+    real, x = block.param_column, prob.meas.poses[prob.obs.row, 0]
+    block.param_column = lambda p: real(p) * (x == x[0]) if p == "dx_x" else real(p)
+    offered = [e.id for e in DP.profile_candidates(block, prob.w, [])]
+    assert not any(i.startswith("dx_x:") for i in offered) and "ey_x:xkT9" in offered, offered
 
 
 def test_slope_removed_view_of_iso230_2(model, irregular_log, irregular_fit):
