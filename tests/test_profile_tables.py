@@ -242,6 +242,12 @@ def test_profile_table_one_record_three_views(model, irregular_log, irregular_fi
     notes = [ln[2:] for ln in path.read_text().splitlines() if ln.startswith("# ")]
     assert notes[1:] == fx.table_lines(t, indent="")         # the fit's record, through model.json
     assert t["datum"] in notes[1]
+    # the report's table: every number the record's, formatted as it says (the certificate's check)
+    from test_certificate import check_numbers
+    from fiveaxis.report import html
+    rec = {"fit": {"profiles": [t]}}
+    page = html._profile(rec, 0)
+    assert check_numbers(page, rec) == {"fit"} and t["datum"] in page and "X (mm)" in page
 
 
 def test_rotary_profile_table_in_deg_and_urad(model):
