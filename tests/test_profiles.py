@@ -22,6 +22,7 @@ from fiveaxis.linuxcnc import configuration as lx
 from fiveaxis.measurement import instruments as ins
 from fiveaxis.measurement.files import read
 from fiveaxis.measurement.simulate import simulate, to_frame
+from fiveaxis.report import text
 
 NOISE = 1e-3
 
@@ -120,6 +121,10 @@ def test_lead_screw_profile_offered_and_residual_at_the_noise(model, lead_screw)
     assert len(top["coefficients"]) == 9 and top["rms_mm"] <= 1.25 * NOISE
     after = D.diagnose(model, meas, ["dx_x:xr", "dx_x:xkT9"], top=3)
     assert after.verdict == "no missing effect" and after.rms_mm_without_outliers <= 1.25 * NOISE
+    j = after.to_json()                          # the model's profile printed as its table (the fit's record)
+    (t,) = j["profiles"]
+    assert t["id"] == "dx_x:xkT9" and f"{t['id']} (E_XX): the positioning error of X at its 9 knots, {t['datum']}" \
+        in text.diagnosis(j)
     # the polynomials do not get there: a cubic with the reversal leaves structure
     poly = F.fit(model, meas, ["dx_x:xr", "dx_x:x1", "dx_x:x2", "dx_x:x3"])
     assert poly.rms_mm > 3 * NOISE

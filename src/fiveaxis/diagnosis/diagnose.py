@@ -94,7 +94,7 @@ class Diagnosis:
                 "outlier_rule": fj["outlier_rule"] + ("; outliers are left out of the decision" if fj["outliers"]
                                                       else ""),
                 "verdict": self.verdict, "missing_effect": self.missing_effect,
-                "added": [e.id for e in self.fit.problem.effects],
+                "added": [e.id for e in self.fit.problem.effects], "profiles": fj["profiles"],
                 "decision": self.decision, "n_candidates": self.n_candidates, "searched": self.searched,
                 "candidates": self.candidates, "forward": self.forward, "structure": self.structure,
                 "structure_test": self.structure_test, "already_in_model": self.absorbed,

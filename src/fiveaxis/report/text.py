@@ -282,6 +282,7 @@ def diagnosis(j: dict) -> str:
         lines.append(f"    in row blocks of {b['block_poses']:,} poses: every candidate screened on a sample of "
                      f"{b['sample_poses']:,} poses, the best {b['scored_on_all_readings']} decided on all "
                      f"{j['readings']:,} readings (structure tests on the sample)")
+    lines += profile_lines(j)                   # the model's own profiles (--add), as tables
     lines.append("[[Candidates]] best first: RMS after adding it, share of the residual it explains")
     for k, c in enumerate(j["candidates"], 1):
         coef = "" if c["coefficient"] is None or not fx.family(c["family"]).RATE_SHOWN \
