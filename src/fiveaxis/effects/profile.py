@@ -32,6 +32,9 @@ MAX_PROFILE_KNOTS = 256
 FROM = "from"
 #: The word of the id before the number of measured targets that are its knots (`dx_x:xkT9`).
 TARGETS = "T"
+#: An ISO 230-2 log has at most this many targets on an axis (a few dozen: 5 per metre); more distinct positions
+#: are not targets (an error message suggests `kT<n>` only below it).
+MAX_LOG_TARGETS = 32
 #: Positions closer than this share of the stroke are one target (targets that jitter around the nominal).
 SAME_POSITION = 1e-4
 #: The last knot of a profile may fall short of the stroke's end by this share of a spacing (ids are written with
@@ -331,8 +334,10 @@ def bind_targets(machine, parts, poses, where: str = "effect"):
     pos = np.asarray(poses, float)[:, i] * (180.0 / math.pi if rotary else 1.0)
     knots = measured_targets(pos, hi - lo)
     if len(knots) != int(arg):
+        hint = (f" ({Profile.format(param, var, Targets(len(knots)))})" if len(knots) <= MAX_LOG_TARGETS else
+                " (a log's targets, each measured in several runs; these are not)")
         raise InputError(f"{where}: '{ident}': the measurements hold {len(knots)} distinct positions of {name}, "
-                         f"expected {int(arg)} targets ({Profile.format(param, var, Targets(len(knots)))})")
+                         f"expected {int(arg)} targets{hint}")
     return param, var, Targets(int(arg), knots)
 
 
