@@ -1,0 +1,60 @@
+"""The decision's multi-column candidates scored without a QR of their rows per residual
+(`decision._Scorer._block_gains`, from k x k matrices) against the plain reference: the columns projected off the
+model and the set's columns, a QR of the rows, the residual's squared norm in that span; and `solver.tsqr` (LAPACK's
+triangular-pentagonal update of the R carried along) against a QR of the stacked rows."""
+from types import SimpleNamespace
+
+import numpy as np
+
+from fiveaxis.diagnosis import decision as dc
+from fiveaxis.estimation import solver as sv
+
+
+def _span_gain(basis, cols, r):
+    """|r projected on span(cols projected off basis)|^2, by SVD of the projected columns (rank by 1e-9)."""
+    P = cols - basis @ (basis.T @ cols)
+    U, s, _ = np.linalg.svd(P, full_matrices=False)
+    U = U[:, s > 1e-9 * s.max()]
+    return float(np.sum((U.T @ r) ** 2))
+
+
+def test_block_gains_off_an_extension_equal_the_projection_of_the_rows():
+    rng = np.random.default_rng(3)
+    n, p, k = 400, 6, 5
+    A = rng.standard_normal((n, p))
+    blocks = [rng.standard_normal((n, k)) for _ in range(4)]
+    blocks[1][:, -1] = blocks[1][:, 0] + A[:, 2]            # one column's combination the model holds: dropped
+    blocks[2][:, :2] = rng.standard_normal((n, 2))
+    ext = rng.standard_normal((n, 2))
+    blocks[3] = np.column_stack([ext[:, 0] + 1e-3 * rng.standard_normal(n), rng.standard_normal((n, k - 1))])
+    Z = np.hstack([A] + blocks)
+    lay = SimpleNamespace(cols=[list(range(p + j * k, p + (j + 1) * k)) for j in range(4)],
+                          families=["profile"] * 4, effects=[f"b{j}" for j in range(4)])
+    Q, _ = np.linalg.qr(A)
+    sc = dc._Scorer(Z, lay, [0, 1, 2, 3], Q)
+    Qe, _ = np.linalg.qr(np.hstack([A, ext]))
+    Qg = Qe[:, p:]
+    r = rng.standard_normal(n)
+    r -= Qe @ (Qe.T @ r)
+    got = sc.gains(r, Qg)
+    for j in range(4):
+        want = _span_gain(Qe, Z[:, lay.cols[j]], r)
+        assert abs(got[j] - want) <= 1e-9 * want, (j, got[j], want)
+    r0 = rng.standard_normal(n)
+    r0 -= Q @ (Q.T @ r0)
+    got0 = sc.gains(r0)                                        # no extension: the blocks' own bases
+    for j in range(4):
+        want = _span_gain(Q, Z[:, lay.cols[j]], r0)
+        assert abs(got0[j] - want) <= 1e-9 * want, (j, got0[j], want)
+
+
+def test_tsqr_equals_the_qr_of_the_stacked_rows():
+    rng = np.random.default_rng(4)
+    X = rng.standard_normal((3000, 40)) * np.logspace(0, 4, 40)
+    R = None
+    for a in range(0, 3000, 700):                              # blocks, each its chunks: R carried along
+        R = sv.tsqr(R, X[a:a + 700])
+    ref = np.linalg.qr(X, mode="r")
+    sign = np.sign(np.diag(R)) * np.sign(np.diag(ref))
+    assert np.allclose(sign[:, None] * R, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+    assert np.array_equal(R, np.triu(R))
