@@ -435,3 +435,24 @@ def test_compensate_shows_its_stages_on_a_terminal_only(monkeypatch):
                 stage(name)
         text = stream.getvalue()
         assert ("compensate: 100%" in text and all(name in text for name in STAGES)) if shown else text == ""
+
+
+def test_diagnose_flags_a_candidates_rate_beyond_a_machine():
+    """The spindle readings against a sensor that barely changed: diagnose's candidate L:temp_spindle (150 um/degC)
+    is flagged plausible: false with the bound it exceeds, and its text says NOT A MACHINE'S RATE; against the
+    real sensor (1.5 um/degC) it is not flagged."""
+    import dataclasses
+    from fiveaxis.measurement.simulate import simulate
+    from fiveaxis.report import text
+    model = fiveaxis.load("li2018")
+    sim = simulate(model, ["L:temp_spindle=0.0015"], n=200, seed=4, duration=14400.0,
+                   temperatures={"spindle": "spindle"})
+    T = sim.meas.temps["temp_spindle"]
+    slip = dataclasses.replace(sim.meas, temps=dict(sim.meas.temps, temp_spindle=T[0] + (T - T[0]) / 100.0))
+    for meas, flagged in ((sim.meas, False), (slip, True)):
+        dg = D.diagnose(model, meas)
+        (c,) = [c for c in dg.candidates if c["id"] == "L:temp_spindle"]
+        assert (c.get("plausible") is False) == flagged and ("implausible_rate" in c) == flagged, c
+        if flagged:
+            assert c["implausible_rate"].startswith("150") and "100 um/degC" in c["implausible_rate"]
+            assert "NOT A MACHINE'S RATE" in text.diagnosis(dg.to_json())

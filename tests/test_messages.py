@@ -117,7 +117,7 @@ def test_a_custom_effect_undefined_at_a_pose_names_the_machine_file_and_the_effe
     (["gsa", "--le", "500", "--axis", "X=0"], ("--le:", "longer than the tool length")),
     (["gsa", "--errors", "ex_x", "--axis", "X=0"], ("--errors 'ex_x'", "NAME=VALUE")),
     (["lsa", "--positions", "100000000"], ("--positions 100000000", "--max-poses")),
-    (["simulate", "--effect", "L:t1", "--no-time", "-o", "{d}/s.csv"], ("--effect 'L:t1'", "'t' column")),
+    (["simulate", "--effect", "L:t1", "--no-time", "-o", "{d}/s.csv"], ("--effect 'L:t1'", "'t' column", "drop --no-time")),
     (["fit", "{m}", "--add", "L:t1"], ("--add 'L:t1'", "'t' column")),
     (["plan", "--feed", "1e-9", "--n", "6", "-o", "{d}/p.csv"], ("--feed:", "mm/min")),
     (["compensate", "{model}", "-o", "{d}/c", "--damping", "1e300"], ("--damping:", "from 0 to 10")),

@@ -116,3 +116,10 @@ def test_an_impossible_value_is_said_not_printed():
     results = out[out.index("[[Determined by this data]]"):]      # the residual, a fact of the data, may be large
     assert not too_large(results), too_large(results)[:3]
     assert "not an error of a machine tool" in results
+
+
+def test_a_tool_axis_error_of_arithmetic_dust_prints_as_zero():
+    """A laser run of one linear axis leaves the tool axis untouched: compensate printed 'after the table 9.7e-15'
+    urad; below 0.001 urad the printout says 0, above it the value."""
+    assert text._urad(9.7e-21) == "0" and text._urad(-3e-10) == "0"
+    assert text._urad(2.5e-9) == "0.0025" and text._urad(1.234e-5) == "12.3"

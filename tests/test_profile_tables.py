@@ -111,8 +111,13 @@ def test_diagnosis_offers_knots_at_the_targets_and_comp_lines_there(model, log, 
     assert fwd[0] == pytest.approx(fwd[1], abs=1e-5) and fwd[-1] == pytest.approx(fwd[-2], abs=1e-5)
 
 
-def test_default_table_worse_than_the_comp_file_says_so(model, log):
-    fm = MF.from_fit(F.fit(model, log, ["dx_x:xk90from-360"]))
+@pytest.fixture(scope="module")
+def fitted(model, log):
+    return MF.from_fit(F.fit(model, log, ["dx_x:xk90from-360"]))
+
+
+def test_default_table_worse_than_the_comp_file_says_so(model, fitted):
+    fm = fitted
     (rec,) = fm.effects                                     # + a 72 um slope: the table corrects, but not all
     fm = dataclasses.replace(fm, effects=[dataclasses.replace(rec, values=tuple(VALUES + 1e-4 * TARGETS))])
     comp = CP.compensate(fm, model, counts={v: 3 for v in model.variables}, poses=50)
@@ -121,3 +126,16 @@ def test_default_table_worse_than_the_comp_file_says_so(model, log):
     (warn,) = [w for w in comp.account["warnings"] if "volumetric table" in w]
     assert "linuxcnc/joint0-X.comp" in warn and "--nodes X=11" in warn
     assert f"{1e3 * tip['after_table']['max']:.3g} um" in warn
+    assert f"warning: {warn}" in text.compensation(summary(comp))         # printed (was only with tool lengths)
+
+
+def test_the_default_table_is_sized_to_the_profiles(model, fitted):
+    """compensate without --nodes along a profiled axis: as many nodes as the profile's knots and the stroke's
+    ends (5 nodes made a 9-knot lead-screw table worse than none: compensate refused everything); given counts
+    stay as given."""
+    fm = fitted
+    others = {v: 2 for v in model.variables if v != "X"}
+    comp = CP.compensate(fm, model, counts=others, poses=50)
+    assert len(comp.table.nodes[model.variables.index("X")]) == 11            # 9 targets + 2 stroke ends
+    assert CP.profile_counts(model.machine, {"X": np.arange(11.0)}, {"X": 4}, None) == {"X": 4}
+    assert CP.profile_counts(model.machine, {"X": np.arange(11.0)}, others, 10) == others      # over max_nodes

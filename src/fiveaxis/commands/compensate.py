@@ -23,7 +23,8 @@ def register_compensate(p):
     options.machine(p, None, "machine name or file (default: the one the model was fitted for; must be that file)")
     p.add_argument("--nodes", action="append", default=[], metavar="AXIS=COUNT",
                    help="table nodes over an axis' stroke, e.g. X=9 or A=31 (repeatable; default: 5 per linear "
-                        "axis, one every 10 degrees on rotary axes)")
+                        "axis, one every 10 degrees on rotary axes; along an axis with per-position profiles as many "
+                        "as their knots and the stroke ends)")
     options.tool_lengths(p, "tool lengths (mm) for the table's tool-length dimension (at least 2, positive, "
                             "ascending). The table gets a first "
                         "column L and is solved exactly at every (L, pose) node; a controller interpolates "

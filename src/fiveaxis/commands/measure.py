@@ -397,11 +397,17 @@ def run_simulate(args) -> int:
         if not sep or not name.strip():
             raise InputError(f"--temperature {spec}: expected NAME=KIND[:KEY=VALUE,...], e.g. spindle=spindle:rise=15")
         temperatures[name.strip()] = profile
-    sim = simulate(model, args.effect, n=args.n, noise=args.noise, seed=args.seed, tool_lengths=lengths,
-                   duration=None if args.no_time else args.duration, with_sigma=args.with_sigma,
-                   instrument=args.instrument, with_axis=args.with_axis, noise_axis=args.noise_axis, plan=plan,
-                   setup_scale=args.setup_scale, errors=errors, setup_kind=args.setup_kind, commands=commands,
-                   options=standard, temperatures=temperatures)
+    try:
+        sim = simulate(model, args.effect, n=args.n, noise=args.noise, seed=args.seed, tool_lengths=lengths,
+                       duration=None if args.no_time else args.duration, with_sigma=args.with_sigma,
+                       instrument=args.instrument, with_axis=args.with_axis, noise_axis=args.noise_axis, plan=plan,
+                       setup_scale=args.setup_scale, errors=errors, setup_kind=args.setup_kind, commands=commands,
+                       options=standard, temperatures=temperatures)
+    except InputError as e:
+        if args.no_time and ("'t' column" in str(e) or "t column" in str(e)):
+            raise InputError(f"{e}; --no-time leaves it out (drop --no-time)",
+                             key=e.key) from None
+        raise
     meas = sim.meas
     _check_simulated(meas)
     if table is not None:

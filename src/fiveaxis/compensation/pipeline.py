@@ -18,7 +18,7 @@ from . import plausible, prediction
 from .account import ACCOUNT_POSES, account
 from .chain import DAMPING
 from .correction import Corrections, fitted_errors, tip_error_function
-from .table import MAX_NODES, Table, build_table, check_tool_lengths, table_nodes
+from .table import MAX_NODES, Table, build_table, check_tool_lengths, table_counts, table_nodes
 from ..effects.families import family, var_token
 from ..estimation.fitted_model import check_model
 from ..exceptions import InputError
@@ -74,15 +74,17 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     lengths = None if tool_lengths is None else check_tool_lengths(tool_lengths)
     plausible.check_model(fm, model.machine, getattr(fm, "source", "") or "fitted model")   # a unit slip: refused
     errors_fn = fitted_errors(fm, model)
-    grid = table_nodes(model.machine, dict(counts or {}), max_nodes)
+    points = comp_points or lx.COMP_POINTS
+    along = profile_nodes(fm, model, points)
+    counts = profile_counts(model.machine, along, dict(counts or {}), max_nodes,
+                            1 if lengths is None else len(lengths))
+    grid = table_nodes(model.machine, counts, max_nodes)
     plausible.check_errors(model, errors_fn, np.stack([m.ravel() for m in np.meshgrid(*grid, indexing="ij")], axis=1),
                            getattr(fm, "source", "") or "fitted model")
     step(STAGES[0])
     table, nodes = build_table(model, errors_fn, counts, max_nodes, None, damping, lengths)
     step(STAGES[1])
     reversal = [v for v in model.variables if _token(model, v) in fm.reversal_variables()]
-    points = comp_points or lx.COMP_POINTS
-    along = profile_nodes(fm, model, points)
     lc = lx.fit(tip_error_function(model, errors_fn), model, points, reversal=reversal, nodes=along)
     values, text, note = None, "", lk.unsupported(model.machine, model.convention or "equations") or ""
     if not note:
@@ -93,7 +95,7 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
                                                             fm.fit.get("noise_mm")))
     acc = account(model, errors_fn, table, lc, poses, seed, damping=damping, module=module, band=band)
     better = table_warning(model, table, acc, {c.variable: lx.comp_file_name(c) for c in lc.comps
-                                               if c.variable in along}, along)
+                                               if c.variable in along}, along, reversal)
     if better:
         acc["warnings"] = list(acc.get("warnings", [])) + [better]
     warm = stated_temperatures(fm, temperatures)
@@ -158,28 +160,53 @@ def profile_nodes(fm, model, points: int) -> dict:
     return out
 
 
+def profile_counts(machine, along: dict, counts: dict, max_nodes: int | None, lengths: int = 1) -> dict:
+    """Nodes per axis for the volumetric table: counts as given; along an axis with per-position profiles whose count
+    is not given (along: {variable: the comp file's nominals}, profile_nodes), as many evenly spaced nodes as the
+    profiles' knots and the stroke's ends, at least the default (5 nodes could not hold a 9-knot lead-screw profile:
+    the table was worse than none and compensate refused everything), unless the table would then exceed max_nodes
+    (times `lengths` tool lengths): then the defaults, and table_warning names the better files."""
+    sized = dict(counts)
+    default = table_counts(machine, {}, None)
+    for v, knots in along.items():
+        if v not in counts:
+            sized[v] = max(default[v], len(knots))
+    if max_nodes is not None and lengths * int(np.prod(list(table_counts(machine, sized, None).values()))) > max_nodes:
+        return counts
+    return sized
+
+
 #: The volumetric table is said to be worse than LinuxCNC's comp files when its largest predicted tool-tip error
 #: exceeds theirs by this factor (and by 0.1 um).
 WORSE_TABLE = 1.5
 
 
-def table_warning(model, table: Table, acc: dict, names: dict, along: dict) -> str | None:
+def table_warning(model, table: Table, acc: dict, names: dict, along: dict, reversal=()) -> str | None:
     """Where the model has per-position profiles (along: {variable: the comp file's nominals}, profile_nodes) and
     the volumetric table's evenly spaced nodes leave a larger predicted tool-tip error than LinuxCNC's comp files
     (largest over the account's poses, by WORSE_TABLE and 0.1 um): a warning naming the better files and the
-    table's nodes that would carry the profiles (names: {variable: comp file name}); None otherwise."""
+    table's nodes that would carry the profiles (names: {variable: comp file name}), or, where it has them already,
+    why it cannot (reversal: the variables with a reversal effect); None otherwise."""
     tip = acc.get("tip_error_mm", {})
     t, c = tip.get("after_table"), tip.get("after_linuxcnc")
     if not along or t is None or c is None or not (t["max"] > WORSE_TABLE * c["max"] and t["max"] - c["max"] > 1e-4):
         return None
     counts = {v: len(table.nodes[model.variables.index(v)]) for v in along}
     files = ", ".join(f"linuxcnc/{names[v]}" for v in along if v in names)
-    more = ", ".join(f"{v}={len(k)}" for v, k in along.items())
+    few = {v: len(k) for v, k in along.items() if counts[v] < len(k)}
     now = ", ".join(f"{n} along {v}" for v, n in counts.items())
+    i = {v: model.variables.index(v) for v in along}
+    at = {v: np.degrees(table.nodes[i[v]]) if table.rotary[i[v]] else np.asarray(table.nodes[i[v]]) for v in along}
+    off = [v for v, k in along.items() if not all(np.isclose(at[v], x, atol=1e-6).any() for x in k)]
+    cannot = [f"its evenly spaced nodes miss the profiles' knots along {', '.join(off)}"] * bool(off) + [
+        "it cannot hold a reversal (it is direction-independent: the comp files' forward and reverse trims do)"
+    ] * bool(reversal)
+    why = (f"give the table nodes for the profiles (--nodes {', '.join(f'{v}={n}' for v, n in few.items())}, "
+           f"evenly spaced, still not at the knots)" if few else
+           "the table: " + " and ".join(cannot or ["its interpolation between the nodes"]))
     return (f"the volumetric table ({now} nodes, evenly spaced) leaves a tool-tip error up to {1e3 * t['max']:.3g} um "
             f"where LinuxCNC's comp files ({files}, lines at the profiles' knots) leave {1e3 * c['max']:.3g} um: "
-            f"load the comp files, or give the table nodes for the profiles (--nodes {more}, evenly spaced, still "
-            f"not at the knots)")
+            f"load the comp files" + (", or " if few else "; ") + why)
 
 
 def _token(model, variable):

@@ -81,6 +81,7 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
             k: float(fm.scales[k].centre) for k in at["temperatures_degC"]},
             note="the same poses with the machine at these temperatures (a steady state): the table and LinuxCNC's "
                  "comp files at the references, the kinematics module with its sensors at these temperatures")
+    out["warnings"] = list(comp.account.get("warnings", []))   # the table's: a better file; a tool length's account
     if tab.tool_lengths is None:
         out["not_compensated"]["tool_length_note"] = (
             f"the table is for the tool length {comp.tool_length:g} mm only; other tools get a correction wrong by "
@@ -93,7 +94,6 @@ def summary(comp: Compensation, model_path: str = "") -> dict:
     t["tool_length_note"] = ("L (mm) is the first grid dimension and the first column (rows of one tool length "
                              "are contiguous); outside the table's lengths the nearest length's values are held")
     out["predicted_by_tool_length"] = comp.account.get("by_tool_length", [])
-    out["warnings"] = list(comp.account.get("warnings", []))
     return out
 
 

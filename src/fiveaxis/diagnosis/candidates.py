@@ -113,21 +113,47 @@ def score_blocks(Q: np.ndarray, Z: np.ndarray, cols: list, rw: np.ndarray) -> li
 
 def project_off(Q: np.ndarray, G: np.ndarray) -> np.ndarray:
     """G's columns projected off span(Q) (Q orthonormal), twice for accuracy; column-major (LAPACK's layout: a
-    block of its columns is factored without a copy)."""
-    Pt = np.ascontiguousarray(G.T)
+    block of its columns is factored without a copy). G is left as it is (G.T of a column-major G was contiguous:
+    the projection was made in G's own memory, and a set selection's later scores saw its blocks projected off
+    every extension tried before, members since removed included)."""
+    Pt = np.array(G.T, order="C")
     Pt -= (Pt @ Q) @ Q.T
     Pt -= (Pt @ Q) @ Q.T
     return Pt.T
+
+
+#: Most numbers in one batched QR of `qr_blocks` (~32 MB).
+QR_BATCH = 4_000_000
+
+
+def qr_blocks(P: np.ndarray, spans: list):
+    """(Q, R) of P[:, a:b] for (a, b) in spans, in order (reduced QR): the runs of consecutive blocks of one width
+    factored as one stack (the same LAPACK factorisation per block, without a call per block)."""
+    i = 0
+    while i < len(spans):
+        a0, b0 = spans[i]
+        w = b0 - a0
+        most = max(1, QR_BATCH // max(w * P.shape[0], 1))
+        j = i + 1
+        while j < len(spans) and j - i < most and spans[j][0] == spans[j - 1][1] and spans[j][1] - spans[j][0] == w:
+            j += 1
+        if j - i == 1 or not w:
+            yield np.linalg.qr(P[:, a0:b0])
+        else:
+            stack = P[:, a0:spans[j - 1][1]].T.reshape(j - i, w, P.shape[0]).transpose(0, 2, 1)
+            Qs, Rs = np.linalg.qr(stack)
+            yield from zip(Qs, Rs)
+        i = j
 
 
 def factor_blocks(P: np.ndarray, norms: np.ndarray, spans: list, rw: np.ndarray) -> list[Scored]:
     """Score the candidates whose projected columns are P[:, a:b] for (a, b) in spans against rw (orthogonal to
     the basis P was projected off); norms: the columns' norms before the projection."""
     out = []
-    for a, b in spans:
-        Qb, R = np.linalg.qr(P[:, a:b])
+    for (a, b), (Qb, R) in zip(spans, qr_blocks(P, spans)):
         keep = np.abs(np.diag(R)) > ABSORBED * np.maximum(norms[a:b], 1e-300)
-        Qb = Qb[:, keep]
+        if not keep.all():
+            Qb = Qb[:, keep]
         y = Qb.T @ rw
         coefs = np.zeros(b - a)
         if keep.any():

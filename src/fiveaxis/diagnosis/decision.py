@@ -317,6 +317,11 @@ def _columns(Z, lay: Layout, ks) -> np.ndarray:
     return np.take(Z, cols, axis=1)
 
 
+#: Smallest eigenvalue of a block's Gram matrix off an extension (`_Scorer._block_gains`) for its gain from the
+#: k x k matrices (their rounding errors ~1e-16 / it relative); below, from the block's rows.
+_SMALL_S = 1e-6
+
+
 class _Scorer:
     """The candidates ks scored against the model's basis Q and against Q extended by the columns of a set: their
     columns gathered once from Z, with what does not depend on the extension (the one-column candidates' squared
@@ -341,6 +346,77 @@ class _Scorer:
         self.b_norms = np.linalg.norm(Gb, axis=0)
         at = np.cumsum([0] + [width[k] for k in self.blocks])
         self.spans = list(zip(at[:-1], at[1:]))
+        self._factors = None
+
+    def _block_factors(self):
+        """The blocks' factors off Q, made once (a set selection scores them against tens of residuals): per
+        block the kept columns of its orthonormal basis (as `candidates.factor_blocks` keeps them), the R factor of
+        the kept columns and whether they are the leading columns, clear of the threshold either way; the kept bases
+        of those blocks side by side, and those blocks by their number of kept columns (k x k matrices stacked)."""
+        if self._factors is None:
+            fac = []
+            for (a, b), (Qb, R) in zip(self.spans, cd.qr_blocks(self.Pb, self.spans)):
+                tol = cd.ABSORBED * np.maximum(self.b_norms[a:b], 1e-300)
+                diag = np.abs(np.diag(R))
+                keep = diag > tol
+                m = int(keep.sum())
+                # the kept columns lead (those dropped: the combinations the model holds, found last), clear of
+                # the threshold: the factor of the kept columns is the leading part of the block's
+                clear = bool(keep[:m].all() and np.all(diag[:m] > 4 * tol[:m]) and np.all(diag[m:] < 0.25 * tol[m:]))
+                fac.append((Qb if keep.all() else Qb[:, keep], R[:m, :m], clear))
+            whole = [f[0] for f in fac if f[2]]
+            QB = np.hstack(whole) if whole else np.zeros((self.Pb.shape[0], 0))
+            groups, at = {}, 0
+            for i, ((a, _), (Qk, R, clear)) in enumerate(zip(self.spans, fac)):
+                if clear:
+                    groups.setdefault(Qk.shape[1], []).append((i, at, a))
+                    at += Qk.shape[1]
+            stacked = {}
+            for k, members in groups.items():
+                i_, at_, a_ = (np.array(v, np.intp) for v in zip(*members))
+                stacked[k] = (i_, at_[:, None] + np.arange(k), np.stack([fac[i][1] for i in i_]),
+                              4 * cd.ABSORBED * np.maximum(self.b_norms[a_[:, None] + np.arange(k)], 1e-300))
+            self._factors = (fac, QB, stacked)
+        return self._factors
+
+    def _block_gains(self, rw, Qg=None) -> list:
+        """The blocks' gains (`candidates.factor_blocks`) against rw, with the model's basis extended by Qg.
+
+        A block kept whole, of orthonormal basis Qb off Q, has P' = (Qb - Qg C) R off [Q, Qg], C = Qg^T Qb; with
+        rw orthogonal to Qg, P'^T rw = R^T Qb^T rw and the Gram matrix of Qb - Qg C is S = I - C^T C: the gain is
+        y^T S^-1 y (y = Qb^T rw) and the R factor of P' that of T R (S = T^T T), from k x k matrices (the blocks of
+        one k stacked) instead of a QR of the block's rows per residual. Where S is near singular (the block nearly
+        in span(Qg)), a column would be dropped or nearly so, or the kept columns are not the leading ones: the
+        block's rows, as factor_blocks. Columns dropped off Q (combinations the model holds) stay dropped off
+        [Q, Qg]."""
+        fac, QB, stacked = self._block_factors()
+        if Qg is None or not Qg.shape[1]:
+            return [float(y @ y) for y in (f[0].T @ rw for f in fac)]
+        Y = QB.T @ rw
+        C = Qg.T @ QB
+        out = [None] * len(fac)
+        for k, (idx, cols, R, tol) in stacked.items():
+            if not k:                                              # every column held by the model
+                for i in idx:
+                    out[i] = 0.0
+                continue
+            c = C[:, cols].transpose(1, 0, 2)                     # (blocks, g, k)
+            S = np.eye(k) - np.matmul(c.transpose(0, 2, 1), c)
+            fine = np.linalg.eigvalsh(S)[:, 0] > _SMALL_S
+            if not fine.any():
+                continue
+            L = np.linalg.cholesky(S[fine])
+            R1 = np.linalg.qr(np.matmul(L.transpose(0, 2, 1), R[fine]), mode="r")
+            kept = np.all(np.abs(np.diagonal(R1, axis1=1, axis2=2)) > tol[fine], axis=1)
+            z = np.linalg.solve(L, Y[cols[fine]][..., None])[..., 0]
+            for i, ok, zi in zip(idx[fine], kept, z):
+                if ok:
+                    out[i] = float(zi @ zi)
+        for i, ((a, b), g) in enumerate(zip(self.spans, out)):
+            if g is None:
+                out[i] = cd.factor_blocks(cd.project_off(Qg, self.Pb[:, a:b]), self.b_norms[a:b], [(0, b - a)],
+                                          rw)[0].gain
+        return out
 
     def gains(self, rw, Qg=None) -> dict:
         """Drop of the weighted RSS when each candidate joins alone the model of basis [Q, Qg] (Qg orthonormal and
@@ -356,8 +432,7 @@ class _Scorer:
             QtG = np.vstack([self.QtGp, Qg.T @ self.Gp]) if extra else self.QtGp
             out.update({k: float(g) for k, g in zip(self.pairs, cd.pair_gains(Qc, self.Gp, rw, self.gram, QtG))})
         if self.blocks:
-            P = cd.project_off(Qg, self.Pb) if extra else self.Pb
-            out.update({k: b.gain for k, b in zip(self.blocks, cd.factor_blocks(P, self.b_norms, self.spans, rw))})
+            out.update(zip(self.blocks, self._block_gains(rw, Qg if extra else None)))
         return out
 
 

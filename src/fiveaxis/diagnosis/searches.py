@@ -149,20 +149,35 @@ def _approx_gains(W1, W2, T, E):
 
 
 def _pair_gains(sums, cols, E, exact: bool):
-    """Gains of 2-column blocks a_p [cos, sin] for pairs: cols (k,) parameter indices, E (n, k) complex."""
-    W1 = sums.W1[:, cols]
-    W2 = sums.W2[:, cols]
-    bc = np.einsum("nk,nk->k", W1, E.real)
-    bs = np.einsum("nk,nk->k", W1, E.imag)
-    T = W2.sum(axis=0)
-    E2 = E * E
-    c2 = np.einsum("nk,nk->k", W2, E2.real)
-    s2 = np.einsum("nk,nk->k", W2, E2.imag)
+    """Gains of 2-column blocks a_p [cos, sin] for pairs: cols (k,) parameter indices, E (n, k) complex.
+
+    The columns of one parameter side by side: per parameter one product of its per-pose sums with their phases
+    (cos and sin interleaved), not a gather of the sums for every column."""
+    cols = np.asarray(cols, dtype=np.intp)
+    n, k = E.shape
+    order = np.argsort(cols, kind="stable")
+    sc = cols[order]
+    starts = np.flatnonzero(np.r_[True, sc[1:] != sc[:-1]]) if k else np.zeros(0, np.intp)
+    ends = np.r_[starts[1:], k]
+    Es = np.ascontiguousarray(np.take(E, order, axis=1) if np.any(np.diff(order) != 1) else E)
+    Ef = Es.view(float).reshape(n, 2 * k)                         # cos, sin interleaved
+    E2f = (Es * Es).view(float).reshape(n, 2 * k)
+    r = sums.W3.shape[1] if exact else 0
+    B = np.empty((2 + r, 2 * k))
+    for a, b in zip(starts, ends):
+        p = sc[a]
+        B[0, 2 * a:2 * b] = sums.W1[:, p] @ Ef[:, 2 * a:2 * b]
+        B[1, 2 * a:2 * b] = sums.W2[:, p] @ E2f[:, 2 * a:2 * b]
+        if exact:
+            B[2:, 2 * a:2 * b] = np.ascontiguousarray(sums.W3[:, :, p].T) @ Ef[:, 2 * a:2 * b]
+    inv = np.empty(k, np.intp)
+    inv[order] = np.arange(k)
+    B = B.reshape(2 + r, k, 2)[:, inv]
+    bc, bs, c2, s2 = B[0, :, 0], B[0, :, 1], B[1, :, 0], B[1, :, 1]
+    T = sums.W2.sum(axis=0)[cols]
     Scc, Sss, Scs = 0.5 * (T + c2), 0.5 * (T - c2), 0.5 * s2
     if exact:
-        W3 = sums.W3[:, :, cols]                                   # (n, r, k)
-        qc = np.einsum("nrk,nk->rk", W3, E.real)
-        qs = np.einsum("nrk,nk->rk", W3, E.imag)
+        qc, qs = B[2:, :, 0], B[2:, :, 1]
         Scc = Scc - np.einsum("rk,rk->k", qc, qc)
         Sss = Sss - np.einsum("rk,rk->k", qs, qs)
         Scs = Scs - np.einsum("rk,rk->k", qc, qs)

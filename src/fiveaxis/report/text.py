@@ -265,7 +265,7 @@ def diagnosis(j: dict) -> str:
         coef = "" if c["coefficient"] is None or not fx.family(c["family"]).RATE_SHOWN \
             else f"coef {c['coefficient']:.3g} {c['unit']}: "
         shown = f"{c['id']} ({c['iso']})" if c.get("iso") else c["id"]
-        if c.get("plausible") is False:
+        if c.get("plausible") is False and not c.get("implausible_rate"):     # a rate: its description says it
             lines.append(f"    {k:2d}. {shown:18s} -> {c['rms_mm'] * 1000:.4g} um ({c['explained']:.1%}) its size over "
                          f"the data: {IMPLAUSIBLE}")
             continue
@@ -405,6 +405,16 @@ def _unexplained_lines(u: dict) -> list[str]:
     return lines
 
 
+#: Below this (urad), a model's tool-axis error is the arithmetic's, not the machine's: printed as 0.
+AXIS_DUST_URAD = 1e-3
+
+
+def _urad(rad: float) -> str:
+    """A tool-axis error (rad) in urad, 3 significant figures; 0 below AXIS_DUST_URAD (no 9.7e-15 urad printed)."""
+    v = 1e6 * rad
+    return "0" if abs(v) < AXIS_DUST_URAD else f"{v:.3g}"
+
+
 def compensation(rec: dict, folder: str = "") -> str:
     """The text of a compensation (um, urad), built from its record (`compensation.record.summary`, what
     summary.json holds); folder: where it was written, for the last line."""
@@ -432,8 +442,8 @@ def compensation(rec: dict, folder: str = "") -> str:
             s = tip[key]
             lines.append(f"    {label:56s} {1e3 * s['max']:8.3f} {1e3 * s['rms']:8.3f} {1e3 * s['p95']:8.3f}"
                          + (f" {1e3 * setup[key]['rms']:28.3f}" if key in setup else ""))
-    lines.append(f"  tool-axis error RMS (urad, model estimates): before {1e6 * ax['before']['rms']:.3g}, after the "
-                 f"table {1e6 * ax['after_table']['rms']:.3g} (damping {tab['damping']:g} near singular poses)")
+    lines.append(f"  tool-axis error RMS (urad, model estimates): before {_urad(ax['before']['rms'])}, after the "
+                 f"table {_urad(ax['after_table']['rms'])} (damping {tab['damping']:g} near singular poses)")
     warm = rec.get("predicted_at_temperatures")
     if warm:
         temps = ", ".join(f"{k} {v:g} degC (reference {warm['references_degC'][k]:g})"
@@ -454,7 +464,7 @@ def compensation(rec: dict, folder: str = "") -> str:
             lines.append(f"    {r['tool_length_mm']:10.3f} {'node' if r['table_node'] else 'mid':6s} "
                          f"{1e3 * b['rms']:11.3f} {1e3 * a['rms']:16.3f} {1e3 * a['max']:9.3f} "
                          f"{1e3 * e['rms']:16.3f}")
-        lines += [f"  warning: {w}" for w in rec.get("warnings", [])]
+    lines += [f"  warning: {w}" for w in rec.get("warnings", [])]
     if lc.get("kinematics"):
         pins = ", ".join(f"{k} {v:+.4f}" for k, v in lc["trt_pins_mm"].items())
         o = lc["workpiece_origin_g54_mm"]
