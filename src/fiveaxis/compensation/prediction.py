@@ -26,9 +26,9 @@ machine file's or the command line's VALUE,SIZE) are measurements and stay in P_
 determine (posterior sd << prior sd) do not move. Without priors (the fallback above) both ends come from D's one
 distribution.
 `band` gives per stage a range for the true RMS over the workspace (k = 2: the 2.275 % quantile of the RMS over
-machines drawn from the lower end's distribution and the 97.725 % quantile over those drawn from D's; the RMS is a quadratic form of D, reduced once to the
-singular values of what D does at the poses, so 20,000 draws cost little), its expected value and the parts'
-shares, raw and with the part's set-up taken out (a work offset and the alignment about the table's axis:
+machines drawn from the lower end's distribution and the 97.725 % quantile over those drawn from D's; the RMS is a
+quadratic form of D, reduced once to the singular values of what D does at the poses, so 20,000 draws cost little),
+its expected value and the parts' shares, raw and with the part's set-up taken out (a work offset and the alignment about the table's axis:
 compensation.part_setup); tool-axis figures the same, raw (model estimates: the axis was measured only if the data
 had axis readings or several tool lengths). `determining` says which measurement would
 determine the undetermined part that matters: tip readings over the whole workspace at the model's tool, with a
@@ -244,9 +244,11 @@ def band(fm, model, q, dirs, L, tip_stages: dict, axis_stages: dict, noise: floa
     """The prediction's uncertainty (see the module docstring) for stages {name: (n, 3) error at poses q} of the
     tool tip (mm) and of the tool axis (rad); {} when the model file carries no covariance (written before it).
 
-    Per stage: `predicted_rms` (the fitted model, as the account), `range_k2`: the 2.275 % and 97.725 % quantiles
-    of the true RMS over the poses (k = 2: 95.45 % of the machines the fit allows lie inside) for
-    D drawn from `deviation`, `expected_rms` (the root of its mean square). With noise (mm, one reading), the tip
+    Per stage: `predicted_rms` (the fitted model, as the account), `range_k2`: the 2.275 % quantile of the true RMS
+    over the poses for D drawn from the lower end's distribution (`deviation`'s lower_cov: what the data determine
+    alone; its cov without size priors) and the 97.725 % quantile for D drawn from its cov (k = 2), `prior_share`
+    (with size priors: the share of the upper end's mean square they decide), `expected_rms` (the root of the mean
+    square under cov). With noise (mm, one reading), the tip
     stages also get `remeasured_range_k2`: what a tip measurement of as many random poses over the workspace, with
     that noise per component, would read. The tip stages also with the part's set-up taken out (`setup_removed`, the same
     figures; compensation.part_setup)."""
