@@ -162,7 +162,7 @@ def hidden_effect(model, sim0, rng, k: float):
         ident = _draw_id(machine, sim0.meas, rng)
         if ident is None:
             continue
-        eff = fx.parse(ident, machine, model.errors)
+        eff = fx.parse(ident, machine, model.errors, poses=sim0.meas.poses)   # kT<n>: knots at the targets
         direction = rng.normal(size=len(eff.names))
         col = block.effect_columns([eff]) @ direction
         raw = float(np.sqrt(np.mean(col[mm] ** 2))) if mm.any() else 0.0
@@ -187,7 +187,9 @@ def same_physics(hidden, ident: str, model) -> bool:
     try:
         eff = fx.parse(ident, model.machine, model.errors)
     except Exception:                       # a custom effect or another grammar: not the hidden one
-        return False
+        got = fx.split(ident, fx.tokens(model.machine))     # a profile at the measured targets (knots from data)
+        return got is not None and (got[0].NAME, *got[1][:2]) == ("profile", hidden.param, hidden.var) == (
+            hidden.NAME, hidden.param, hidden.var)
     if (eff.NAME, eff.param, eff.var) != (hidden.NAME, hidden.param, hidden.var):
         return False
     if eff.NAME == "periodic":

@@ -7,12 +7,17 @@ a prefix of the poses (`--slow-poses`, `--fd-poses`): their rate is per pose, th
 the numba kernels on the same prefix. Also: floating-point operations per pose and the share of the peak
 (bench/flops.py), cold and cached compile times, `fiveaxis derive li2018` time, and the tensor-grid row (an axis
 that appears in no J reduces exactly).
-Usage: .venv/bin/python bench/run.py [--poses N] [--threads T] [--json] [--no-compile]
+Usage: .venv/bin/python bench/run.py [--poses N] [--threads T] [--json] [--no-compile] [--kernels FILE ...]
+Another tree's kernel in the same run (`--kernels`): `git worktree add /tmp/old COMMIT`, then
+`--kernels /tmp/old/generated/li2018.py`; its gsil_sum is timed on the same poses, interleaved with this tree's,
+in poses/s of wall and of CPU time (the CPU rate is what compares two trees on a loaded machine).
 Tiny (the smoke test): --poses 2000 --slow-poses 100 --fd-poses 20 --repeat 1 --grid 3,3,3,3,3 --no-compile
 """
 from __future__ import annotations
 
 import argparse
+import hashlib
+import importlib.util
 import json
 import math
 import os
@@ -97,6 +102,44 @@ def tensor_grid_row(model, E, threads, counts=(20, 20, 10, 25, 20), repeat=2) ->
             "max_rel_diff": rel_diff(W_red, W_full), "threads": threads}
 
 
+def load_kernels(path):
+    """A generated module (another tree's generated/<machine>.py) under a name of its own, cacheable by numba."""
+    path = Path(path).resolve()
+    name = "bench_kernels_" + hashlib.sha1(str(path).encode()).hexdigest()[:12]
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod             # numba's cache pickles the module by name
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def kernels_row(kernels, poses, lo, hi, E, threads, repeat) -> dict:
+    """gsil_sum of several generated modules {label: module} on the same poses, timed interleaved (best of
+    `repeat`), on 1 thread and on `threads`: poses/s of wall and of CPU time, and each W against the first's."""
+    import numba
+    n = len(poses)
+    out = {label: {} for label in kernels}
+    W0 = None
+    for mod in kernels.values():        # compile or load from the cache before timing
+        mod.gsil_sum(poses[:1000], lo, hi, E, 1e-12, np.zeros(len(E)))
+    for th in sorted({1, threads}):
+        numba.set_num_threads(th)
+        best = {label: [float("inf"), float("inf")] for label in kernels}
+        for _ in range(repeat):
+            for label, mod in kernels.items():
+                W = np.zeros(len(E))
+                t, c = time.perf_counter(), time.process_time()
+                mod.gsil_sum(poses, lo, hi, E, 1e-12, W)
+                t, c = time.perf_counter() - t, time.process_time() - c
+                best[label] = [min(best[label][0], t), min(best[label][1], c)]
+                W0 = W if W0 is None else W0
+                out[label]["max_rel_diff_vs_first"] = rel_diff(W, W0)
+        for label in kernels:
+            out[label][f"{th}_threads"] = {"poses_per_s": n / best[label][0], "poses_per_cpu_s": n / best[label][1]}
+    numba.set_num_threads(threads)
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--poses", type=int, default=2_000_000, help="random poses (default 2e6)")
@@ -109,6 +152,8 @@ def main(argv=None):
     ap.add_argument("--grid", default="20,20,10,25,20",
                     help="points per axis of the tensor-grid row (X,Y,Z,A,B; default 2e6 poses)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--kernels", nargs="+", default=[], metavar="FILE",
+                    help="generated li2018 modules of other trees, timed against this tree's in the same run")
     args = ap.parse_args(argv)
     counts = tuple(int(c) for c in args.grid.split(","))
 
@@ -182,6 +227,9 @@ def main(argv=None):
               "share_of_peak_avx512": gflops / info["peak_gflops_avx512"],
               "load_average_at_end": os.getloadavg(),
               "tensor_grid": tensor_grid_row(model, E, threads, counts, min(2, args.repeat))}
+    if args.kernels:
+        kernels = {"this tree": k, **{str(p): load_kernels(p) for p in args.kernels}}
+        record["kernels"] = kernels_row(kernels, poses, lo, hi, E, threads, args.repeat)
     if not args.no_compile:
         record["compile"] = compile_times()
     if args.json:
@@ -207,6 +255,10 @@ def main(argv=None):
     print(f"flops per pose (vectorised pass, counted in the generated code): {fpp}; {gflops:.1f} GFLOP/s = "
           f"{100 * record['share_of_peak_avx2']:.1f}% of the AVX2 FMA peak {info['peak_gflops_avx2']:.1f} GFLOP/s "
           f"({100 * record['share_of_peak_avx512']:.1f}% of AVX-512)")
+    for label, r in record.get("kernels", {}).items():
+        print(f"gsil_sum of {label}: " + "; ".join(
+            f"{key.replace('_', ' ')} {v['poses_per_s']:.4g} poses/s ({v['poses_per_cpu_s']:.4g} per CPU s)"
+            for key, v in r.items() if key.endswith("_threads")) + f"; max rel diff {r['max_rel_diff_vs_first']:.1e}")
     if "compile" in record:
         c = record["compile"]
         print(f"compile gsil_sum: cold {c['cold_s']} s, cached {c['cached_s']} s; "

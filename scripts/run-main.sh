@@ -66,16 +66,16 @@ mkdir -p "$IDIR"
 LASER="$IDIR/ac_trunnion_laser_x.csv"
 PROFILE="0,0.012,-0.008,0.015,-0.004,0.003,-0.015,0.009,-0.005"
 LSIM=("$BIN/fiveaxis" simulate --machine ac_trunnion --instrument interferometer --axes X --targets 9
-      --effect "dx_x:xk100=$PROFILE" --effect dx_x:xr=0.0125 --seed 3)
-say "An ISO 230-2 laser run of X on the A/C trunnion (9 targets, 5 cycles; a lead-screw error of 30 um spread at 9 knots, a 25 um reversal): $LASER"
+      --effect "dx_x:xkT9=$PROFILE" --effect dx_x:xr=0.0125 --seed 3)
+say "An ISO 230-2 laser run of X on the A/C trunnion (9 irregular targets, 5 cycles; a lead-screw error of 30 um spread at the targets, a 25 um reversal): $LASER"
 "${LSIM[@]}" -o "$LASER" --force
 say "ISO 230-2: fiveaxis iso230-2 $LASER (with ISO 230-9's uncertainty from what the test states)"
 "$BIN/fiveaxis" iso230-2 "$LASER" --machine ac_trunnion --u-device 0.4 --temperature-deviation 0.5 \
     --expansion-ppm-per-K 2 --misalignment 0.5 --drift 0.2 --plot "$IDIR"
-say "diagnose with the reversal in: the per-position profile dx_x:xk100 is offered"
+say "diagnose with the reversal in: the per-position profile at the 9 measured targets, dx_x:xkT9, is offered"
 "$BIN/fiveaxis" diagnose "$LASER" --machine ac_trunnion --add dx_x:xr --top 2
-say "Fit the reversal and the profile, compensate: LinuxCNC's trims at the profile's knots (joint0-X.comp)"
-"$BIN/fiveaxis" fit "$LASER" --machine ac_trunnion --add dx_x:xr --add dx_x:xk100 -o "$IDIR/model.json" --force \
+say "Fit the reversal and the profile, compensate: LinuxCNC's trims at the profile's knots, the targets (joint0-X.comp)"
+"$BIN/fiveaxis" fit "$LASER" --machine ac_trunnion --add dx_x:xr --add dx_x:xkT9 -o "$IDIR/model.json" --force \
     | sed -n '/residual RMS/p'
 # the volumetric table gets a node at each of the profile's 9 knots by default (compensate sizes it to the
 # profiles); it cannot hold the reversal, and says that the comp files do

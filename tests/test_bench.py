@@ -16,7 +16,7 @@ HELPERS = {"baselines"}
 #: Every script and the tiny arguments the smoke test runs it with.
 TINY = {
     "run": ["--poses", "3000", "--slow-poses", "100", "--fd-poses", "20", "--repeat", "1", "--grid", "3,3,3,4,3",
-            "--no-compile", "--json"],
+            "--no-compile", "--json", "--kernels", str(ROOT / "generated" / "li2018.py")],
     "baseline_split": ["--poses", "100"],
     "flops": ["--machine", "li2018"],
     "bench_diagnose": ["--poses", "200", "--subset-first", "2", "--subset-exact", "1", "--subset-period", "2",
@@ -58,6 +58,8 @@ def test_run_gsil_rows_agree():
     assert rec["tensor_grid"]["max_rel_diff"] < 1e-12
     assert rec["tensor_grid"]["reduced_axes"] == ["X"]
     assert rec["flops_per_pose"] > 500 and 0 < rec["share_of_peak_avx2"]
+    other = rec["kernels"][str(ROOT / "generated" / "li2018.py")]   # the same file loaded as another tree's
+    assert other["max_rel_diff_vs_first"] == 0.0 and other["1_threads"]["poses_per_cpu_s"] > 0
 
 
 def test_baseline_split_matches_the_kernel():

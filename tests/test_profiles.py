@@ -1,7 +1,7 @@
-"""Per-position error profiles `<param>:<var>k<spacing>` (issue 22): the grammar, the family against np.interp,
+"""Per-position error profiles `<param>:<var>k<spacing>` and `kT<n>` (issue 22): the grammar, the family against np.interp,
 the fitted-model file, LinuxCNC's compensation files read as LinuxCNC reads them; and the issue's lead-screw axis:
 an irregular per-target error (random values at 9 targets, 30 um spread) plus a 25 um reversal on an ISO 230-2
-log written as it arrives (0.001 mm, 0.1 um): diagnose offers the profile, with it and the reversal the residual
+log written as it arrives (0.001 mm, 0.1 um): diagnose offers the profile at its 9 targets, with it and the reversal the residual
 is at the noise, and the comp file written from them, applied by the simulator, leaves the noise."""
 from dataclasses import dataclass
 
@@ -22,6 +22,7 @@ from fiveaxis.linuxcnc import configuration as lx
 from fiveaxis.measurement import instruments as ins
 from fiveaxis.measurement.files import read
 from fiveaxis.measurement.simulate import simulate, to_frame
+from fiveaxis.report import text
 
 NOISE = 1e-3
 
@@ -116,10 +117,14 @@ def test_lead_screw_profile_offered_and_residual_at_the_noise(model, lead_screw)
     assert first.missing_effect and "dx_x:xr" in {i for c in first.candidates for i in (c["id"], *c["aliases"])}
     dg = D.diagnose(model, meas, ["dx_x:xr"], top=3)
     top = dg.candidates[0]
-    assert dg.missing_effect and top["id"] == "dx_x:xk100" and top["family"] == "profile"
+    assert dg.missing_effect and top["id"] == "dx_x:xkT9" and top["family"] == "profile"    # at the 9 targets
     assert len(top["coefficients"]) == 9 and top["rms_mm"] <= 1.25 * NOISE
-    after = D.diagnose(model, meas, ["dx_x:xr", "dx_x:xk100"], top=3)
+    after = D.diagnose(model, meas, ["dx_x:xr", "dx_x:xkT9"], top=3)
     assert after.verdict == "no missing effect" and after.rms_mm_without_outliers <= 1.25 * NOISE
+    j = after.to_json()                          # the model's profile printed as its table (the fit's record)
+    (t,) = j["profiles"]
+    assert t["id"] == "dx_x:xkT9" and f"{t['id']} (E_XX): the positioning error of X at its 9 knots, {t['datum']}" \
+        in text.diagnosis(j)
     # the polynomials do not get there: a cubic with the reversal leaves structure
     poly = F.fit(model, meas, ["dx_x:xr", "dx_x:x1", "dx_x:x2", "dx_x:x3"])
     assert poly.rms_mm > 3 * NOISE
@@ -153,9 +158,9 @@ def test_lead_screw_through_the_command_line(model, lead_screw, tmp_path, capsys
     _, _, _, path = lead_screw
     rc, out, err = run_cli("diagnose", path, "--machine", "ac_trunnion", "--add", "dx_x:xr", "--top", "2")
     assert rc == 0, err
-    assert "1. dx_x:xk100" in out and "a per-position positioning error profile of X" in out
+    assert "1. dx_x:xkT9" in out and "a per-position positioning error profile of X" in out
     rc, out, err = run_cli("fit", path, "--machine", "ac_trunnion", "--add", "dx_x:xr", "--add",
-                           "dx_x:xk100", "-o", tmp_path / "m.json")
+                           "dx_x:xkT9", "-o", tmp_path / "m.json")
     assert rc == 0, err
     rc, out, err = run_cli("compensate", tmp_path / "m.json", "-o", tmp_path / "c", "--nodes",
                            "X=9,Y=2,Z=2,A=2,C=2", "--poses", "100")

@@ -31,6 +31,10 @@ def register_iso230_2(p):
     _common(p)
     p.add_argument("--tolerance", type=float, default=None, metavar="MM",
                    help="positions within this distance are one target (default 0.05 mm)")
+    p.add_argument("--remove-slope", action="store_true",
+                   help="also the figures with the slope removed (the least-squares line through the mean "
+                        "deviations, its slope in um/m), as laser software offers them; the standard's figures "
+                        "stay first")
     uncertainty_options(p)
     p.set_defaults(func=run_iso230_2)
 
@@ -102,7 +106,8 @@ def run_iso230_2(args) -> int:
         if found:                                  # a unit slip: said beside the figures, and on stderr
             ev.notes.append(f"not a machine's figures: {plausible.unit_slip(found)}")
             print(f"fiveaxis: warning: {args.file}: {ev.axis}: {plausible.unit_slip(found)}", file=sys.stderr)
-    records = [P.to_json(ev, U.budget(statement, ev.length_mm) or U.none_statement()) for ev in evs]
+    records = [P.to_json(ev, U.budget(statement, ev.length_mm) or U.none_statement(), args.remove_slope)
+               for ev in evs]
     if args.plot is not None:
         from ..plots.iso230 import write_positioning
         folder = _plot_folder(args.plot)

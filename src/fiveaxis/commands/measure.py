@@ -172,7 +172,7 @@ def _load(args):
     meas = options.measurements(args, model.machine, min_rows=2, frame=args.frame, setup_kind=args.setup_kind,
                                 setup_frame=args.setup_frame, resolution=_resolution(args.resolution))
     added = machine_effects(model) + list(args.add)
-    effects = resolve_effects(model, added)
+    effects = resolve_effects(model, added, poses=meas.poses)
     design_size.check(model, meas, effects)          # before a design is built: memory of the setups' unknowns
     return model, meas, effects, _fixed(model, args.fix), prior
 

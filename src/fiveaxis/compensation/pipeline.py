@@ -9,7 +9,7 @@ compensation.record's, the folder compensation.folder's. Units: mm and rad.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -19,8 +19,8 @@ from .account import ACCOUNT_POSES, account
 from .chain import DAMPING
 from .correction import Corrections, fitted_errors, tip_error_function
 from .table import MAX_NODES, Table, build_table, check_tool_lengths, table_counts, table_nodes
-from ..effects.families import family, var_token
-from ..estimation.fitted_model import check_model
+from ..effects.families import family, table_lines, var_token
+from ..estimation.fitted_model import check_model, profile_tables
 from ..exceptions import InputError
 from ..linuxcnc import configuration as lx
 from ..linuxcnc import kinematics as lk
@@ -86,6 +86,7 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
     step(STAGES[1])
     reversal = [v for v in model.variables if _token(model, v) in fm.reversal_variables()]
     lc = lx.fit(tip_error_function(model, errors_fn), model, points, reversal=reversal, nodes=along)
+    lc.comps = profile_notes(fm, model, lc.comps)
     values, text, note = None, "", lk.unsupported(model.machine, model.convention or "equations") or ""
     if not note:
         values, text = ck.module_values(fm, model, damping), lk.source(model)
@@ -111,6 +112,23 @@ def compensate(fm, model, counts=None, max_nodes: int | None = MAX_NODES, dampin
                         values, text, note)
     plausible.check_compensation(comp, lx.files(lc))
     return comp
+
+
+def profile_notes(fm, model, comps) -> tuple:
+    """The joints' comp files with the tables of the profiles along them as comments after the numbers (position,
+    error relative to the datum knot, U (k = 2); what the trims above carry, against the error)."""
+    tables = profile_tables(fm, model)
+    out = []
+    for c in comps:
+        lines = []
+        for t in tables:
+            if t["axis"] != c.variable:
+                continue
+            lines += ["fiveaxis: the per-position profile the trims above carry (a trim is minus the error, with "
+                      "the model's other errors along this joint added)"]
+            lines += table_lines(t, indent="")
+        out.append(replace(c, notes=tuple(lines)) if lines else c)
+    return tuple(out)
 
 
 def stated_temperatures(fm, temperatures=None) -> dict:

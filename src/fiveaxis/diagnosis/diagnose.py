@@ -94,7 +94,7 @@ class Diagnosis:
                 "outlier_rule": fj["outlier_rule"] + ("; outliers are left out of the decision" if fj["outliers"]
                                                       else ""),
                 "verdict": self.verdict, "missing_effect": self.missing_effect,
-                "added": [e.id for e in self.fit.problem.effects],
+                "added": [e.id for e in self.fit.problem.effects], "profiles": fj["profiles"],
                 "decision": self.decision, "n_candidates": self.n_candidates, "searched": self.searched,
                 "candidates": self.candidates, "forward": self.forward, "structure": self.structure,
                 "structure_test": self.structure_test, "already_in_model": self.absorbed,
@@ -308,9 +308,10 @@ def _columns(block, w, residual, free, fixed_vals, effects) -> np.ndarray:
 
 def _compress_block(block, w, residual, fold, free, fixed_vals, ids, folds):
     """One block of the row-block decision's pass: its columns compressed per fold (`decision.compress_block`)."""
-    if ids and isinstance(ids[0], str):          # on a Dask worker: the effects by id (one id may repeat: folds)
-        known = {i: e for i, e in zip(dict.fromkeys(ids), resolve_effects(block.prob.model, list(dict.fromkeys(ids))))}
-        effects = [known[i] for i in ids]
+    if ids and any(isinstance(i, str) for i in ids):   # on a Dask worker: the effects by id (one id may repeat: folds)
+        named = list(dict.fromkeys(i for i in ids if isinstance(i, str)))
+        known = dict(zip(named, resolve_effects(block.prob.model, named)))
+        effects = [known[i] if isinstance(i, str) else i for i in ids]
     else:
         effects = ids
     X = _columns(block, w, residual, free, fixed_vals, effects)
@@ -340,7 +341,8 @@ def diagnose_fit(res: FitResult, top: int = 10) -> "Diagnosis":
     else:
         pool.drop_block_columns()               # not needed past the screen; the pass holds blocks of its own
         rows = dc.CompressedRows(lay.c, dc.K_FOLDS)
-        ids = [e.id for e in effects] if isinstance(parallel.runner(), parallel.OnDask) else effects
+        ids = ([e if getattr(e, "at_targets", False) else e.id for e in effects]        # kT<n>: knots not in its id
+               if isinstance(parallel.runner(), parallel.OnDask) else effects)
         for part in design.map(partial(_compress_block, free=free, fixed_vals=prob.fixed_values, ids=ids,
                                        folds=dc.K_FOLDS), (prob.w, res.residual, fold)):
             rows.merge(*part)

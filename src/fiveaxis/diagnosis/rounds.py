@@ -32,5 +32,5 @@ def rounds(model, meas, effects, max_rounds: int = MAX_ROUNDS, top: int = 10, fi
             progress(k, max_rounds, dg, None if last else dg.candidates[0]["id"])
         if last:
             break
-        effects = effects + resolve_effects(model, [dg.candidates[0]["id"]])
+        effects = effects + resolve_effects(model, [dg.candidates[0]["id"]], poses=meas.poses)
     return out

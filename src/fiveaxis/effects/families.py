@@ -29,7 +29,8 @@ from .base import (TIME, TOOL, Effect, EffectContext, EffectRecord, Scale, chain
 from .custom import CustomEffect
 from .periodic import Periodic
 from .polynomial import DEGREES, Polynomial, vocabulary  # noqa: F401
-from .profile import Profile, Spacing, hat_basis, profile, profile_knots  # noqa: F401
+from .profile import (Profile, Spacing, Targets, at_targets, bind_targets, distinct, hat_basis,  # noqa: F401
+                      SAME_POSITION, measured_targets, profile, profile_knots, table_lines)
 from .reversal import Reversal, reversals  # noqa: F401
 from .temperature import Temperature
 from .thermal import Thermal
@@ -82,9 +83,10 @@ def explain(ident: str, toks) -> str:
     return f"'{ident}' is not an effect id (expected {expected(toks)})"
 
 
-def parse(effect_id: str, machine, errors, where: str = "effect"):
+def parse(effect_id: str, machine, errors, where: str = "effect", poses=None):
     """The effect of an id, checked against a model's error names and variables; InputError naming `where` if
-    bad. The parameter may be given by its ISO 230 name (`E_AX:x1` is `ex_x:x1`)."""
+    bad. The parameter may be given by its ISO 230 name (`E_AX:x1` is `ex_x:x1`). poses (n, nvar; mm, rad): the
+    measured positions, where an id takes its knots from them (a profile at the measured targets, `dx_x:xkT9`)."""
     effect_id = iso.canonical_effect(machine, effect_id, where=where)
     toks = tokens(machine)
     got = split(effect_id, toks)
@@ -94,4 +96,4 @@ def parse(effect_id: str, machine, errors, where: str = "effect"):
     if parts[0] != TOOL and parts[0] not in errors:
         raise InputError(f"{where}: '{effect_id}': unknown parameter '{parts[0]}' (expected an error name such as "
                          f"{', '.join(errors[:3])} ... or L for the tool length)")
-    return fam.from_id(parts, machine, errors, where)
+    return fam.from_id(bind_targets(machine, parts, poses, where), machine, errors, where)

@@ -239,7 +239,8 @@ class RowBlocks:
     def _specs(self):
         """What a worker needs of each block (the model and the effects by name: they are loaded there)."""
         for rows, pb in self.blocks():
-            yield replace(pb, model=None, effects=[e.id for e in pb.effects]), rows
+            yield replace(pb, model=None, effects=[e if getattr(e, "at_targets", False) else e.id   # its knots: not
+                                                   for e in pb.effects]), rows                  # in its id
 
     def map(self, fn, arrays=(), design: bool = True) -> list:
         """[fn(block, *(a[readings of the block] for a in arrays)) for every block], in order."""

@@ -69,6 +69,7 @@ from ..inputs import read_bytes, read_json
 from ..model.machine import MACHINES_DIR, MAX_MACHINE_BYTES, check_made_for, machine_from_text
 from ..outputs import write_text
 from ..model import error_model
+from ..model import iso_names
 
 FORMAT = "fiveaxis fitted model"
 VERSION = 1
@@ -296,6 +297,26 @@ def _directions(dirs, model, n) -> dict:
 def effect_of(rec: EffectRecord, model):
     """The effect of a record (`fiveaxis.effects.base.Effect`), rebuilt by its family."""
     return fx.family(rec.kind).from_record(rec, model)
+
+
+def profile_tables(fm: FittedModel, model) -> list[dict]:
+    """The model's per-position profiles as tables (`fiveaxis.effects.profile.Profile.table`), from the record's
+    knot values and the fit's covariance (posterior where the fit had priors): the same numbers as the fit's record
+    (`fiveaxis.estimation.result.profile_tables`); a profile whose knots the file's covariance does not name gets
+    no table."""
+    cov = fm.posterior if fm.posterior is not None else fm.covariance
+    idx = {n: i for i, n in enumerate(fm.parameter_names)}
+    out = []
+    for rec in fm.effects:
+        eff = effect_of(rec, model)
+        table = getattr(eff, "table", None)
+        if table is None or cov is None or not all(n in idx for n in rec.names):
+            continue
+        at = [idx[n] for n in rec.names]
+        t = table(model.machine, np.asarray(rec.values, float), np.asarray(cov, float)[np.ix_(at, at)])
+        t["iso"] = iso_names.name(model, rec.param)
+        out.append(t)
+    return out
 
 
 def errors_at(fm: FittedModel, model, poses, t=None, dirs=None, L=None, temps=None):

@@ -120,8 +120,9 @@ class Problem:
         return pb, rows
 
 
-def resolve_effects(model, ids, where="--add"):
-    """Effects from ids: the vocabulary (`ex_x:x1`) or custom effects of the machine file (by name)."""
+def resolve_effects(model, ids, where="--add", poses=None):
+    """Effects from ids: the vocabulary (`ex_x:x1`) or custom effects of the machine file (by name); poses (n, nvar;
+    mm, rad): the measured positions, for ids that take their knots from them (`dx_x:xkT9`)."""
     out, seen = [], set()
     for ident in ids:
         if not isinstance(ident, str):
@@ -136,7 +137,7 @@ def resolve_effects(model, ids, where="--add"):
         if ident in model.machine.effects:
             out.append(load_custom(model.machine, ident))
         else:
-            out.append(fx.parse(ident, model.machine, model.errors, where))
+            out.append(fx.parse(ident, model.machine, model.errors, where, poses))
     return out
 
 
@@ -153,7 +154,7 @@ def machine_effects(model) -> list[str]:
 def build(model, meas, added=(), fixed=None, prior=None) -> Problem:
     """The problem of a model with added effects (ids or effect records) and held parameters at the readings;
     prior: a `priors.PriorSpec` (None: every parameter's default prior)."""
-    effects = resolve_effects(model, list(added))
+    effects = resolve_effects(model, list(added), poses=meas.poses)
     obs = ob.build(meas, model.machine)
     tip, tool_dir = model.ideal_tool(meas.poses, meas.L)
     ctx = fx.context(model.machine, meas.poses, meas.t, meas.dirs, temps=meas.temps, references=meas.references)
@@ -179,7 +180,7 @@ def initial_weights(obs):
 def with_effects(prob: Problem, added=()) -> Problem:
     """The same readings and setups (arrays shared, not copied) with more effects (ids or records) and fresh
     weights: a problem to fit again, e.g. with the effects a diagnosis accepts."""
-    effects = list(prob.effects) + resolve_effects(prob.model, list(added))
+    effects = list(prob.effects) + resolve_effects(prob.model, list(added), poses=prob.meas.poses)
     names = list(prob.model.errors) + [nm for e in effects for nm in e.names] + list(prob.setups.names)
     w, known = initial_weights(prob.obs)
     return replace(prob, effects=effects, names=names, w=w, known=known,

@@ -312,6 +312,24 @@ def quantities(res: FitResult) -> list[dict]:
     return out
 
 
+def profile_tables(res: FitResult) -> list[dict]:
+    """The per-position profiles of the fit as tables (`fiveaxis.effects.profile.Profile.table`: position, error
+    relative to the datum knot and U (k = 2), also slope-removed), from the fit's values and covariance; each with
+    its ISO 230 name (`iso`)."""
+    prob = res.problem
+    idx = {n: i for i, n in enumerate(res.names)}
+    out = []
+    for eff in prob.effects:
+        table = getattr(eff, "table", None)
+        if table is None:
+            continue
+        at = [idx[n] for n in eff.names]
+        rec = table(prob.model.machine, np.asarray(res.theta)[at], np.asarray(res.cov)[np.ix_(at, at)])
+        rec["iso"] = iso.name(prob.model, eff.param)
+        out.append(rec)
+    return out
+
+
 def not_separable(res: FitResult) -> list[dict]:
     """The machine's parameters the data determine only together with an artefact's placement (an R-test's C-axis
     tilt against where the spheres lay): {"members", "members_iso", "setups"} per group; their values are the
@@ -419,6 +437,7 @@ def to_json(res: FitResult) -> dict:
                                  if set(c.terms) - set(prob.model.errors) - set(prob.setups.names) else {}))
                          for c in res.combinations],
         "quantities": quantities(res),
+        "profiles": profile_tables(res),
         "not_separable": not_separable(res),
         "prior": prior_summary(res),
         "print_rules": PRINT_RULES,

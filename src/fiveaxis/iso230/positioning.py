@@ -23,6 +23,10 @@ Axis figures:
     A fwd = max(x̄_i fwd + 2 s_i fwd) - min(x̄_i fwd - 2 s_i fwd), A bwd;
     A = max(x̄_i fwd + 2 s_i fwd, x̄_i bwd + 2 s_i bwd) - min(x̄_i fwd - 2 s_i fwd, x̄_i bwd - 2 s_i bwd)
                                                            accuracy
+Slope removed (what laser software offers; not the standard's figures, and stated as such): the least-squares line
+a + b P through the mean bidirectional deviations x̄_i at the targets is removed from every reading,
+x'_ij = x_ij - (a + b P_i), and the figures are computed again (B and R do not change: the line is the same in
+both directions); its slope b is given in um/m.
 The standard test: at least 5 targets per metre (and at least 5), 5 cycles, both directions, overrun before the
 reversal; fewer make a note, not an error. A data set that does not have the structure (fewer than 2 cycles of a
 target in a direction, one direction only, positions that do not repeat at targets, not one linear axis) is an
@@ -157,6 +161,21 @@ def evaluate(meas, model, tolerance: float = TARGET_TOL_MM) -> list[Positioning]
     return [_evaluate_group(meas, model, setup, idx, tolerance) for setup, idx in groups]
 
 
+def slope_removed(ev: Positioning) -> dict:
+    """The slope-removed view of an evaluation (see the module docstring): {"slope_um_per_m", "intercept_um",
+    "line" (in words), the figures of AXIS_KEYS and the per-target arrays of TARGET_KEYS in um (`E_um`, ...)}."""
+    P = np.asarray(ev.targets, float)
+    b, a = np.polyfit(P, ev.figures["mean_bidirectional"], 1)        # mm per mm, mm
+    line = a + b * P
+    f = figures([x - line[k] for k, x in enumerate(ev.x["fwd"])], [x - line[k] for k, x in enumerate(ev.x["bwd"])])
+    out = {"slope_um_per_m": float(b * 1e6), "intercept_um": float(a * 1e3),
+           "line": "the least-squares line through the mean bidirectional positional deviations at the targets, "
+                   "removed from every reading (not the figures of ISO 230-2, which keeps the slope)"}
+    out.update({f"{k}_um": 1e3 * f[k] for k in AXIS_KEYS})
+    out.update({f"{k}_um": [float(1e3 * v) for v in f[k]] for k in TARGET_KEYS})
+    return out
+
+
 def _evaluate_group(meas, model, setup, idx, tolerance) -> Positioning:
     machine = model.machine
     label = f"{meas.path}" + (f": setup {setup!r}" if setup is not None else "")
@@ -242,9 +261,10 @@ AXIS_KEYS = ("E_fwd", "E_bwd", "E", "M", "B", "B_mean", "R_fwd", "R_bwd", "R", "
 TARGET_KEYS = ("mean_fwd", "mean_bwd", "s_fwd", "s_bwd", "B_i", "R_i_fwd", "R_i_bwd", "R_i", "mean_bidirectional")
 
 
-def to_json(ev: Positioning, uncertainty: dict | None = None) -> dict:
+def to_json(ev: Positioning, uncertainty: dict | None = None, remove_slope: bool = False) -> dict:
     """The JSON record of an evaluation: figures named after the standard in um (`E_um`, `E_fwd_um`, ...), the
-    per-target arrays (`targets_mm`, `mean_fwd_um`, ...), the readings per cycle, and the uncertainty statement."""
+    per-target arrays (`targets_mm`, `mean_fwd_um`, ...), the readings per cycle, and the uncertainty statement;
+    with remove_slope, `slope_removed` beside them (slope_removed())."""
     f = ev.figures
     out = {"axis": ev.axis, "setup": ev.setup, "file": ev.path, "standard": "ISO 230-2:2014",
            "targets": int(len(ev.targets)), "cycles": ev.cycles, "measured_length_mm": ev.length_mm}
@@ -255,5 +275,7 @@ def to_json(ev: Positioning, uncertainty: dict | None = None) -> dict:
     out["rows"] = {dname: [[int(r) for r in a] for a in ev.rows[dname]] for dname in DIRECTIONS}
     if uncertainty is not None:
         out["uncertainty"] = uncertainty
+    if remove_slope:
+        out["slope_removed"] = slope_removed(ev)
     out["notes"] = list(ev.notes)
     return out

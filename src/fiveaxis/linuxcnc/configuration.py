@@ -98,6 +98,7 @@ class JointComp:
     nominal: np.ndarray
     forward: np.ndarray
     reverse: np.ndarray
+    notes: tuple = ()                    # comment lines after the numbers (LinuxCNC stops reading at the first)
 
     def trims(self, positions, dirs) -> np.ndarray:
         """The trim LinuxCNC adds at commanded positions (machine units) moving in dirs (+1 forward, -1 reverse):
@@ -107,8 +108,11 @@ class JointComp:
         return np.where(np.asarray(dirs) < 0, r, f)
 
     def text(self) -> str:
-        """The file: one `nominal forward reverse` line per point, numbers only (LinuxCNC stops at anything else)."""
-        return "".join(f"{n:.6f} {f:.9f} {r:.9f}\n" for n, f, r in zip(self.nominal, self.forward, self.reverse))
+        """The file: one `nominal forward reverse` line per point, numbers only (LinuxCNC stops at anything else);
+        then the notes as `#` comment lines, which LinuxCNC does not read (a comment before the numbers would end
+        its table at once)."""
+        return "".join(f"{n:.6f} {f:.9f} {r:.9f}\n" for n, f, r in zip(self.nominal, self.forward, self.reverse)) \
+            + "".join(f"# {line}\n" for line in self.notes)
 
 
 @dataclass

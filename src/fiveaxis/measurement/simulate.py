@@ -57,15 +57,16 @@ class Simulation:
                 **({"temperatures_degC": self.temperatures} if self.temperatures else {})}
 
 
-def parse_effect(spec: str, model):
+def parse_effect(spec: str, model, poses=None):
     """`ex_x:x1` (default size) or `ex_x:x1=2e-5` (the change at the end of the stroke, mm or rad; for a periodic
     effect `=a` or `=a,b`: sine and cosine amplitudes; for a profile `dx_x:xk100=v1,...,vk`: its value at each
-    knot); custom effects: `name=p1,p2,...`. Each family says what its values are (`simulated`)."""
+    knot; `dx_x:xkT9=...` at the 9 targets of the plan's poses (n, nvar; mm, rad)); custom effects:
+    `name=p1,p2,...`. Each family says what its values are (`simulated`)."""
     ident, _, value = spec.partition("=")
     if ident in model.machine.effects:
         eff = load_custom(model.machine, ident)
     else:
-        eff = fx.parse(ident, model.machine, model.errors, "--effect")
+        eff = fx.parse(ident, model.machine, model.errors, "--effect", poses)
     return eff, eff.simulated(_floats(spec, value) if value else None, model.machine, spec)
 
 
@@ -121,12 +122,12 @@ def simulate(model, effects=(), n: int = 1500, noise: float = 1e-3, seed: int = 
     _check(n, noise, noise_axis, duration, tool_lengths)
     rng = np.random.default_rng(seed)
     machine = model.machine
-    parsed = [parse_effect(e, model) if isinstance(e, str) else e for e in effects]
     if plan is None:
         opts = dict(options or {})
         opts.update({k: v for k, v in (("with_axis", with_axis), ("tool_lengths", tool_lengths))
                      if k in ins.get(instrument).plan_options})
         plan = ins.plan(instrument, model, n, rng, **opts)
+    parsed = [parse_effect(e, model, plan.poses) if isinstance(e, str) else e for e in effects]
     if setup_kind is not None:
         plan.setup_kind = {s: setup_kind for s in plan.setup_kind}
     m = plan.n

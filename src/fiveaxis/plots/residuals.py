@@ -86,7 +86,7 @@ def plot_residuals(dg, out_dir, name: str = "residuals.png") -> Path:
     after_text = ""
     if dg.candidates:
         top = dg.candidates[0]["id"]
-        res = F.fit(model, meas, list(prob.effects) + resolve_effects(model, [top]), fixed=prob.fixed)
+        res = F.fit(model, meas, list(prob.effects) + resolve_effects(model, [top], poses=meas.poses), fixed=prob.fixed)
         rms_after = res.rms_mm_without_outliers * 1000
         series.append(series_of(res, f"after adding {top} (RMS {rms_after:.3g} um)"))
         after_text = f", {rms_after:.3g} um after adding the top candidate {top}"

@@ -267,6 +267,16 @@ def _fit_result(results, rec: dict, lang: str):
         for q in f["quantities"]:
             _quantity(lst, f"{q['name']} ({q['iso']})" if q["iso"] else q["name"], lang, q["value"], q["unit"],
                       q["u_k2"], f"{q['quantity']}, relative to {q['relative_to']}")
+    for t in f.get("profiles", []):
+        pu, eu = t["position_unit"], t["error_unit"]
+        r = _el(results, "result")
+        _text(r, "name", f"Per-position profile {t['id']}" + (f" ({t['iso']})" if t.get("iso") else ""), lang)
+        _text(r, "description", f"{t['quantity']} at its {len(t['rows'])} knots, {t['datum']} (the datum knot); "
+                                f"value with its expanded uncertainty U (k = 2)", lang)
+        lst = _el(_el(r, "data"), "list")
+        for row in t["rows"]:
+            _quantity(lst, f"{t['axis']} = {row[f'position_{pu}']:g} {pu}", lang, row[f"error_{eu}"], eu,
+                      row[f"U_k2_{eu}"], f"{t['quantity']} {t['datum']}")
 
 
 _AXIS_FIGURES = ("E", "E_fwd", "E_bwd", "M", "B", "B_mean", "R", "R_fwd", "R_bwd", "A", "A_fwd", "A_bwd")

@@ -186,6 +186,7 @@ def _fit(rec: dict) -> str:
     if rows:
         out.append(_table(["parameter", "ISO 230", "meaning", "value", "U (k = 2)", "unit", "note"], rows,
                           "parameters", numeric=(3, 4)))
+    out += [_profile(rec, i) for i in range(len(f.get("profiles", [])))]
     if f.get("quantities"):
         out.append("<h3>Determined relative to what the data cannot separate</h3><p>Each quantity is determined "
                    "together with the others named beside it (the locations of the rotary axes relative to the "
@@ -243,6 +244,28 @@ def _fit(rec: dict) -> str:
                    + _table(["parameter", "parameter", "correlation r"], rows, "correlations", numeric=(2,)))
     out.append("</section>")
     return "".join(out)
+
+
+def _profile(rec: dict, i: int) -> str:
+    """A per-position profile as its table: position, error relative to the datum knot, U (k = 2), and the same
+    with the slope removed (the fit's `profiles` record)."""
+    t = rec["fit"]["profiles"][i]
+    pu, eu = t["position_unit"], t["error_unit"]
+    per = "m" if pu == "mm" else "deg"
+    iso = f" ({t['iso']})" if t.get("iso") else ""
+    shown = _e(_unit(eu))
+    head = (f'<h3>Per-position profile <span class="code">{_e(t["id"])}</span>{_e(iso)}</h3><p>{_e(t["quantity"])} '
+            f'at its {len(t["rows"])} knots, {_e(t["datum"])} (the datum knot), with its expanded uncertainty U '
+            f'(k = 2); slope removed: {_e(t["slope_removed"])}, slope {_v(rec, f"fit.profiles.{i}.slope_{eu}_per_{per}")}'
+            f' {shown}/{per} +- {_v(rec, f"fit.profiles.{i}.U_k2_slope_{eu}_per_{per}", ".2g")} {shown}/{per}'
+            f' (k = 2).</p>')
+    pre = f"fit.profiles.{i}.rows"
+    rows = [[_v(rec, f"{pre}.{r}.position_{pu}", ".6g"), _v(rec, f"{pre}.{r}.error_{eu}"),
+             _v(rec, f"{pre}.{r}.U_k2_{eu}", ".2g"), _v(rec, f"{pre}.{r}.error_slope_removed_{eu}"),
+             _v(rec, f"{pre}.{r}.U_k2_slope_removed_{eu}", ".2g")] for r in range(len(t["rows"]))]
+    return head + _table([f"{_e(t['axis'])} ({_e(pu)})", f"error ({shown})", f"U (k = 2, {shown})",
+                          f"slope removed ({shown})", f"U (k = 2, {shown})"], rows, f"profile-{i}",
+                         numeric=(0, 1, 2, 3, 4))
 
 
 def _residuals(rec: dict, figs: dict) -> str:

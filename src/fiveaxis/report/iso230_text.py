@@ -25,6 +25,10 @@ AXIS_FIGURES = (("E fwd", "E_fwd", "unidirectional systematic positional deviati
                 ("A", "A", "bidirectional accuracy"))
 
 
+#: The figures the slope changes (B and R do not: the line is removed from both directions alike).
+SLOPE_FIGURES = ("E_fwd", "E_bwd", "E", "M", "A_fwd", "A_bwd", "A")
+
+
 def _cells(values, width=8, digits=1) -> list[str]:
     return [f"{v:{width}.{digits}f}" if v is not None else " " * (width - 1) + "-" for v in values]
 
@@ -93,6 +97,14 @@ def positioning(rec: dict, per_block: int = 5) -> str:
     lines += [fig(*f) for f in AXIS_FIGURES]
     if uncertainty is not None:
         lines.append(f"  uncertainty: {uncertainty['statement']}")
+    flat = rec.get("slope_removed")
+    if flat:
+        lines += ["", f"  with the slope removed (not ISO 230-2's figures): slope {flat['slope_um_per_m']:.4g} um/m, "
+                      f"{flat['line']} (um)",
+                  f"  {'P_i (mm)':22s}" + " ".join(f"{p:9.3f}" for p in targets),
+                  f"  {'mean bidirectional':22s}" + " ".join(f"{v:9.2f}" for v in flat["mean_bidirectional_um"])]
+        lines += [f"  {name:9s} {flat[f'{key}_um']:9.2f}   {'':14s}   {what}, slope removed"
+                  for name, key, what in AXIS_FIGURES if key in SLOPE_FIGURES]
     for note in rec["notes"]:
         lines.append(f"  note: {note}")
     return "\n".join(lines)

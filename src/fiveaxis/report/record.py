@@ -154,11 +154,12 @@ def _fit_record(model, j: dict, groups_advice) -> dict:
         std, _ = people(c["std"], c["unit"])
         combos.append({"formula": c["formula"], "formula_iso": _iso_formula(model, c["terms"]), "value": value,
                        "u_k2": 2 * std, "unit": unit, "note": c.get("note", "")})
+    tabled = {n for t in j.get("profiles", []) for n in t["names"]}    # a profile's knots: in its table
     quantities = []
     for q in j["quantities"]:
         value, unit = people(q["value"], q["unit"])
         std, _ = people(q["std"], q["unit"])
-        if q.get("plausible") is False:
+        if q.get("plausible") is False or q["lead"] in tabled:
             continue
         quantities.append({"name": q["lead"], "iso": q["iso"], "quantity": q["quantity"],
                            "relative_to": q["relative_to"] or "nothing else (the other members' share is below "
@@ -182,6 +183,7 @@ def _fit_record(model, j: dict, groups_advice) -> dict:
             "reduced_chi2": j.get("reduced_chi2"), "effects": j["effects"],
             "effects_iso": [iso.name(model, e) for e in j["effects"]], "parameters": params,
             "combinations": combos, "quantities": quantities, "groups": groups,
+            "profiles": [dict(t) for t in j.get("profiles", [])],
             "correlations": [dict(c, a_iso=iso.name(model, c["a"]), b_iso=iso.name(model, c["b"]))
                              for c in j["correlations"]]}
 
@@ -275,7 +277,7 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
                 model.machine)
     if references:
         meas = meas.with_references(references)
-    effects = resolve_effects(model, machine_effects(model) + list(added))
+    effects = resolve_effects(model, machine_effects(model) + list(added), poses=meas.poses)
     design_size.check(model, meas, effects)
     preconditions.check(meas)
     diags = loop.rounds(model, meas, effects, max_rounds, top=TOP, fixed=dict(model.machine.fixed) or None)

@@ -61,6 +61,7 @@ def fit(j: dict) -> str:
     lines += _prior_line(j)
     lines += _determined_lines(j)
     lines += _combination_lines(j)
+    lines += profile_lines(j)
     held = [(n, p) for n, p in j["parameters"].items() if p.get("fixed")]
     if held:
         lines.append("[[Held fixed]]  (--fix or the machine file's [fit] fixed: not fitted)")
@@ -162,9 +163,27 @@ def _determined_lines(j: dict) -> list[str]:
     return ["[[Determined by this data]]  value +- expanded uncertainty (k = 2); ISO 230 names in brackets"] + rows
 
 
+def profile_lines(j: dict) -> list[str]:
+    """The per-position profiles of a fit's record as tables (position, error relative to the datum knot, U)."""
+    if not j.get("profiles"):
+        return []
+    out = ["[[Per-position profiles]]  error at each knot relative to the datum knot's, +- expanded uncertainty "
+           "(k = 2); also with the slope removed"]
+    for rec in j["profiles"]:
+        out += fx.table_lines(rec)
+    return out
+
+
+def _in_profiles(j: dict) -> set:
+    """The coefficient names of the fit's profiles (their tables state them)."""
+    return {n for rec in j.get("profiles", []) for n in rec["names"]}
+
+
 def _combination_lines(j: dict) -> list[str]:
-    """What the data determine only together: printed as the combination (formula = value +- U)."""
-    qs = [q for q in j["quantities"] if not q.get("alone")]
+    """What the data determine only together: printed as the combination (formula = value +- U); a profile's knots
+    are in its table instead."""
+    tabled = _in_profiles(j)
+    qs = [q for q in j["quantities"] if not q.get("alone") and not (tabled and q["lead"] in tabled)]
     if not qs:
         return []
     out = ["[[Determined by this data only as combinations]]  formula (ISO 230 names) = value +- expanded "
@@ -184,10 +203,13 @@ def _combination_lines(j: dict) -> list[str]:
 
 def _prior_decided_lines(j: dict) -> list[str]:
     """The parameters the data do not determine alone, at their posterior: the prior moved by the combinations."""
-    items = [(n, p) for n, p in j["parameters"].items() if not p["determined"] and "posterior" in p]
+    tabled = _in_profiles(j)                    # a profile's knots: in its table, relative to its datum knot
+    items = [(n, p) for n, p in j["parameters"].items() if not p["determined"] and "posterior" in p
+             and n not in tabled]
     weak = [(n, dict(p, posterior={"value": p["value"], "expanded_k2": p["expanded_k2"]}))
             for n, p in j["parameters"].items()
-            if p["determined"] and not p.get("fixed") and "prior" in p and p.get("data_share", 1.0) < 0.5]
+            if p["determined"] and not p.get("fixed") and "prior" in p and p.get("data_share", 1.0) < 0.5
+            and n not in tabled]
     items = weak + items
     if not items:
         return []
@@ -260,6 +282,7 @@ def diagnosis(j: dict) -> str:
         lines.append(f"    in row blocks of {b['block_poses']:,} poses: every candidate screened on a sample of "
                      f"{b['sample_poses']:,} poses, the best {b['scored_on_all_readings']} decided on all "
                      f"{j['readings']:,} readings (structure tests on the sample)")
+    lines += profile_lines(j)                   # the model's own profiles (--add), as tables
     lines.append("[[Candidates]] best first: RMS after adding it, share of the residual it explains")
     for k, c in enumerate(j["candidates"], 1):
         coef = "" if c["coefficient"] is None or not fx.family(c["family"]).RATE_SHOWN \
