@@ -86,6 +86,7 @@ def test_rtest_campaign_is_flagged_and_the_measurement_named(case):
         assert unc["tip_parts_rms_mm"]["undetermined"] < 1e-9 and PR.warnings(unc) == []
         assert unc["axis_parts_rms_rad"]["undetermined"] > 10 * unc["axis_parts_rms_rad"]["fit"]
         assert tip["after_table"]["range_k2"][1] < 0.1 * tip["before"]["range_k2"][0]
+        assert unc["prior_note"] == ""              # the data decide the tip's range: no line on the priors
         return
     assert len(fm.undetermined) >= 35
     assert true["tip_error_mm"]["after_table"]["rms"] > 5 * tip["after_table"]["predicted_rms"]
@@ -95,6 +96,12 @@ def test_rtest_campaign_is_flagged_and_the_measurement_named(case):
     assert best["determines_share"] > 0.99 and "tip readings over the whole workspace" in best["measurement"]
     text = "\n".join(T.compensation(summary(comp)).splitlines())
     assert "WARNING" in text and best["command"] in text
+    # the R-test cannot see most of the machine: the default class priors decide the upper end, and the text says
+    # so in one line, with their sizes and the measurement that would determine it
+    assert tip["after_table"]["setup_removed"]["prior_share"] > 0.9
+    note = unc["prior_note"]
+    assert "ISO-class prior's 20 um / 50 urad" in note and best["command"] in note and note in text
+    assert unc["lower_end"] in text and unc["upper_end"] in text
 
 
 def test_summary_carries_the_prediction(case, tmp_path):
@@ -132,7 +139,7 @@ def _setup_removed(e, tip, axis):
     A = np.zeros((len(tip), 3, 4))
     A[:, :, :3] = np.eye(3)
     A[:, :, 3] = np.cross(axis, tip)
-    x, *_ = np.linalg.lstsq(A.reshape(-1, 4), e.reshape(-1), rcond=None)
+    x, *_ = np.linalg.lstsq(A.reshape(-1, 4), e.reshape(len(A) * 3, -1), rcond=None)
     return e - (A.reshape(-1, 4) @ x).reshape(e.shape)
 
 
@@ -161,8 +168,10 @@ def test_the_part_setup_is_a_work_offset_and_a_rotation_about_the_table(machine,
 
 
 def test_the_k2_range_is_the_quantiles_of_the_rms_over_drawn_machines(case):
-    """The range (singular values, 20,000 draws) against machines drawn one by one from the same distribution,
-    their errors at the poses computed with the full Jacobian and the RMS taken plainly; raw and set-up removed."""
+    """The range (singular values, 20,000 draws) against machines drawn one by one from the same distributions,
+    their errors at the poses computed with the full Jacobian and the RMS taken plainly; raw and set-up removed: the
+    upper end from the posterior, the lower end from the posterior with the size priors taken as nearly exact zeros
+    (a fit with the default class priors has both)."""
     instrument, model, sim, fm, comp, _ = case
     rng = np.random.default_rng(5)
     q = model.machine.random_poses(300, rng)
@@ -171,9 +180,15 @@ def test_the_k2_range_is_the_quantiles_of_the_rms_over_drawn_machines(case):
     unc = PR.band(fm, model, q, None, L, {"stage": e}, {}, None)
     J, _ = PR.parameter_jacobians(fm, model, q, L)
     dev = PR.deviation(fm, model)
-    D = rng.multivariate_normal(dev["mean"], dev["cov"], size=4000, method="eigh")
-    drawn = e[None] + np.einsum("nkp,dp->dnk", J, D)                    # (draws, n, 3)
+    assert dev["lower_cov"] is not None
     tip = model.ideal_tool(q, L)[0]
+    for end, cov in ((1, dev["cov"]), (0, dev["lower_cov"])):
+        _drawn_quantile_matches(rng, instrument, unc, e, J, tip, dev["mean"], cov, end)
+
+
+def _drawn_quantile_matches(rng, instrument, unc, e, J, tip, mean, cov, end):
+    D = rng.multivariate_normal(mean, cov, size=4000, method="eigh")
+    drawn = e[None] + np.einsum("nkp,dp->dnk", J, D)                    # (draws, n, 3)
     z = rng.standard_normal(len(D))
 
     def workspace_rms(x):
@@ -182,16 +197,57 @@ def test_the_k2_range_is_the_quantiles_of_the_rms_over_drawn_machines(case):
         sq = np.sum(x ** 2, axis=2)
         return np.sqrt(np.clip(sq.mean(axis=1) + z * sq.std(axis=1) / math.sqrt(sq.shape[1]), 0, None))
     raw = workspace_rms(drawn)
-    sr = workspace_rms(np.array([_setup_removed(x, tip, np.array([0.0, 0.0, 1.0])) for x in drawn]))
+    sr = workspace_rms(_setup_removed(drawn.reshape(len(D), -1).T, tip, np.array([0.0, 0.0, 1.0])).T.reshape(
+        drawn.shape))
     for got, plain in ((unc["tip_error_mm"]["stage"], raw), (unc["tip_error_mm"]["stage"]["setup_removed"], sr)):
-        lo, hi = np.percentile(plain, [2.275, 97.725])
+        q = np.percentile(plain, [2.275, 97.725])
         spread = np.std(plain)
         print(f"{instrument}: range {1e3 * got['range_k2'][0]:.3f} to {1e3 * got['range_k2'][1]:.3f} um, drawn "
-              f"one by one {1e3 * lo:.3f} to {1e3 * hi:.3f} um")
-        assert abs(got["range_k2"][0] - lo) < 0.15 * spread
-        assert abs(got["range_k2"][1] - hi) < 0.15 * spread
-    assert unc["tip_error_mm"]["stage"]["expected_rms"] ** 2 == pytest.approx(np.mean(np.sum(drawn ** 2, axis=2)),
-                                                                              rel=0.02)
+              f"one by one ({'upper' if end else 'lower'} end's distribution) {1e3 * q[0]:.3f} to "
+              f"{1e3 * q[1]:.3f} um")
+        assert abs(got["range_k2"][end] - q[end]) < 0.15 * spread + 1e-9
+    if end:
+        assert unc["tip_error_mm"]["stage"]["expected_rms"] ** 2 == pytest.approx(
+            np.mean(np.sum(drawn ** 2, axis=2)), rel=0.02)
+
+
+def test_the_lower_end_takes_the_size_priors_as_zeros_closed_form():
+    """A small linear-Gaussian case: readings y = A theta + noise, 6 parameters of which the data see 3
+    combinations; priors: 4 size priors (0, s), 1 an earlier model's (a value: a measurement), 1 none. The lower
+    end's covariance (Woodbury on the posterior) against the closed form: the posterior with the size priors'
+    variances divided by c, written out with plain inverses of the information matrix."""
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(40, 3)) @ rng.normal(size=(3, 6))
+    A[:, 5] += rng.normal(size=40)                       # the prior-less parameter is seen by the data
+    sigma = 1e-3
+    sd = np.array([0.02, 0.02, 5e-5, 0.2, 0.0, 0.0])     # size priors; parameter 4: a model file's; 5: none
+    model_sd = 3e-3
+    prec = np.zeros(6)
+    prec[:4] = 1 / sd[:4] ** 2
+    prec[4] = 1 / model_sd ** 2
+    H = A.T @ A / sigma ** 2
+    P = np.linalg.inv(H + np.diag(prec))
+    c = PR.LOWER_C
+    closed = prec.copy()
+    closed[:4] *= c
+    P_lo = np.linalg.inv(H + np.diag(closed))
+    got = PR.lower_covariance(P, sd, c)
+    assert np.allclose(got, P_lo, rtol=1e-6, atol=1e-9 * np.max(np.abs(P_lo)))
+    # the size priors' directions the data cannot see shrink by c; what the data determine and the model file's
+    # prior stay: the determined combinations' variances move by far less than the undetermined ones'
+    assert np.trace(got) < 0.01 * np.trace(P)
+
+    class FM:                                            # which priors are sizes: value 0 and not a model file's
+        parameter_names = tuple("abcdef")
+        priors = {"a": {"value": 0.0, "std": 0.02, "source": "class (linear_motion_mm)"},
+                  "b": {"value": 0.0, "std": 0.02, "source": "command line (linear_motion_mm)"},
+                  "c": {"value": 0.0, "std": 5e-5, "source": "machine file (rotary_motion_rad)"},
+                  "d": {"value": 0.0, "std": 0.2, "source": "command line"},
+                  "e": {"value": 0.001, "std": 3e-3, "source": "model file m.json"},
+                  "f": {"value": 0.0, "std": None, "source": "none (an artefact's placement)"}}
+    assert np.array_equal(PR.size_priors(FM), sd)
+    FM.priors["d"] = {"value": 0.012, "std": 0.2, "source": "command line"}     # NAME=VALUE,SIZE: a measurement
+    assert PR.size_priors(FM)[3] == 0.0
 
 
 # -- issue 29's check: an R-test of 40 planned poses at controller resolution, the truth from the NumPy chain -------
@@ -293,13 +349,15 @@ def test_rtest_prediction_holds_on_the_true_machine(rtest_campaign):
     """Issue 29's check: the predicted k = 2 range (from the fit's posterior) of the workspace error after the table
     and the part's set-up contains the true machine's and is at most 3x as wide as it (or 2 um); raw and before, the
     ranges contain the truth too. On the machine with bad linear axes (default priors): nothing gets worse, and the
-    ranges after the part's set-up contain the truth."""
+    ranges contain the truth, raw and after the part's set-up (before the lower end took the size priors as zeros
+    the raw ranges lay above it: after the table 21 to 81 um, true 10.7 um). Its width is not asked (the issue asks
+    it of the good machine): what the R-test cannot see is the class priors' size there (measured 0.48 to 37.9 um
+    after the part's set-up, true 10.6 um)."""
     kind, comp, truth = rtest_campaign
     unc = comp.account["uncertainty"]
     assert "posterior" in unc["deviation_from"]
-    views = ("raw", "setup_removed") if kind == "good" else ("setup_removed",)
     for key in ("before", "after_table"):
-        for view in views:
+        for view in ("raw", "setup_removed"):
             rng, value, se = _print_band(kind, unc["tip_error_mm"], truth, key, view)
             assert _inside(rng, value, se), (key, view)
     lo, hi = unc["tip_error_mm"]["after_table"]["setup_removed"]["range_k2"]
@@ -307,23 +365,6 @@ def test_rtest_prediction_holds_on_the_true_machine(rtest_campaign):
     if kind == "good":
         assert hi - lo <= max(3 * after, 0.002)
     assert after <= before
-
-
-@pytest.mark.xfail(strict=True, reason="bad linear axes, default priors (20 um, 50 urad: the true machine's "
-                                       "constant errors are 0.5 um, 1 urad): what the R-test cannot see is sized "
-                                       "by the prior, the raw ranges' lower ends lie above the truth (after the "
-                                       "table: 21 to 81 um, true 10.7 um) and after the part's set-up the range "
-                                       "(3.5 to 37.9 um) is 3.2x as wide as the truth")
-def test_rtest_prediction_on_bad_axes_raw_and_width(rtest_campaign):
-    kind, comp, truth = rtest_campaign
-    if kind != "bad":
-        pytest.skip("the bad machine's case")
-    unc = comp.account["uncertainty"]["tip_error_mm"]
-    for key in ("before", "after_table"):
-        rng, value, se = _print_band(kind, unc, truth, key, "raw")
-        assert _inside(rng, value, se), (key, "raw")
-    lo, hi = unc["after_table"]["setup_removed"]["range_k2"]
-    assert hi - lo <= max(3 * truth["after_table"]["setup_removed"][0], 0.002)
 
 
 def test_rtest_compensation_leaves_a_quarter_on_good_linear_axes(rtest_campaign):

@@ -16,10 +16,19 @@ compensations move the axes by far less than J changes over). D's distribution (
   coefficients; the machine file's [errors] where there is none). With S = diag(s^2) and what the data determine
   known, D_u ~ N(m, B^T (B S^-1 B^T)^-1 B), m = -B^T (B S^-1 B^T)^-1 B S^-1 theta_fit (that scale's best value of
   the undetermined part, against the fit's minimum norm).
-`band` gives per stage a range for the true RMS over the workspace (k = 2: the 2.275 % and 97.725 % quantiles of
-the RMS over machines drawn from D's distribution; the RMS is a quadratic form of D, reduced once to the
-singular values of what D does at the poses, so 20,000 draws cost little), its expected value and the parts'
-shares, raw and with the part's set-up taken out (a work offset and the alignment about the table's axis:
+A size prior (the ISO 230 class default, the machine file's `[fit] prior` size, `--prior NAME=SIZE`: value 0 and a
+size) says "this error is at most about this large", never that the machine is that bad. So the range's two ends
+come from two distributions (`lower_covariance`): the upper end from the posterior P ("if what the data cannot see
+is as large as the priors allow"), the lower end from P_lo = (P^-1 + (c - 1) Lambda)^-1, Lambda the size priors'
+precision, c = LOWER_C ("if what the data cannot see were perfect": the size priors taken as nearly exact zeros, so
+only what the data determine spreads it). Priors with a value (an earlier model's, `--prior model.json`; a
+machine file's or the command line's VALUE,SIZE) are measurements and stay in P_lo unchanged; directions the data
+determine (posterior sd << prior sd) do not move. Without priors (the fallback above) both ends come from D's one
+distribution.
+`band` gives per stage a range for the true RMS over the workspace (k = 2: the 2.275 % quantile of the RMS over
+machines drawn from the lower end's distribution and the 97.725 % quantile over those drawn from D's; the RMS is a
+quadratic form of D, reduced once to the singular values of what D does at the poses, so 20,000 draws cost little),
+its expected value and the parts' shares, raw and with the part's set-up taken out (a work offset and the alignment about the table's axis:
 compensation.part_setup); tool-axis figures the same, raw (model estimates: the axis was measured only if the data
 had axis readings or several tool lengths). `determining` says which measurement would
 determine the undetermined part that matters: tip readings over the whole workspace at the model's tool, with a
@@ -47,6 +56,12 @@ CANDIDATE_POSES = 300
 DRAWS = 20_000
 DRAWS_SEED = 2
 K2_LOW = 0.02275
+#: The lower end takes the size priors' precision times this (their sd / 100: nearly exact zeros).
+LOWER_C = 1e4
+#: The priors are said to decide the upper end when this share of its mean square is theirs (`prior_share`).
+PRIOR_DECIDES = 0.5
+LOWER_END = "what the data determine alone (what they cannot see taken as zero)"
+UPPER_END = "the priors' sizes for what the data cannot see"
 
 
 def _units(fm, names) -> list[str]:
@@ -141,11 +156,45 @@ def _undetermined_covariance(fm, S):
     return m, B.T @ G @ B
 
 
+def size_priors(fm) -> np.ndarray:
+    """(p,) the sd (mm, rad) of each parameter's size prior (value 0 and a size: the ISO 230 class default, the machine
+    file's or the command line's size), 0 where it has none or its prior is a measurement (an earlier model's, a
+    VALUE,SIZE with a value)."""
+    priors = getattr(fm, "priors", None) or {}
+    out = np.zeros(len(fm.parameter_names))
+    for i, n in enumerate(fm.parameter_names):
+        pr = priors.get(n) or {}
+        sd, value, source = pr.get("std"), pr.get("value", 0.0), str(pr.get("source", ""))
+        if (sd is not None and math.isfinite(float(sd)) and float(sd) > 0 and float(value) == 0.0
+                and not source.startswith(("model file", "none"))):
+            out[i] = float(sd)
+    return out
+
+
+def lower_covariance(P, sd, c: float = LOWER_C) -> np.ndarray:
+    """P_lo = (P^-1 + (c - 1) Lambda)^-1 (mm, rad), Lambda = diag(1 / sd^2) over the parameters with a size prior
+    (sd > 0; the others none), without inverting P (Woodbury): with S = diag(sd) over those,
+    P_lo = P - P_:s S^-1 (S^-1 P_ss S^-1 + I / (c - 1))^-1 S^-1 P_s: (a solve of a dimensionless matrix whose
+    eigenvalues lie between 1 / (c - 1) and about 1)."""
+    P = (np.asarray(P, float) + np.asarray(P, float).T) / 2
+    idx = np.flatnonzero(np.asarray(sd) > 0)
+    if not len(idx):
+        return P
+    s = np.asarray(sd, float)[idx]
+    Ps = P[:, idx] / s                                        # P_:s S^-1
+    M = P[np.ix_(idx, idx)] / np.outer(s, s) + np.eye(len(idx)) / (c - 1.0)
+    L = np.linalg.cholesky((M + M.T) / 2)
+    X = np.linalg.solve(L, Ps.T)                              # L^-1 S^-1 P_s:
+    out = P - X.T @ X
+    return (out + out.T) / 2
+
+
 def deviation(fm, model) -> dict:
     """D = theta_true - theta_fit's distribution (see the module docstring): {"mean" (p,), "cov" (p, p) of the whole
     deviation, "undetermined_mean", "undetermined_cov" (its part along what the data cannot see: the posterior
     projected on the undetermined directions, or Sigma_u), "fit_cov" (the data's covariance C), "source" (text),
-    "scales" (mm, rad: the data-scale sizes of the fallback, else None)}."""
+    "scales" (mm, rad: the data-scale sizes of the fallback, else None), "lower_cov" (the lower end's covariance
+    P_lo: the size priors taken as nearly exact zeros; None when no size prior: the range's ends from "cov")}."""
     C = np.asarray(fm.covariance, float)
     p = len(fm.parameter_names)
     post = getattr(fm, "posterior", None)
@@ -156,13 +205,15 @@ def deviation(fm, model) -> dict:
         B = fm.undetermined_basis
         Pb = np.zeros((p, p)) if B is None or not len(B) else B.T @ B
         Su = Pb @ P @ Pb
+        sd = size_priors(fm)
         return {"mean": np.zeros(p), "cov": P, "undetermined_mean": np.zeros(p), "undetermined_cov": Su,
-                "fit_cov": C, "source": "the fit's posterior (the data and the priors)", "scales": None}
+                "fit_cov": C, "source": "the fit's posterior (the data and the priors)", "scales": None,
+                "lower_cov": lower_covariance(P, sd) if sd.any() else None, "size_sd": sd}
     scales = prior_scales(fm, model)
     m, Su = _undetermined_covariance(fm, np.array([scales[u] ** 2 for u in _units(fm, fm.parameter_names)]))
     return {"mean": m, "cov": Su + C, "undetermined_mean": m, "undetermined_cov": Su, "fit_cov": C,
             "source": f"the fit's covariance; what the data do not determine sized as {scales['from']}",
-            "scales": scales}
+            "scales": scales, "lower_cov": None, "size_sd": np.zeros(len(fm.parameter_names))}
 
 
 def _value(fm, name) -> float:
@@ -193,9 +244,11 @@ def band(fm, model, q, dirs, L, tip_stages: dict, axis_stages: dict, noise: floa
     """The prediction's uncertainty (see the module docstring) for stages {name: (n, 3) error at poses q} of the
     tool tip (mm) and of the tool axis (rad); {} when the model file carries no covariance (written before it).
 
-    Per stage: `predicted_rms` (the fitted model, as the account), `range_k2`: the 2.275 % and 97.725 % quantiles
-    of the true RMS over the poses (k = 2: 95.45 % of the machines the fit allows lie inside) for
-    D drawn from `deviation`, `expected_rms` (the root of its mean square). With noise (mm, one reading), the tip
+    Per stage: `predicted_rms` (the fitted model, as the account), `range_k2`: the 2.275 % quantile of the true RMS
+    over the poses for D drawn from the lower end's distribution (`deviation`'s lower_cov: what the data determine
+    alone; its cov without size priors) and the 97.725 % quantile for D drawn from its cov (k = 2), `prior_share`
+    (with size priors: the share of the upper end's mean square they decide), `expected_rms` (the root of the mean
+    square under cov). With noise (mm, one reading), the tip
     stages also get `remeasured_range_k2`: what a tip measurement of as many random poses over the workspace, with
     that noise per component, would read. The tip stages also with the part's set-up taken out (`setup_removed`, the same
     figures; compensation.part_setup)."""
@@ -209,19 +262,24 @@ def band(fm, model, q, dirs, L, tip_stages: dict, axis_stages: dict, noise: floa
     dev = deviation(fm, model)
     m, Su, C = dev["mean"], dev["undetermined_cov"], dev["fit_cov"]
     R = _factor(dev["cov"])
+    Rlo = None if dev["lower_cov"] is None else _factor(dev["lower_cov"])
     setup = SetupRemoval.at(model.machine, model.ideal_tool(q, Ls)[0])
-    draws = np.random.default_rng(DRAWS_SEED).standard_normal((DRAWS, 2 + R.shape[1]))
+    draws = np.random.default_rng(DRAWS_SEED).standard_normal(
+        (DRAWS, 2 + max(R.shape[1], 0 if Rlo is None else Rlo.shape[1])))
 
     def one(stages, D, project=None):
         shift = np.einsum("nkp,p->nk", D, m)
-        spread = _Spread(D.reshape(-1, D.shape[-1]) @ R, n, project, draws)
+        rows = D.reshape(-1, D.shape[-1])
+        spread = _Spread(rows @ R, n, project, draws)
+        lower = None if Rlo is None else _Spread(rows @ Rlo, n, project, draws)
         out = {}
         for name, e in stages.items():
             e = np.asarray(e, float)[:n]
             a = e + shift
             if project is not None:
                 e, a = project(e), project(a)
-            out[name] = {"predicted_rms": _rms_rows(e), **spread.quantiles(a.ravel(), noise if D is J else None)}
+            out[name] = {"predicted_rms": _rms_rows(e),
+                         **spread.quantiles(a.ravel(), noise if D is J else None, lower)}
         shift = shift if project is None else project(shift)
         Dp = D if project is None else project(D.reshape(-1, D.shape[-1])).reshape(D.shape)
         G = _gram(Dp)
@@ -234,9 +292,13 @@ def band(fm, model, q, dirs, L, tip_stages: dict, axis_stages: dict, noise: floa
         tip[name]["setup_removed"] = s
     tip_parts["setup_removed"] = tip_parts_sr
     axis, axis_parts = one(axis_stages, K)
+    found = determining(fm, model, J, Su, m, float(Ls[0]))
+    sizes = None if Rlo is None else _sizes(fm, dev["size_sd"])
+    ends = {} if Rlo is None else {"lower_end": LOWER_END, "upper_end": UPPER_END, "size_priors": sizes,
+                                   "prior_note": prior_note(tip, sizes, found.get("best"))}
     return {"poses": int(n), "coverage": "k = 2: the 2.275 % to 97.725 % quantiles of the true RMS (see range_k2)",
             "draws": DRAWS, "part_setup": setup.describe(),
-            "deviation_from": dev["source"],
+            "deviation_from": dev["source"], **ends,
             **({} if dev["scales"] is None else
                {"prior": {"linear_mm": dev["scales"]["mm"], "angular_rad": dev["scales"]["rad"],
                           "from": dev["scales"]["from"]}}),
@@ -245,7 +307,38 @@ def band(fm, model, q, dirs, L, tip_stages: dict, axis_stages: dict, noise: floa
             "axis_error_rad": axis, "axis_parts_rms_rad": axis_parts,
             "axis_note": "tool-axis figures are model estimates: the axis is determined only as far as the data "
                          "had tool-axis readings or several tool lengths (see axis_parts_rms_rad)",
-            "determining": determining(fm, model, J, Su, m, float(Ls[0]))}
+            "determining": found}
+
+
+def _sizes(fm, sd) -> dict:
+    """The size priors' most common sd per unit (mm, rad; None where none) and where they come from."""
+    units = _units(fm, fm.parameter_names)
+    out = {}
+    for u, key in (("mm", "linear_mm"), ("rad", "angular_rad")):
+        vals = [float(x) for x, un in zip(sd, units) if x > 0 and un == u]
+        out[key] = max(sorted(set(vals)), key=vals.count) if vals else None
+    srcs = {str((fm.priors.get(n) or {}).get("source", "")).split(" (")[0]
+            for n, x in zip(fm.parameter_names, sd) if x > 0}
+    out["from"] = ("the ISO 230 class defaults" if srcs == {"class"}
+                   else "the fit's size priors (" + ", ".join(sorted(srcs)) + ")")
+    return out
+
+
+def prior_note(tip: dict, sizes: dict, best: dict | None) -> str:
+    """One line when the size priors decide the upper end of the range after the table (the part's set-up taken
+    out; `prior_share` >= PRIOR_DECIDES), else "": whose sizes, and the measurement that would determine it."""
+    st = tip.get("after_table") or next(iter(tip.values()), {})
+    st = st.get("setup_removed", st)
+    share = st.get("prior_share")
+    if share is None or share < PRIOR_DECIDES:
+        return ""
+    size = " / ".join(x for x in (f"{1e3 * sizes['linear_mm']:.3g} um" if sizes.get("linear_mm") else "",
+                                  f"{1e6 * sizes['angular_rad']:.3g} urad" if sizes.get("angular_rad") else "")
+                      if x)
+    whose = "the ISO-class prior's" if sizes.get("from") == "the ISO 230 class defaults" else "the size priors'"
+    todo = f"; {best['measurement']} would determine it ({best['command']})" if best else ""
+    return (f"the range's upper end ({100 * share:.0f} % of its mean square) is {whose} {size} for what these data "
+            f"cannot see, not a measured value; its lower end is what the data determine alone{todo}")
 
 
 def local_upper(fm, model, q, L, e, per_cell: int, setup: bool = True) -> np.ndarray | None:
@@ -292,16 +385,29 @@ class _Spread:
         self.U, self.s, _ = np.linalg.svd(M, full_matrices=False)
         self.n, self.w, self.z = n, draws[:, 2:2 + len(self.s)], draws[:, :2]
 
-    def quantiles(self, a, noise: float | None = None) -> dict:
-        """For errors a (3n,) at the poses: `range_k2` of the RMS over the workspace, `expected_rms`, and with noise
-        (mm per reading component) `remeasured_range_k2`: what a tip measurement of as many random poses would read
-        (its own sample and its noise, 3 noise^2 in the mean square, added)."""
+    def mean_squares(self, a) -> tuple[np.ndarray, float]:
+        """(the drawn mean squares over the workspace of a + M z, the sampling error of the poses' mean square)."""
         b = self.s * (self.U.T @ a)
         sampling = float(np.std(np.sum(a.reshape(self.n, -1) ** 2, axis=1))) / math.sqrt(self.n)
-        ms = (a @ a + 2 * self.w @ b + self.w ** 2 @ self.s ** 2) / self.n + sampling * self.z[:, 0]
-        out = {"range_k2": _k2(ms), "expected_rms": math.sqrt((a @ a + self.s @ self.s) / self.n)}
+        return (a @ a + 2 * self.w @ b + self.w ** 2 @ self.s ** 2) / self.n + sampling * self.z[:, 0], sampling
+
+    def quantiles(self, a, noise: float | None = None, lower: "_Spread | None" = None) -> dict:
+        """For errors a (3n,) at the poses: `range_k2` of the RMS over the workspace, `expected_rms`, and with noise
+        (mm per reading component) `remeasured_range_k2`: what a tip measurement of as many random poses would read
+        (its own sample and its noise, 3 noise^2 in the mean square, added). With lower (the spread of the lower
+        end's distribution) the ranges' lower ends are its 2.275 % quantiles, and `prior_share` is the share of the
+        upper end's mean square the size priors decide (1 - (the lower distribution's 97.725 % quantile / the upper
+        end)^2)."""
+        ms, sampling = self.mean_squares(a)
+        ms_lo = ms if lower is None else lower.mean_squares(a)[0]
+        hi, lo = _k2(ms)[1], _k2(ms_lo)
+        out = {"range_k2": [min(lo[0], hi), hi], "expected_rms": math.sqrt((a @ a + self.s @ self.s) / self.n)}
+        if lower is not None:
+            out["prior_share"] = float(min(max(1.0 - lo[1] ** 2 / hi ** 2, 0.0), 1.0)) if hi > 0 else 0.0
         if noise:
-            out["remeasured_range_k2"] = _k2(ms + sampling * self.z[:, 1] + 3 * noise ** 2)
+            extra = sampling * self.z[:, 1] + 3 * noise ** 2
+            rhi, rlo = _k2(ms + extra)[1], _k2(ms_lo + extra)[0]
+            out["remeasured_range_k2"] = [min(rlo, rhi), rhi]
         return out
 
 

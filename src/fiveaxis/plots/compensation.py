@@ -16,7 +16,7 @@ import numpy as np
 
 from ..compensation.chain import actual_tool
 from ..compensation.correction import fitted_errors
-from ..compensation.prediction import local_upper
+from ..compensation.prediction import PRIOR_DECIDES, local_upper
 from ..compensation.table import compensated_commands
 from ..linuxcnc.configuration import linuxcnc_commands
 from .sensitivity import _pyplot, _save
@@ -64,9 +64,12 @@ def error_map(model, errors_fn, table, lc, path, cells: int = 41, fm=None, uncer
     def title(what, key, data):
         band = (tips.get(key) or {}).get("setup_removed") or {}
         head = f"{what} (fitted model): RMS {np.sqrt(np.mean(data ** 2)):.3g} um"
+        decided = band.get("prior_share", 0.0) >= PRIOR_DECIDES
         return head if "range_k2" not in band else (f"{head}\nthe true machine after the part's set-up:\n"
                                                     f"{1e3 * band['range_k2'][0]:.3g} to "
-                                                    f"{1e3 * band['range_k2'][1]:.3g} um RMS (k = 2)")
+                                                    f"{1e3 * band['range_k2'][1]:.3g} um RMS (k = 2)"
+                                                    + ("\n(upper end: the priors' sizes for what the data cannot "
+                                                       "see)" if decided else ""))
 
     panels = [("before", "before", rms_map(errors(q)))]
     if lc is not None:

@@ -76,7 +76,9 @@ def _uncertainty(unc: dict) -> dict:
                                                 parts.get("undetermined_best_value", 0.0))),
             "directions": int(unc.get("undetermined_directions", 0)),
             "prior": dict(unc.get("prior") or {}), "measurement": str(best.get("measurement", "")),
-            "command": str(best.get("command", "")), "axis_note": str(unc.get("axis_note", ""))}
+            "command": str(best.get("command", "")), "axis_note": str(unc.get("axis_note", "")),
+            "lower_end": str(unc.get("lower_end", "")), "upper_end": str(unc.get("upper_end", "")),
+            "prior_note": str(unc.get("prior_note", ""))}
 
 
 #: The stages of summary.json's predicted_tip_error_mm the report shows, in order, with their labels.

@@ -482,7 +482,11 @@ def _compensation(rec: dict, figs: dict) -> str:
                    f"{_v(rec, 'compensation.uncertainty.prior.linear_mm', '.3g', 1e3)} \u00b5m, "
                    f"{_v(rec, 'compensation.uncertainty.prior.angular_rad', '.3g', 1e6)} \u00b5rad)"
                    if "linear_mm" in prior and "angular_rad" in prior else "")
-                + ". The last column is the range of the true RMS error.")
+                + ". The last column is the range of the true RMS error"
+                + (f" (its lower end: {_e(u['lower_end'])}; its upper end: {_e(u['upper_end'])})"
+                   if u.get("lower_end") else "") + ".")
+        if u.get("prior_note"):
+            text += f" {_e(u['prior_note'][0].upper() + u['prior_note'][1:])}."
         if u.get("measurement"):
             text += (f" The measurement that would determine the undetermined part: {_e(u['measurement'])} "
                      f"(<span class=\"code\">{_e(u['command'])}</span>).")

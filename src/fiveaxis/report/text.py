@@ -520,6 +520,10 @@ def prediction_lines(unc: dict, warnings: list) -> list[str]:
     if setup:
         lines.append(f"    (the part's set-up: a work offset and the alignment about {setup['axis']}, fitted over the "
                      f"workspace: what probing the part sets anyway)")
+    if unc.get("lower_end"):
+        lines.append(f"    (lower end: {unc['lower_end']}; upper end: {unc['upper_end']})")
+    if unc.get("prior_note"):
+        lines.append(f"  {unc['prior_note']}")
     noise = unc.get("noise_mm")
     reads = [f"{STAGE_LABELS.get(k, k)} {1e3 * s['remeasured_range_k2'][0]:.3g} to "
              f"{1e3 * s['remeasured_range_k2'][1]:.3g}" for k, s in unc["tip_error_mm"].items()
