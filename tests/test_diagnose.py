@@ -114,3 +114,24 @@ def test_candidate_columns_match_finite_differences(model):
         fd = (prob.exact(theta) - prob.exact(-theta)) / (2 * h)
         assert np.allclose(fd, A[:, 41 + k], rtol=1e-5, atol=1e-7 * np.abs(A[:, 41 + k]).max())
         assert isinstance(eff, fx.Effect)
+
+
+def test_decision_columns_from_given_blocks_equal_built(model):
+    """The decision's columns with the leading candidates' columns given (the screen's pool over the whole data)
+    are those built from the effects: the same numbers, bit for bit; given blocks that split an effect are refused."""
+    from fiveaxis.diagnosis import candidates as cd
+    from fiveaxis.effects import families as fx
+    from fiveaxis.estimation.design import InMemory
+    meas = simulate(model, [], n=40, noise=0.0, seed=26).meas
+    prob = build(model, meas, [])
+    block = InMemory(prob).block
+    effects = fx.Polynomial.candidates(model.machine, model.errors, prob.ctx, set())[:5]
+    w = np.linspace(0.5, 2.0, prob.obs.m)
+    r = np.arange(prob.obs.m, dtype=float)
+    free = np.ones(block.A.shape[1], bool)
+    built = D._columns(block, w, r, free, np.zeros(0), effects)
+    given = [cd.candidate_matrix(block, w, effects[:2]), cd.candidate_matrix(block, w, effects[2:3])]
+    assert not np.array_equal(built[:, -7:-2], 0)
+    assert np.array_equal(D._columns(block, w, r, free, np.zeros(0), effects, given=given), built)
+    with pytest.raises(ValueError):
+        D._given_effects([effects[0]] * 2, 3)

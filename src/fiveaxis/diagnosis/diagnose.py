@@ -292,18 +292,38 @@ def _train_sets(sc: Screen, fold: np.ndarray, rank: int, folds: int):
     return out
 
 
-def _columns(block, w, residual, free, fixed_vals, effects) -> np.ndarray:
-    """The decision's columns on a block's readings: [A w (free) | candidates' | r w | d w]."""
+def _columns(block, w, residual, free, fixed_vals, effects, given=None) -> np.ndarray:
+    """The decision's columns on a block's readings: [A w (free) | candidates' | r w | d w]. given: blocks of the
+    weighted columns of the first effects on these readings with these weights, already built (the screen's pool
+    over the whole data: the same numbers), copied instead of built again."""
     A = block.A
     d = block.prob.d - A[:, ~free] @ fixed_vals if (~free).any() else block.prob.d
     p = int(free.sum())
     X = np.empty((len(w), p + sum(len(e.names) for e in effects) + 2))     # filled in place: no copies
     np.multiply(A if free.all() else A[:, free], w[:, None], out=X[:, :p])
-    if effects:
-        cd.candidate_matrix(block, w, effects, out=X[:, p:-2])
+    k0 = 0
+    for part in given or ():
+        X[:, p + k0:p + k0 + part.shape[1]] = part
+        k0 += part.shape[1]
+    e0 = len(_given_effects(effects, k0)) if k0 else 0
+    if effects[e0:]:
+        cd.candidate_matrix(block, w, effects[e0:], out=X[:, p + k0:-2])
     np.multiply(residual, w, out=X[:, -2])
     np.multiply(d, w, out=X[:, -1])
     return X
+
+
+def _given_effects(effects, k: int) -> list:
+    """The leading effects whose coefficients fill k columns."""
+    at, out = 0, []
+    for e in effects:
+        if at >= k:
+            break
+        at += len(e.names)
+        out.append(e)
+    if at != k:
+        raise ValueError(f"{k} given columns do not end at an effect's last coefficient")
+    return out
 
 
 def _compress_block(block, w, residual, fold, free, fixed_vals, ids, folds):
@@ -336,7 +356,8 @@ def diagnose_fit(res: FitResult, top: int = 10) -> "Diagnosis":
     effects = [e for e, _, _ in items]
     fold = cd.folds_of_readings(prob, dc.K_FOLDS)
     if sc.whole:
-        X = _columns(sc.block, prob.w, res.residual, free, prob.fixed_values, effects)
+        X = _columns(sc.block, prob.w, res.residual, free, prob.fixed_values, effects,
+                     given=[pool.G, pool.Gp, *pool.custom_cols, *pool.profile_cols])   # `_items`: they lead
         rows = dc.RawRows(X, fold, prob.obs.group == ob.LENGTH, prob.w, dc.K_FOLDS)
     else:
         pool.drop_block_columns()               # not needed past the screen; the pass holds blocks of its own
