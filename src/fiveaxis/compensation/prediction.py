@@ -251,7 +251,9 @@ def band(fm, model, q, dirs, L, tip_stages: dict, axis_stages: dict, noise: floa
     square under cov). With noise (mm, one reading), the tip
     stages also get `remeasured_range_k2`: what a tip measurement of as many random poses over the workspace, with
     that noise per component, would read. The tip stages also with the part's set-up taken out (`setup_removed`, the same
-    figures; compensation.part_setup)."""
+    figures; compensation.part_setup). Stages after `before` also get `ms_change_k2_mm2`: the k = 2 range of the
+    change of their mean square from `before`'s on the same drawn machine (what `warnings` judges "no better" on),
+    and with size priors `ms_change_data_k2_mm2`: the same from the lower end's distribution (what the data see)."""
     if fm.covariance is None or not len(fm.parameter_names):
         return {}
     q = np.asarray(q, float)[:MAX_POSES]
@@ -272,14 +274,21 @@ def band(fm, model, q, dirs, L, tip_stages: dict, axis_stages: dict, noise: floa
         rows = D.reshape(-1, D.shape[-1])
         spread = _Spread(rows @ R, n, project, draws)
         lower = None if Rlo is None else _Spread(rows @ Rlo, n, project, draws)
-        out = {}
+        out, shifted = {}, {}
         for name, e in stages.items():
             e = np.asarray(e, float)[:n]
             a = e + shift
             if project is not None:
                 e, a = project(e), project(a)
+            shifted[name] = a.ravel()
             out[name] = {"predicted_rms": _rms_rows(e),
                          **spread.quantiles(a.ravel(), noise if D is J else None, lower)}
+        if "before" in shifted:
+            for name, a in shifted.items():
+                if name != "before":
+                    out[name]["ms_change_k2_mm2"] = spread.change(a, shifted["before"])
+                    if lower is not None:
+                        out[name]["ms_change_data_k2_mm2"] = lower.change(a, shifted["before"])
         shift = shift if project is None else project(shift)
         Dp = D if project is None else project(D.reshape(-1, D.shape[-1])).reshape(D.shape)
         G = _gram(Dp)
@@ -384,6 +393,21 @@ class _Spread:
             M = project(M)
         self.U, self.s, _ = np.linalg.svd(M, full_matrices=False)
         self.n, self.w, self.z = n, draws[:, 2:2 + len(self.s)], draws[:, :2]
+
+    def change(self, a, b) -> list[float]:
+        """The k = 2 range (mm^2) of the change of the mean square over the workspace from errors b to errors a
+        (3n,) on the same machine: (|a|^2 - |b|^2 + 2 (a - b) . M z) / n, the quadratic terms cancelling, so normal
+        with sd 2 |s U^T (a - b)| / n, and the poses' sampling error of the per-pose change (sd / sqrt(n)) beside it.
+        Its upper end below 0: the stage makes the machine better whatever the fit allows (k = 2)."""
+        mean = (a @ a - b @ b) / self.n
+        d = a - b
+        sd = 2.0 * float(np.linalg.norm(self.s * (self.U.T @ d))) / self.n
+        per_pose = np.sum(a.reshape(self.n, -1) ** 2, axis=1) - np.sum(b.reshape(self.n, -1) ** 2, axis=1)
+        # the per-pose change's spread over the poses, its machine part 2 d_i . (M z)_i included (expected over z)
+        g = np.einsum("nkr,nk->nr", (self.U * self.s).reshape(self.n, -1, len(self.s)), d.reshape(self.n, -1))
+        spread = float(np.var(per_pose)) + 4.0 * float(np.mean(np.sum(g ** 2, axis=1)))
+        sd = math.hypot(sd, math.sqrt(spread / self.n))
+        return [float(mean - 2 * sd), float(mean + 2 * sd)]
 
     def mean_squares(self, a) -> tuple[np.ndarray, float]:
         """(the drawn mean squares over the workspace of a + M z, the sampling error of the poses' mean square)."""
@@ -491,7 +515,22 @@ def warnings(unc: dict) -> list[str]:
     before = tip.get("before", {}).get("range_k2")
     for key in ("after_table", "after_kinematics_module", "after_linuxcnc"):
         after = tip.get(key, {}).get("range_k2")
-        if before and after and after[1] > before[0] and after[0] > 0.5 * before[0]:
+        change = tip.get(key, {}).get("ms_change_k2_mm2")
+        data = tip.get(key, {}).get("ms_change_data_k2_mm2", change)
+        if change is not None:              # the same machine before and after: judged on the change itself
+            span = (f"the change of the mean square tool-tip error over the workspace after the part's set-up, "
+                    f"k = 2: {1e6 * change[0]:+.3g} to {1e6 * change[1]:+.3g} um^2")
+            if data[1] > 0:
+                out.append(f"{STAGE_LABELS[key]} the machine may be no better than before ({span}): do not compensate "
+                           f"with this model{todo}")
+                break
+            if change[1] > 0:
+                out.append(f"{STAGE_LABELS[key]} the machine is better where these data see it ({1e6 * data[0]:+.3g} "
+                           f"to {1e6 * data[1]:+.3g} um^2 with what they cannot see taken as zero), but over the "
+                           f"whole workspace that depends on what they cannot see ({span}){todo}")
+                break
+            continue
+        if before and after and after[1] > before[0] and after[0] > 0.5 * before[0]:     # a record without it
             out.append(f"{STAGE_LABELS[key]} the machine may be no better than before ({1e3 * after[0]:.3g} to "
                        f"{1e3 * after[1]:.3g} um against {1e3 * before[0]:.3g} to {1e3 * before[1]:.3g} um RMS after "
                        f"the part's set-up): do not compensate with this model{todo}")
