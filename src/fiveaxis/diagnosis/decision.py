@@ -274,7 +274,7 @@ def decide(rows, lay: Layout, prior: cd.Prior, idf, known: bool, top: int, descr
         extra_i = [c for k in accepted[:i + 1] for c in lay.cols[k]]
         x, _ = fit_set(Z, Q, M, extra_i, lay.ir, lay.p)
         forward.append({"id": lay.effects[accepted[i]].id, "rms_mm": rows.rms_mm(base + extra_i, x, lay.ir)})
-    listed = listing(Z, Q, M, rw, rss, lay, main, d, gains, accepted, rows, top, describe, head_key)
+    listed = listing(Z, Q, M, rw, rss, lay, main, d, gains, accepted, rows, top, describe, head_key, scorer)
     out = Outcome(decision, forward, accepted, listed, coefs, set_cols, rss, scored=d)
     if not known:
         n_coef = sum(len(lay.cols[k]) for k in accepted)
@@ -578,9 +578,10 @@ def _same_space(A: np.ndarray, B: np.ndarray) -> bool:
 
 
 def listing(Z, Q, M, rw, rss, lay: Layout, main, d: dict, gains: dict, accepted, rows, top, describe,
-            head_key) -> list:
+            head_key, scorer=None) -> list:
     """The candidates best first (the accepted set first, in its order), aliases collapsed into one entry headed
-    by the most plausible physical cause."""
+    by the most plausible physical cause. scorer: the `_Scorer` of main on Z and Q when the caller has it (its
+    one-column candidates' columns, squared norms and Q^T G: not gathered and multiplied again)."""
     order = list(accepted) + _best_first([k for k in main if k not in accepted], d)
     bases = {}
     width = {k: len(lay.cols[k]) for k in main}
@@ -594,7 +595,10 @@ def listing(Z, Q, M, rw, rss, lay: Layout, main, d: dict, gains: dict, accepted,
         return bases[k]
 
     singles = [k for k in main if width[k] == 1]
-    cands = cd.project(Q, _columns(Z, lay, singles), rw, [lay.effects[k] for k in singles]) if singles else None
+    if singles and scorer is not None and scorer.singles == singles and scorer.Q is Q:
+        cands = cd.project(Q, scorer.G, rw, [lay.effects[k] for k in singles], g2=scorer.g2, QtG=scorer.QtG)
+    else:
+        cands = cd.project(Q, _columns(Z, lay, singles), rw, [lay.effects[k] for k in singles]) if singles else None
     at = {k: i for i, k in enumerate(singles)}
     listed, seen = [], set()
     base = list(range(lay.p))
