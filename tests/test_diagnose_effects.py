@@ -135,6 +135,24 @@ def test_search_gains_are_the_drop_of_an_actual_refit(model, periodic_set):
         assert f.gain == pytest.approx(drop, rel=1e-6)
 
 
+def test_period_search_on_two_threads_gives_the_one_thread_answer(model, periodic_set, monkeypatch):
+    """The frequency grid's chunks on the runner's threads: periods and gains bit-identical to one thread (each
+    chunk's arithmetic is the same; only where it runs changes), every parameter of the band searched."""
+    from fiveaxis import parallel
+    from fiveaxis.estimation.priors import PriorSpec
+    res = F.fit(model, periodic_set.meas, refine=False, robust=False, prior=PriorSpec(off=True))
+    prob = res.problem
+    Q, _ = basis_map(res.idf, res.design.block.A[:, prob.free] * prob.w[:, None])
+    params, P = param_columns(res.design.block, prob.w)
+    sums = es.row_sums(params, P, res.residual * prob.w, Q, prob.obs.row, prob.meas.n)
+    bands = [es.band("x", prob.ctx.raw("x"), sums.live)]
+    runs = []
+    for n in ("1", "2"):
+        monkeypatch.setenv(parallel.THREADS_ENV, n)
+        runs.append([(f.effect.id, f.gain) for f in es.periodic(sums, bands)])
+    assert len(runs[0]) > 10 and runs[0] == runs[1]
+
+
 def test_period_digits_keep_the_phase_over_the_span():
     assert es.period_digits(800, 5000) == 3
     assert es.period_digits(10.0037, 5000) == 5

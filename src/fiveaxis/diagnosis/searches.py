@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import parallel
 from ..effects import families as fx
 from scipy.sparse import csr_matrix
 
@@ -211,20 +212,31 @@ def _phase(values, f):
     return np.exp(2j * math.pi * np.outer(values, f))
 
 
-def _grid_phases(values, f_min, df, K, chunk=512):
-    """e^(i 2 pi (f_min + k df) v) for k in [0, K), in chunks (n, <= chunk), by products of a coarse and a fine
-    factor (few complex exponentials)."""
+def _grid_starts(K, chunk=512):
+    """The first coarse index of each chunk of `_grid_phase_chunk` for a grid of K frequencies."""
+    fine = int(math.ceil(math.sqrt(K)))
+    return range(0, int(math.ceil(K / fine)), max(1, chunk // fine))
+
+
+def _grid_phase_chunk(values, f_min, df, K, a0, chunk=512):
+    """(k0, e^(i 2 pi (f_min + k df) v)) for the chunk (n, <= chunk) of k in [0, K) starting at coarse index a0,
+    by products of a coarse and a fine factor (few complex exponentials)."""
     fine = int(math.ceil(math.sqrt(K)))
     F = np.exp(2j * math.pi * np.outer(values, np.arange(fine) * df))            # (n, fine)
     per = max(1, chunk // fine)
     coarse_count = int(math.ceil(K / fine))
-    for a0 in range(0, coarse_count, per):
-        a = np.arange(a0, min(coarse_count, a0 + per))
-        C = np.exp(2j * math.pi * np.outer(values, f_min + a * fine * df))      # (n, len(a))
-        E = (C[:, :, None] * F[:, None, :]).reshape(len(values), -1)
-        k0 = a0 * fine
-        k1 = min(K, k0 + E.shape[1])
-        yield k0, E[:, :k1 - k0]
+    a = np.arange(a0, min(coarse_count, a0 + per))
+    C = np.exp(2j * math.pi * np.outer(values, f_min + a * fine * df))          # (n, len(a))
+    E = (C[:, :, None] * F[:, None, :]).reshape(len(values), -1)
+    k0 = a0 * fine
+    k1 = min(K, k0 + E.shape[1])
+    return k0, E[:, :k1 - k0]
+
+
+def _chunk_gains(values, f_min, df, K, a0, W1, W2, T):
+    """(k0, Lomb-Scargle gains (np, chunk)) of one chunk of the frequency grid (a task of `periodic`)."""
+    k0, E = _grid_phase_chunk(values, f_min, df, K, a0)
+    return k0, _approx_gains(W1, W2, T, E)
 
 
 @dataclass
@@ -253,8 +265,10 @@ def periodic(sums: RowSums, bands: list, pairs=None) -> list[Found]:
         W1, W2 = sums.W1[live][:, ucols], sums.W2[live][:, ucols]
         T = W2.sum(axis=0)
         gains = np.empty((len(ucols), b.K))
-        for k0, E in _grid_phases(v, b.f_min, b.df, b.K):
-            gains[:, k0:k0 + E.shape[1]] = _approx_gains(W1, W2, T, E)
+        # The grid's chunks on the runner's threads (each chunk's arithmetic as in one thread: same gains).
+        chunks = ((v, b.f_min, b.df, b.K, a0, W1, W2, T) for a0 in _grid_starts(b.K))
+        for k0, g in parallel.Local().map(_chunk_gains, chunks):
+            gains[:, k0:k0 + g.shape[1]] = g
         peaks = _top_peaks(gains, PEAKS)                                  # (len(ucols), PEAKS) grid indices
         f = b.f_min + (peaks + _vertex(gains, peaks)) * b.df                 # parabolic interpolation
         f = np.clip(f, 0.5 * b.f_min, None).ravel()
