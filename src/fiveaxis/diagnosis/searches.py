@@ -149,6 +149,21 @@ def _approx_gains(W1, W2, T, E):
     return two_column_gain(bc, bs, 0.5 * (TT + c2), 0.5 * (TT - c2), 0.5 * s2, TT)
 
 
+def _refine(sub, cols, v, f, steps, exact: bool) -> np.ndarray:
+    """Frequencies f (one per entry of cols) moved, step by step, to the best of 5 offsets (-2..2 steps) by the
+    2-column gain of their parameter's sums (sub; exact: projected off the model's columns, else approximate)."""
+    base = _phase(v, f)                                                     # (n, pairs)
+    for step in steps:
+        offs = np.arange(-2, 3) * step
+        O = _phase(v, offs)
+        E = (base[:, :, None] * O[:, None, :]).reshape(len(v), -1)
+        g = _pair_gains(sub, np.repeat(cols, len(offs)), E, exact=exact).reshape(len(f), len(offs))
+        j = np.argmax(g, axis=1)
+        f = f + offs[j]
+        base = base * O[:, j]
+    return f
+
+
 def _pair_gains(sums, cols, E, exact: bool):
     """Gains of 2-column blocks a_p [cos, sin] for pairs: cols (k,) parameter indices, E (n, k) complex.
 
@@ -274,15 +289,7 @@ def periodic(sums: RowSums, bands: list, pairs=None) -> list[Found]:
         f = np.clip(f, 0.5 * b.f_min, None).ravel()
         c_idx = np.repeat(ucols, peaks.shape[1])
         sub = _LiveSums(sums, live)
-        base = _phase(v, f)                                                 # (n, pairs)
-        for step in (b.df / 8, b.df / 32):                                # refine on the approximate gain
-            offs = np.arange(-2, 3) * step
-            O = _phase(v, offs)
-            E = (base[:, :, None] * O[:, None, :]).reshape(len(v), -1)
-            g = _pair_gains(sub, np.repeat(c_idx, len(offs)), E, exact=False).reshape(len(f), len(offs))
-            j = np.argmax(g, axis=1)
-            f = f + offs[j]
-            base = base * O[:, j]
+        f = _refine(sub, c_idx, v, f, (b.df / 8, b.df / 32), exact=False)   # refine on the approximate gain
         P = np.array([rounded(1.0 / x, period_digits(1.0 / x, b.span)) for x in f])
         exact = _pair_gains(sub, c_idx, _phase(v, 1.0 / P), exact=True).reshape(len(ucols), -1)
         P = P.reshape(len(ucols), -1)
@@ -293,15 +300,7 @@ def periodic(sums: RowSums, bands: list, pairs=None) -> list[Found]:
         rows = np.argsort(-np.maximum(gains.max(axis=1), exact.max(axis=1)))[:REFINE_EXACT]
         fr = f.reshape(len(ucols), -1)[rows].ravel()
         cr = np.repeat(ucols[rows], P.shape[1])
-        base = _phase(v, fr)
-        for step in (b.df / 2, b.df / 8, b.df / 32):
-            offs = np.arange(-2, 3) * step
-            O = _phase(v, offs)
-            E = (base[:, :, None] * O[:, None, :]).reshape(len(v), -1)
-            g = _pair_gains(sub, np.repeat(cr, len(offs)), E, exact=True).reshape(len(fr), len(offs))
-            j = np.argmax(g, axis=1)
-            fr = fr + offs[j]
-            base = base * O[:, j]
+        fr = _refine(sub, cr, v, fr, (b.df / 2, b.df / 8, b.df / 32), exact=True)
         Pr = np.array([rounded(1.0 / x, period_digits(1.0 / x, b.span)) for x in fr])
         gr = _pair_gains(sub, cr, _phase(v, 1.0 / Pr), exact=True).reshape(len(rows), -1)
         Pr = Pr.reshape(len(rows), -1)
