@@ -17,7 +17,8 @@ import numpy as np
 
 from ..effects.base import TOOL
 from ..effects.families import family
-from ..effects.temperature import RATE_BOUNDS as THERMAL, rate_beyond  # noqa: F401 (THERMAL: the bounds, here too)
+from ..effects.temperature import RATE_BOUNDS as THERMAL  # noqa: F401 (the bounds, here too)
+from ..effects.temperature import RATE_QUANTITIES, rate_beyond
 from ..exceptions import InputError
 
 #: Bounds, with why. A real machine's geometric errors are micrometres and microradians; location errors of axes
@@ -86,7 +87,7 @@ def model_findings(fm, machine) -> list[str]:
         if not e.values:
             continue
         for quantity, size, column in family(e.kind).extents(e, fm.scales):
-            if quantity in ("per_degC", "expansion_per_degC"):       # the temperature family, any parameter
+            if quantity in RATE_QUANTITIES:                          # the temperature family, any parameter
                 found = _thermal(e, quantity, size, unit)
                 if found:
                     out.append(found)

@@ -34,7 +34,7 @@ from scipy.special import chdtrc   # scipy.stats' chi-square survival function (
 
 from .. import parallel
 from ..effects import families as fx
-from ..effects.temperature import rate_beyond
+from ..effects.temperature import RATE_QUANTITIES, rate_beyond
 from ..estimation import design as dsg
 from ..estimation import fit as F
 from ..estimation import solver as sv
@@ -480,10 +480,6 @@ def conclude(res: FitResult, prob, w, r_fit: np.ndarray, r_cur: np.ndarray, deci
                      res.rms_mm_without_outliers, structure_test, unexplained, pool.searched_json())
 
 
-#: The quantities of effects.temperature's extents judged by its RATE_BOUNDS (rate_beyond).
-THERMAL_RATES = ("per_degC", "expansion_per_degC")
-
-
 def candidate_item(prob, eff, family, coefs, rms_after, gain, rss, delta) -> dict:
     """A listed candidate: id, family, RMS after adding it (mm), share explained, its coefficients in physical
     units and a description with its size."""
@@ -503,7 +499,7 @@ def candidate_item(prob, eff, family, coefs, rms_after, gain, rss, delta) -> dic
     item["size"], item["size_unit"] = size, unit
     if not plausible(size, unit):
         item["plausible"] = False            # issue 29: not a machine's error (a column the data see at rounding)
-    rates = [b for q, s, _ in type(eff).extents(eff.record(np.ravel(coefs)), prob.scales) if q in THERMAL_RATES
+    rates = [b for q, s, _ in type(eff).extents(eff.record(np.ravel(coefs)), prob.scales) if q in RATE_QUANTITIES
              for b in [rate_beyond(q, s, unit)] if b]
     if rates:                                # a rate per degC no machine shows (a sensor that barely changed)
         item["plausible"], item["implausible_rate"] = False, rates[0]

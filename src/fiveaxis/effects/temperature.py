@@ -44,6 +44,10 @@ RATE_BOUNDS = {
 }
 
 
+#: The quantities of Temperature.extents that rate_beyond judges (a rate per degC; an expansion per degC).
+RATE_QUANTITIES = ("per_degC", "expansion_per_degC")
+
+
 def rate_beyond(quantity: str, size: float, unit: str | None) -> str | None:
     """'150 um/degC: beyond <what it is>, 100 um/degC' for a rate of `extents` (quantity, size; unit: of the
     parameter, mm or rad) beyond RATE_BOUNDS, else None."""
