@@ -212,7 +212,7 @@ def table_warning(model, table: Table, acc: dict, names: dict, along: dict, reve
     counts = {v: len(table.nodes[model.variables.index(v)]) for v in along}
     files = ", ".join(f"linuxcnc/{names[v]}" for v in along if v in names)
     few = {v: len(k) for v, k in along.items() if counts[v] < len(k)}
-    now = ", ".join(f"{n} along {v}" for v, n in counts.items())
+    now = ", ".join(f"{n} nodes along {v}" for v, n in counts.items())
     i = {v: model.variables.index(v) for v in along}
     at = {v: np.degrees(table.nodes[i[v]]) if table.rotary[i[v]] else np.asarray(table.nodes[i[v]]) for v in along}
     off = [v for v, k in along.items() if not all(np.isclose(at[v], x, atol=1e-6).any() for x in k)]
@@ -222,7 +222,7 @@ def table_warning(model, table: Table, acc: dict, names: dict, along: dict, reve
     why = (f"give the table nodes for the profiles (--nodes {', '.join(f'{v}={n}' for v, n in few.items())}, "
            f"evenly spaced, still not at the knots)" if few else
            "the table: " + " and ".join(cannot or ["its interpolation between the nodes"]))
-    return (f"the volumetric table ({now} nodes, evenly spaced) leaves a tool-tip error up to {1e3 * t['max']:.3g} um "
+    return (f"the volumetric table ({now}, evenly spaced) leaves a tool-tip error up to {1e3 * t['max']:.3g} um "
             f"where LinuxCNC's comp files ({files}, lines at the profiles' knots) leave {1e3 * c['max']:.3g} um: "
             f"load the comp files" + (", or " if few else "; ") + why)
 
