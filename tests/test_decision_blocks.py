@@ -1,7 +1,7 @@
 """The decision's multi-column candidates scored without a QR of their rows per residual
 (`decision._Scorer._block_gains`, from k x k matrices) against the plain reference: the columns projected off the
-model and the set's columns, a QR of the rows, the residual's squared norm in that span; and `solver.tsqr` (LAPACK's
-triangular-pentagonal update of the R carried along) against a QR of the stacked rows."""
+model and the set's columns, a QR of the rows, the residual's squared norm in that span; and `solver.tsqr` (the R carried
+along and each chunk factored again, by SciPy's LAPACK dgeqrf) against NumPy's QR of the stacked rows."""
 from types import SimpleNamespace
 
 import numpy as np
@@ -58,3 +58,32 @@ def test_tsqr_equals_the_qr_of_the_stacked_rows():
     sign = np.sign(np.diag(R)) * np.sign(np.diag(ref))
     assert np.allclose(sign[:, None] * R, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
     assert np.array_equal(R, np.triu(R))
+
+
+def test_qr_r_is_numpys_r_factor():
+    """solver.qr_r (SciPy's dgeqrf, GIL released) against numpy.linalg.qr(mode="r"): the same factor (the same
+    LAPACK routine; two OpenBLAS builds may round the last bit differently), tall, wide and empty, C or F order."""
+    rng = np.random.default_rng(5)
+    for m, n in [(700, 40), (40, 40), (12, 30), (0, 5), (5, 0), (1, 1)]:
+        X = rng.standard_normal((m, n)) * np.logspace(0, 3, n)
+        ref = np.linalg.qr(X, mode="r")
+        for Y in (X.copy(), np.asfortranarray(X)):
+            got = sv.qr_r(Y)
+            assert got.shape == ref.shape == (min(m, n), n)
+            assert np.allclose(got, ref, rtol=0, atol=1e-13 * max(np.abs(ref).max(initial=0.0), 1.0))
+
+
+def test_pose_groups_number_the_distinct_poses_as_numpy_unique():
+    """The folds' pose groups (observations.pose_groups, a lexicographic sort) against np.unique(axis=0)'s inverse:
+    repeated poses (two tool lengths, a direction column), -0.0 beside 0.0, controller-rounded values."""
+    from fiveaxis.measurement import observations as ob
+    rng = np.random.default_rng(6)
+    n = 400
+    poses = np.round(rng.uniform(-2, 2, (n, 3)), 0)                 # few distinct values: many repeats
+    poses[:5, 0] = -0.0
+    meas = SimpleNamespace(poses=poses, L=rng.choice([100.0, 180.0], n), t=None,
+                           dirs={"dir_X": rng.choice([-1.0, 1.0], n)})
+    X = np.column_stack([poses, meas.L, meas.dirs["dir_X"]])
+    want = np.unique(X, axis=0, return_inverse=True)[1].reshape(-1)
+    assert np.array_equal(ob.pose_groups(meas), want)
+    assert len(np.unique(want)) < n

@@ -31,6 +31,7 @@ from contextlib import contextmanager
 import numba
 
 from .exceptions import InputError
+from .guards import give_back_memory
 from .model.error_model import set_serial_kernels
 
 #: Schemes of scheduler addresses: plain TCP, or TLS (its certificates come from the dask configuration).
@@ -81,6 +82,7 @@ class Local:
         if n <= 1:
             for task in tasks:
                 yield fn(*task)
+            give_back_memory()
             return
         with ThreadPoolExecutor(n, initializer=_task_thread) as pool:
             pending = deque()
@@ -90,6 +92,7 @@ class Local:
                     yield pending.popleft().result()
             while pending:
                 yield pending.popleft().result()
+        give_back_memory()   # the tasks' temporaries, freed in the threads' heaps (glibc keeps them otherwise)
 
     def keep(self, key, make) -> Kept:
         """The objects make() returns, for the tasks of passes; in this process they are made again for each

@@ -253,6 +253,7 @@ class Pool:
     temperature_found: list = field(default_factory=list)   # es.Found of the temperature family, full data
     profiles: list = field(default_factory=list)     # per-position profiles (`fiveaxis.diagnosis.profiles`)
     profile_cols: list = field(default_factory=list)  # (N, k) weighted columns per profile
+    whole: np.ndarray | None = None  # the matrix G, Gp and the blocks' columns are views of (`columns`)
 
     def items(self) -> list:
         """Every candidate of the whole screen as (effect, family), in the order of `columns`."""
@@ -260,14 +261,19 @@ class Pool:
                 + [(e, e.NAME) for e in self.periodic + self.customs + self.profiles])
 
     def columns(self) -> np.ndarray:
-        """The weighted columns of `items`, side by side (N, sum of their coefficients)."""
-        return np.hstack([self.G, self.Gp, *self.custom_cols, *self.profile_cols])
+        """The weighted columns of `items`, side by side (N, sum of their coefficients): the pool's matrix itself
+        while G, Gp and the blocks' columns are its consecutive views (read only), else a new matrix."""
+        parts = [self.G, self.Gp, *self.custom_cols, *self.profile_cols]
+        if self.whole is not None and _consecutive_views(self.whole, parts):
+            return self.whole
+        return np.hstack(parts)
 
     def drop_block_columns(self) -> None:
         """Forget the screen's columns of the multi-column candidates and of the searches' parameters (Gp,
         custom_cols, profile_cols, P; the one-column candidates' G, the searches' results and the prior stay): the
         decision over all readings in row blocks builds its own (at a sample of 8,192 poses: ~0.2 GB)."""
-        self.Gp = self.P = None
+        self.G = np.ascontiguousarray(self.G)          # a view of `whole`: copied, so that whole is freed
+        self.Gp = self.P = self.whole = None
         self.custom_cols, self.profile_cols = [], []
 
     @property
@@ -292,6 +298,19 @@ class Pool:
         if self.grid is not None:
             out[th] = dict(self.grid.to_json(), parameters=len(self.thermal_found), trials=self.prior.trials.get(th, 0))
         return out
+
+
+def _consecutive_views(whole: np.ndarray, parts: list) -> bool:
+    """The parts are views of the columns of whole (row-major), side by side in order, covering all of it."""
+    step = whole.itemsize
+    at = whole.__array_interface__["data"][0]
+    for part in parts:
+        if part.base is not whole or part.strides != whole.strides or len(part) != len(whole):
+            return False
+        if part.shape[1] and part.__array_interface__["data"][0] != at:
+            return False
+        at += part.shape[1] * step
+    return at == whole.__array_interface__["data"][0] + whole.shape[1] * step
 
 
 def candidate_matrix(block, w: np.ndarray, effects, out=None) -> np.ndarray:
@@ -347,13 +366,15 @@ def build_pool(block, w, Q: np.ndarray, rw: np.ndarray, present: set, custom: li
               fx.Temperature.NAME: temp_trials if temp else 0, fx.CustomEffect.NAME: len(custom)}
     singles = poly + rev + [f.effect for f in therm + temp]
     fam = np.array([e.NAME for e in singles], dtype=object)
-    G = candidate_matrix(block, w, singles)
     peff = [f.effect for f in per]
-    Gp = candidate_matrix(block, w, peff) if peff else np.zeros((len(rw), 0))
-    ccols = [candidate_matrix(block, w, [e]) for e in custom]
-    pool = Pool(singles, fam, G, peff, Gp, list(custom), ccols, Prior(trials), params, P, bands, grid, per, therm,
-                len(poly) + len(rev) + len(custom) + len(prof), profiles=prof,
-                profile_cols=[candidate_matrix(block, w, [e]) for e in prof], temperature_found=temp)
+    # Every candidate's columns in one matrix, in the order of `Pool.columns` (which is then that matrix, not a
+    # copy of it: 10^6 poses, ~0.3 GB at the peak); G, Gp and the blocks' columns are views of it.
+    whole = candidate_matrix(block, w, singles + peff + list(custom) + prof)
+    at = np.cumsum([0, len(singles), 2 * len(peff)] + [len(e.names) for e in list(custom) + prof])
+    views = [whole[:, a:b] for a, b in zip(at[:-1], at[1:])]
+    pool = Pool(singles, fam, views[0], peff, views[1], list(custom), views[2:2 + len(custom)], Prior(trials),
+                params, P, bands, grid, per, therm, len(poly) + len(rev) + len(custom) + len(prof), profiles=prof,
+                profile_cols=views[2 + len(custom):], temperature_found=temp, whole=whole)
     if folds is not None:
         fold_searches(pool, prob, *folds)
     return pool

@@ -366,6 +366,13 @@ class _Scorer:
                 fac.append((Qb if keep.all() else Qb[:, keep], R[:m, :m], clear))
             whole = [f[0] for f in fac if f[2]]
             QB = np.hstack(whole) if whole else np.zeros((self.Pb.shape[0], 0))
+            at = 0
+            for i, (Qk, R, clear) in enumerate(fac):      # the bases kept whole as views of QB: no second copy
+                if clear:
+                    fac[i] = (QB[:, at:at + Qk.shape[1]], R, clear)
+                    at += Qk.shape[1]
+                else:
+                    fac[i] = (Qk.copy(), R, clear)           # not a view of the QR's stack: that is freed
             groups, at = {}, 0
             for i, ((a, _), (Qk, R, clear)) in enumerate(zip(self.spans, fac)):
                 if clear:

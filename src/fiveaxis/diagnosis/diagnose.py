@@ -197,11 +197,12 @@ def accepted_effects(res: FitResult) -> list[str]:
     items = [(e, f, None) for e, f in pool.items()]
     if not items:
         return []
-    X = pool.columns()
+    X, prior = pool.columns(), pool.prior
+    del pool                # its columns, now in X, and its searches' sums (10^6 poses: ~0.25 GB at the peak)
     lay = dc.layout(0, items)
     N = len(sc.rw)
     main = lay.main()
-    pens = {k: pool.prior.penalty(lay.families[k], N, len(lay.cols[k])) for k in main}
+    pens = {k: prior.penalty(lay.families[k], N, len(lay.cols[k])) for k in main}
     accepted, _ = dc.select(X, sc.Q, sc.rw, lay, main, pens, N, res.known_sigma)
     return [lay.effects[k].id for k in accepted]
 
@@ -271,9 +272,10 @@ def _search_after_first_choice(pool: cd.Pool, sc: Screen, present: set, known: b
     main = lay.main()
     pens = {k: pool.prior.penalty(lay.families[k], N, len(lay.cols[k])) for k in main}
     chosen, _ = dc.select(X, sc.Q, sc.rw, lay, main, pens, N, known)
+    chosen = [(lay.effects[k], X[:, lay.cols[k]]) for k in chosen]        # copies: X is freed before the searches
+    del X
     if chosen:
-        cd.search_again(pool, sc.block, sc.w, sc.Q, sc.rw, [(lay.effects[k], X[:, lay.cols[k]]) for k in chosen],
-                        present)
+        cd.search_again(pool, sc.block, sc.w, sc.Q, sc.rw, chosen, present)
 
 
 def _train_sets(sc: Screen, fold: np.ndarray, rank: int, folds: int):
@@ -346,6 +348,7 @@ def diagnose_fit(res: FitResult, top: int = 10) -> "Diagnosis":
     present = {e.id for e in prob.effects}
     custom = cd.customs(prob.model, present)
     sc = screen(res)
+    fold = cd.folds_of_readings(prob, dc.K_FOLDS)        # before the pool (10^6 poses: its temporaries, 0.1 GB)
     fold_s = cd.folds_of_readings(sc.prob, dc.K_FOLDS)
     pool = cd.build_pool(sc.block, sc.w, sc.Q, sc.rw, present, custom,
                          folds=(_train_sets(sc, fold_s, res.idf.rank, dc.K_FOLDS),), unseen=unseen(res))
@@ -354,7 +357,6 @@ def diagnose_fit(res: FitResult, top: int = 10) -> "Diagnosis":
     items = _items(pool, keep)
     lay = dc.layout(int(free.sum()), items, pool.resampled)
     effects = [e for e, _, _ in items]
-    fold = cd.folds_of_readings(prob, dc.K_FOLDS)
     if sc.whole:
         X = _columns(sc.block, prob.w, res.residual, free, prob.fixed_values, effects,
                      given=[pool.G, pool.Gp, *pool.custom_cols, *pool.profile_cols])   # `_items`: they lead

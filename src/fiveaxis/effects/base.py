@@ -275,7 +275,10 @@ class EffectContext:
     def subset(self, rows) -> "EffectContext":
         """The context of some poses (index array or mask), same scales and series."""
         pick = (lambda a: None if a is None else np.asarray(a)[rows])
-        where = (np.arange(self.n) if self.rows is None else self.rows)[rows]
+        if self.rows is None and isinstance(rows, slice):   # a row block: not an index of every pose first
+            where = np.arange(*rows.indices(self.n))
+        else:
+            where = (np.arange(self.n) if self.rows is None else self.rows)[rows]
         return EffectContext(self.variables, self.poses[rows], pick(self.t), {k: v[rows] for k, v in self.dirs.items()},
                              self.scales, {k: v[rows] for k, v in self.temps.items()}, self.series, where,
                              self.steady)

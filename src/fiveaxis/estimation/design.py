@@ -31,7 +31,6 @@ import numpy as np
 from .. import parallel
 from ..effects import families as fx
 from ..exceptions import InputError
-from ..guards import give_back_memory
 from ..measurement import observations as ob
 from ..model.error_model import load, serial_kernels
 from .problem import Problem, resolve_effects
@@ -248,10 +247,8 @@ class RowBlocks:
         prob = self.prob
         where = (str(prob.model.machine.path), prob.model.convention)
         if isinstance(run, parallel.Local):
-            out = list(run.map(_in_process, ((fn, pb, rows, *(a[rows] for a in arrays))
-                                             for rows, pb in self.blocks())))
-            give_back_memory()             # the blocks' temporaries, freed in the threads' heaps
-            return out
+            return list(run.map(_in_process, ((fn, pb, rows, *(a[rows] for a in arrays))
+                                              for rows, pb in self.blocks())))     # its heaps trimmed after
         key = (id(prob.obs), tuple(e.id for e in prob.effects), tuple(prob.names), self.size)
         kept = run.keep(key, lambda: [spec for spec, _ in self._specs()])
         rows = [r for r, _ in self.blocks(design=False)]

@@ -36,6 +36,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..exceptions import InputError
+from ..guards import give_back_memory
 from ..measurement import observations as ob
 from . import design as dsg
 from . import solver as sv
@@ -79,15 +80,19 @@ def fit(model, meas, added=(), refine: bool = True, max_iter: int = 6, fixed=Non
         design = dsg.backend(prob, in_blocks)
         if exclude is not None and np.any(exclude) and not _variance_components(prob):
             # the fit of every reading would only be thrown away (it sets no weights the refit starts from)
-            return _refit_without(prob, design, np.asarray(exclude, bool), refine, max_iter,
-                                  outlier_threshold(len(prob.d)), prob.known_sigma)
-        res = fit_problem(prob, design, refine, max_iter)
-        if exclude is not None:
-            return _without_outliers(res, refine, max_iter, np.asarray(exclude, bool))
-        if not robust:
-            res.outliers = no_outliers(len(prob.d))
-            return res
-        return _without_outliers(res, refine, max_iter)
+            res = _refit_without(prob, design, np.asarray(exclude, bool), refine, max_iter,
+                                 outlier_threshold(len(prob.d)), prob.known_sigma)
+        else:
+            res = fit_problem(prob, design, refine, max_iter)
+            if exclude is not None:
+                res = _without_outliers(res, refine, max_iter, np.asarray(exclude, bool))
+            elif not robust:
+                res.outliers = no_outliers(len(prob.d))
+            else:
+                res = _without_outliers(res, refine, max_iter)
+    if design.in_blocks:
+        give_back_memory()      # the fit's temporaries (10^6 poses: ~0.2 GB the C heap would keep)
+    return res
 
 
 def _variance_components(prob: Problem) -> bool:
@@ -233,7 +238,10 @@ def suspects(res: FitResult) -> bool:
 def robust(res: FitResult, refine: bool = True, max_iter: int = 6) -> FitResult:
     """The robust fit (outliers flagged and left out, see the module docstring) from a least-squares fit."""
     with one_blas_thread():
-        return _without_outliers(res, refine, max_iter)
+        out = _without_outliers(res, refine, max_iter)
+    if res.design.in_blocks:
+        give_back_memory()      # as `fit`
+    return out
 
 
 def _without_outliers(res: FitResult, refine, max_iter, flags=None) -> FitResult:

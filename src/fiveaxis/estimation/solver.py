@@ -29,9 +29,10 @@ from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
+from scipy.linalg import lapack
+from scipy.sparse.csgraph import connected_components
 
 from ..exceptions import InputError
-from scipy.sparse.csgraph import connected_components
 
 #: Singular values below RANK_RTOL * largest (of the unit-norm columns) count as zero: those directions are not
 #: determined by the data.
@@ -63,9 +64,28 @@ def tsqr(R: np.ndarray | None, X: np.ndarray) -> np.ndarray:
     go in chunks of QR_ROWS, or 4 times the columns where that is more (the R carried along costs as many rows)."""
     step = max(QR_ROWS, 4 * X.shape[1])
     for i in range(0, max(len(X), 1), step):
-        Y = X[i:i + step] if R is None else np.vstack([R, X[i:i + step]])
-        R = np.linalg.qr(Y, mode="r")
+        chunk = X[i:i + step]
+        k = 0 if R is None else len(R)
+        Y = np.empty((k + len(chunk), X.shape[1]), order="F")   # LAPACK's layout: no copy in its wrapper
+        if k:
+            Y[:k] = R
+        Y[k:] = chunk
+        R = qr_r(Y)
     return R
+
+
+def qr_r(Y: np.ndarray) -> np.ndarray:
+    """The triangular factor R (min(m, n), n) of a QR of Y (m, n), as `numpy.linalg.qr(Y, mode="r")` computes it
+    (LAPACK dgeqrf with its optimal workspace), overwriting Y when it is in Fortran order. SciPy's wrapper releases
+    the GIL (NumPy's holds it for the copies around the call): the blocks of a pass factor on both cores."""
+    m, n = Y.shape
+    if not m or not n:
+        return np.zeros((min(m, n), n))
+    lwork = int(lapack.dgeqrf_lwork(m, n)[0])
+    qr, _, _, info = lapack.dgeqrf(Y, lwork=max(lwork, n, 1), overwrite_a=1)
+    if info:
+        raise np.linalg.LinAlgError(f"dgeqrf: argument {-info} illegal")
+    return np.triu(qr[:min(m, n)])
 
 
 def merge(factors) -> np.ndarray | None:
