@@ -168,3 +168,29 @@ def test_a_new_family_is_its_module_and_one_registry_line(model, monkeypatch, tm
     assert E[1, jx] - E[0, jx] == pytest.approx(rec.values[0])      # evaluated through the family
     values = CK.module_values(fm, model)
     assert values.left_out == ("effect dx_x:xs100 left out of the kinematics module: a step is not in the module",)
+
+
+def test_bases_kept_per_context_are_the_bases_made_afresh(model, monkeypatch):
+    """`bases_of` keeps each effect's basis on its context: the numbers of a fresh context's `basis`, every
+    family; read only; a second ask returns the kept array; nothing kept past BASES_KEPT numbers."""
+    rng = np.random.default_rng(2)
+    poses = rng.uniform(-1, 1, (9, len(model.variables))) * [model.machine.axis(v).model_stroke[1]
+                                                            for v in model.variables]
+    dirs = {v: np.where(rng.random(9) < .5, 1.0, -1.0) for v in model.variables}
+
+    def ctx():
+        return fx.context(model.machine, poses, np.linspace(0, 3600, 9), dirs,
+                          temps={"temp_spindle": np.linspace(20, 30, 9)})
+    effects = [example(fam, model) for fam in fx.FAMILIES.values()]
+    kept = ctx()
+    first = fx.bases_of(effects, kept)
+    again = fx.bases_of(effects, kept)
+    for eff, a, b in zip(effects, first, again):
+        fresh = np.asarray(eff.basis(ctx()), float)
+        assert np.array_equal(a, fresh) and a.shape == fresh.shape, eff.id
+        assert b is a or eff.USER_WRITTEN                     # made once (a custom effect may not be a key)
+    assert not any(a.flags.writeable for a, e in zip(first, effects) if not e.USER_WRITTEN)
+    monkeypatch.setattr(base, "BASES_KEPT", 0)
+    none = ctx()
+    fx.bases_of(effects, none)
+    assert not [k for k in none._bases if k != "numbers"]

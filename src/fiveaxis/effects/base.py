@@ -217,6 +217,7 @@ class EffectContext:
     rows: np.ndarray | None = None
     steady: bool = False
     _u: dict = field(default_factory=dict, repr=False)
+    _bases: dict = field(default_factory=dict, repr=False, compare=False)   # effect -> basis (`bases_of`)
 
     @property
     def n(self) -> int:
@@ -364,6 +365,34 @@ def basis_of(eff, ctx: EffectContext) -> np.ndarray:
         return eff.basis(ctx)
     except InputError as exc:
         raise InputError(f"effect '{eff.id}': {exc}", key="effect") from None
+
+
+#: Most numbers the bases of one context keep (`bases_of`): ~16 MB, every candidate's basis on a few thousand poses
+#: (a diagnosis builds them again for each fit of the same poses), a handful on 10^6.
+BASES_KEPT = 2_000_000
+
+
+def bases_of(effects, ctx: EffectContext) -> list:
+    """`basis_of` of every effect, those made before at this context (the same poses, times, directions and
+    scales: the same numbers) taken from its cache, new ones kept there within BASES_KEPT numbers. Read only: the
+    caller copies them (a design's columns)."""
+    cache = ctx._bases
+    out = []
+    for e in effects:
+        try:
+            got = cache.get(e)
+        except TypeError:                      # an effect that cannot be a key: made every time
+            out.append(basis_of(e, ctx))
+            continue
+        if got is None:
+            got = basis_of(e, ctx)
+            if cache.get("numbers", 0) + np.size(got) <= BASES_KEPT:
+                got = np.asarray(got).view()       # a read-only view: the array itself (a channel) stays writeable
+                got.flags.writeable = False
+                cache[e] = got
+                cache["numbers"] = cache.get("numbers", 0) + got.size
+        out.append(got)
+    return out
 
 
 def per_pose(effects, coefs, ctx: EffectContext, errors):

@@ -24,7 +24,7 @@ from ..exceptions import InputError
 from ..model import effect_ids as ids
 from ..model import iso_names as iso
 from .base import (TIME, TOOL, Effect, EffectContext, EffectRecord, Scale, chain_distance, context,  # noqa: F401
-                   basis_of, describe_param, is_own, is_positioning, own_positioning, per_pose, scales,
+                   basis_of, bases_of, describe_param, is_own, is_positioning, own_positioning, per_pose, scales,
                    split_coefficients, split_id, tokens, var_token)
 from .custom import CustomEffect
 from .periodic import Periodic

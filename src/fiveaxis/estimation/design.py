@@ -92,7 +92,7 @@ class Block:
         out = np.empty((pb.obs.m, k)) if out is None else out
         if not effects:
             return out
-        bases = [fx.basis_of(e, pb.ctx) for e in effects]              # per pose
+        bases = fx.bases_of(effects, pb.ctx)                           # per pose (kept per context)
         params = list(dict.fromkeys(e.param for e in effects))
         PC = np.column_stack([self.param_column(p, base, tool_dir) for p in params])
         where = {p: i for i, p in enumerate(params)}
