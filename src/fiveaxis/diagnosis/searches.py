@@ -185,7 +185,7 @@ def _pair_gains(sums, cols, E, exact: bool):
         B[0, 2 * a:2 * b] = sums.W1[:, p] @ Ef[:, 2 * a:2 * b]
         B[1, 2 * a:2 * b] = sums.W2[:, p] @ E2f[:, 2 * a:2 * b]
         if exact:
-            B[2:, 2 * a:2 * b] = np.ascontiguousarray(sums.W3[:, :, p].T) @ Ef[:, 2 * a:2 * b]
+            B[2:, 2 * a:2 * b] = _w3t(sums, p) @ Ef[:, 2 * a:2 * b]
     inv = np.empty(k, np.intp)
     inv[order] = np.arange(k)
     B = B.reshape(2 + r, k, 2)[:, inv]
@@ -358,9 +358,25 @@ def _vertex(g: np.ndarray, idx: np.ndarray) -> np.ndarray:
 
 
 class _LiveSums:
-    """RowSums restricted to the live poses (views for _pair_gains)."""
+    """RowSums restricted to the live poses (views of them when every pose is live), with the transposed W3 of
+    each parameter made once (`_w3t`)."""
     def __init__(self, sums, live):
-        self.W1, self.W2, self.W3 = sums.W1[live], sums.W2[live], sums.W3[live]
+        if live.all():
+            self.W1, self.W2, self.W3 = sums.W1, sums.W2, sums.W3
+        else:
+            self.W1, self.W2, self.W3 = sums.W1[live], sums.W2[live], sums.W3[live]
+        self.w3t = {}
+
+
+def _w3t(sums, p: int) -> np.ndarray:
+    """W3[:, :, p].T (r, n) as a contiguous array: kept on a _LiveSums (the refinement asks for it at every
+    step), made each time for other sums."""
+    kept = getattr(sums, "w3t", None)
+    if kept is None:
+        return np.ascontiguousarray(sums.W3[:, :, p].T)
+    if p not in kept:
+        kept[p] = np.ascontiguousarray(sums.W3[:, :, p].T)
+    return kept[p]
 
 
 def _top_peaks(g: np.ndarray, k: int) -> np.ndarray:
