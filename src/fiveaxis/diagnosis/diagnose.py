@@ -55,6 +55,9 @@ VERDICTS = ("missing effect", "no missing effect", "unexplained structure")
 SCREEN_SINGLES = 24
 #: Periodic candidates of a row-block screen decided on all readings.
 SCREEN_BLOCKS = 8
+#: Most readings for which the robust fit's two screens (`robust_fit`) are built at once, on two threads (each
+#: holds its candidates' columns: ~0.4 MB per 100 readings).
+TWO_SCREENS_READINGS = 100_000
 #: Per-position profiles of a row-block screen decided on all readings (the best by extended BIC on the sample;
 #: each is a column per knot, and deciding all of them on 400,000 poses cost 4 minutes of QR).
 SCREEN_PROFILES = 4
@@ -141,7 +144,9 @@ def robust_fit(res: FitResult) -> FitResult:
     rob = F.robust(res)
     if not rob.outliers.count:
         return rob
-    accepted = list(dict.fromkeys(accepted_effects(rob) + accepted_effects(res)))
+    both = [(rob,), (res,)]
+    runner = parallel.Local() if len(res.problem.d) <= TWO_SCREENS_READINGS else parallel.Local(1)
+    accepted = list(dict.fromkeys(e for got in runner.map(accepted_effects, both) for e in got))
     if not accepted:
         return rob
     prob, in_blocks = res.problem, res.design.in_blocks
