@@ -484,21 +484,31 @@ def select(Z, Q, rw, lay: Layout, ks, pens: dict, N: int, known: bool, scorer=No
     weighted RSS after it). scorer: the `_Scorer` of ks on Z and Q when the caller has it."""
     rss0 = float(rw @ rw)
 
+    values = {}   # members (in order) -> the set's extended BIC
+
     def score(members):
-        return _set_ebic(rss0, _set_rss(Z, Q, rw, lay, members), N, sum(pens[u] for u in members), known)
+        key = tuple(members)
+        if key not in values:
+            values[key] = _set_ebic(rss0, _set_rss(Z, Q, rw, lay, members), N, sum(pens[u] for u in members), known)
+        return values[key]
 
     scorer = scorer or _Scorer(Z, lay, ks, Q)
 
+    made = {}     # members (in order) -> (|r|^2, every candidate's gain, the set's value): moves ask again for a set
+
     def best_addition(members, exclude=()):
         """(the candidate that lowers the set's extended BIC most when added to members, the new value)."""
-        Qc = cd.extend(Q, Z[:, [c for k in members for c in lay.cols[k]]]) if members else Q
-        r = rw - Qc @ (Qc.T @ rw) if members else rw
         cand = [k for k in ks if k not in members and k not in exclude]
         if not cand:
             return None, math.inf
-        g = scorer.gains(r, Qc[:, Q.shape[1]:])     # every candidate's, those of cand as if scored alone
-        base = score(members)
-        val = {k: base + v for k, v in _deltas(float(r @ r), g, cand, N, pens, known).items()}
+        key = tuple(members)
+        if key not in made:
+            Qc = cd.extend(Q, Z[:, [c for k in members for c in lay.cols[k]]]) if members else Q
+            r = rw - Qc @ (Qc.T @ rw) if members else rw
+            made[key] = (float(r @ r), scorer.gains(r, Qc[:, Q.shape[1]:]),   # every candidate's, as if alone
+                         score(members))
+        rr, g, base = made[key]
+        val = {k: base + v for k, v in _deltas(rr, g, cand, N, pens, known).items()}
         k = min(cand, key=lambda j: (val[j], j))
         return k, val[k]
 
