@@ -93,10 +93,10 @@ class RawRows:
         return self.X
 
     def train(self, f: int) -> np.ndarray:
-        return np.take(self.X, np.flatnonzero(self.fold != f), axis=0)   # the rows of the mask, twice as fast
+        return self.X[self.fold != f]
 
     def test(self, f: int) -> np.ndarray:
-        return np.take(self.X, np.flatnonzero(self.fold == f), axis=0)
+        return self.X[self.fold == f]
 
     def count(self, f: int) -> int:
         return int(np.sum(self.fold == f))
