@@ -396,17 +396,22 @@ def search_again(pool: Pool, block, w, Q: np.ndarray, rw: np.ndarray, chosen: li
         out = [f for f in found if f.effect.id not in have]
         have.update(f.effect.id for f in out)
         return out
-    made, sums = None, None         # the chosen effects left in, and their per-pose sums (the next variable's too
-    for tok in dict.fromkeys(tokens):                  # when it leaves the same ones: no effect along either)
+    # Consecutive variables that leave the same chosen effects in (none along either) share their per-pose sums
+    # and are searched together (`searches.periodic`: their bands at once); the finds are taken in variable order.
+    groups = []
+    for tok in dict.fromkeys(tokens):
         key = tuple(i for i, (e, _) in enumerate(chosen) if getattr(e, "var", None) != tok)   # a custom effect
-        if key != made:                                                                      # (no one variable) stays
-            others = [chosen[i][1] for i in key]
-            Qx = extend(Q, np.hstack(others)) if others else Q
-            r = rw - Qx @ (Qx.T @ rw)
-            made, sums = key, None                     # one set of sums held at a time
-            sums = es.row_sums(pool.params, pool.P, r, Qx, prob.obs.row, prob.meas.n)
-        per += new(es.periodic(sums, [b for b in pool.bands if b.token == tok]))
-        if tok == fx.TIME and pool.grid is not None:
+        if groups and groups[-1][0] == key and groups[-1][1][-1] != fx.TIME:                  # (no one variable)
+            groups[-1][1].append(tok)                                                         # stays
+        else:
+            groups.append((key, [tok]))
+    for key, toks in groups:
+        others = [chosen[i][1] for i in key]
+        Qx = extend(Q, np.hstack(others)) if others else Q
+        r = rw - Qx @ (Qx.T @ rw)
+        sums = es.row_sums(pool.params, pool.P, r, Qx, prob.obs.row, prob.meas.n)
+        per += new(es.periodic(sums, [b for tok in toks for b in pool.bands if b.token == tok]))
+        if toks[-1] == fx.TIME and pool.grid is not None:
             therm += new(es.thermal(sums, pool.grid))
     if therm:
         pool.singles = pool.singles + [f.effect for f in therm]

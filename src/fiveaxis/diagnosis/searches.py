@@ -266,61 +266,73 @@ def periodic(sums: RowSums, bands: list, pairs=None) -> list[Found]:
     """The best period per (parameter, variable) of bands, scored exactly at the rounded period.
 
     pairs: {token: [parameter indices]} to search (default: every parameter with a non-zero column). Parameters
-    with the same column (up to a factor: e.g. translations along x of several axes) are searched once."""
-    out = []
+    with the same column (up to a factor: e.g. translations along x of several axes) are searched once. Several
+    bands: each on a thread of the runner (its grid in one thread); one band: its grid's chunks on the threads.
+    The same arithmetic either way."""
     T_all = sums.W2.sum(axis=0)
+    todo = []
     for b in bands:
         cols = np.flatnonzero(T_all > 0) if pairs is None else np.asarray(pairs.get(b.token, []), int)
-        if not len(cols):
-            continue
-        live = sums.live
-        v = b.values[live]
-        uniq, back = _distinct_columns(sums.W2[live][:, cols], sums.W1[live][:, cols])
-        ucols = cols[uniq]
-        W1, W2 = sums.W1[live][:, ucols], sums.W2[live][:, ucols]
-        T = W2.sum(axis=0)
-        gains = np.empty((len(ucols), b.K))
-        # The grid's chunks on the runner's threads (each chunk's arithmetic as in one thread: same gains).
-        chunks = ((v, b.f_min, b.df, b.K, a0, W1, W2, T) for a0 in _grid_starts(b.K))
-        for k0, g in parallel.Local().map(_chunk_gains, chunks):
-            gains[:, k0:k0 + g.shape[1]] = g
-        peaks = _top_peaks(gains, PEAKS)                                  # (len(ucols), PEAKS) grid indices
-        f = b.f_min + (peaks + _vertex(gains, peaks)) * b.df                 # parabolic interpolation
-        f = np.clip(f, 0.5 * b.f_min, None).ravel()
-        c_idx = np.repeat(ucols, peaks.shape[1])
-        sub = _LiveSums(sums, live)
-        f = _refine(sub, c_idx, v, f, (b.df / 8, b.df / 32), exact=False)   # refine on the approximate gain
-        P = np.array([rounded(1.0 / x, period_digits(1.0 / x, b.span)) for x in f])
-        exact = _pair_gains(sub, c_idx, _phase(v, 1.0 / P), exact=True).reshape(len(ucols), -1)
-        P = P.reshape(len(ucols), -1)
-        best = np.argmax(exact, axis=1)
-        # The peaks of the REFINE_EXACT strongest parameters refined again on the exact gain (projected off the
-        # model's columns): at a few periods over the span the model absorbs part of a sinusoid and moves the
-        # approximate peak by up to a grid step (the exam: dy_y:yp84.3 named dy_y:yp82.8, 9x the noise left).
-        rows = np.argsort(-np.maximum(gains.max(axis=1), exact.max(axis=1)))[:REFINE_EXACT]
-        fr = f.reshape(len(ucols), -1)[rows].ravel()
-        cr = np.repeat(ucols[rows], P.shape[1])
-        fr = _refine(sub, cr, v, fr, (b.df / 2, b.df / 8, b.df / 32), exact=True)
-        Pr = np.array([rounded(1.0 / x, period_digits(1.0 / x, b.span)) for x in fr])
-        gr = _pair_gains(sub, cr, _phase(v, 1.0 / Pr), exact=True).reshape(len(rows), -1)
-        Pr = Pr.reshape(len(rows), -1)
-        better = gr > exact[rows]
-        P[rows] = np.where(better, Pr, P[rows])
-        exact[rows] = np.where(better, gr, exact[rows])
-        best = np.argmax(exact, axis=1)
-        for i, p in enumerate(cols):
-            u = back[i]
-            param = sums.params[p]
-            gain = float(exact[u, best[u]]) if cols[uniq[u]] == p else None
-            out.append(Found(fx.Periodic.make(param, b.token, float(P[u, best[u]])), gain, int(p)))
-        # Parameters sharing a column share the period; their exact gain differs only by the projection.
-        redo = [k for k, f_ in enumerate(out) if f_.gain is None]
-        if redo:
-            idx = np.array([out[k].param_index for k in redo])
-            per = np.array([out[k].effect.arg for k in redo])
-            g = _pair_gains(sub, idx, _phase(v, 1.0 / per), exact=True)
-            for k, gk in zip(redo, g):
-                out[k].gain = float(gk)
+        if len(cols):
+            todo.append(b)
+    if len(todo) > 1:
+        tasks = ((sums, b, pairs, T_all, parallel.Local(1)) for b in todo)
+        return [f for found in parallel.Local().map(_periodic_band, tasks) for f in found]
+    return [f for b in todo for f in _periodic_band(sums, b, pairs, T_all, parallel.Local())]
+
+
+def _periodic_band(sums: RowSums, b: Band, pairs, T_all, runner) -> list[Found]:
+    """`periodic` along one band, its grid's chunks on runner."""
+    out = []
+    cols = np.flatnonzero(T_all > 0) if pairs is None else np.asarray(pairs.get(b.token, []), int)
+    live = sums.live
+    v = b.values[live]
+    uniq, back = _distinct_columns(sums.W2[live][:, cols], sums.W1[live][:, cols])
+    ucols = cols[uniq]
+    W1, W2 = sums.W1[live][:, ucols], sums.W2[live][:, ucols]
+    T = W2.sum(axis=0)
+    gains = np.empty((len(ucols), b.K))
+    # The grid's chunks on the runner's threads (each chunk's arithmetic as in one thread: same gains).
+    chunks = ((v, b.f_min, b.df, b.K, a0, W1, W2, T) for a0 in _grid_starts(b.K))
+    for k0, g in runner.map(_chunk_gains, chunks):
+        gains[:, k0:k0 + g.shape[1]] = g
+    peaks = _top_peaks(gains, PEAKS)                                  # (len(ucols), PEAKS) grid indices
+    f = b.f_min + (peaks + _vertex(gains, peaks)) * b.df                 # parabolic interpolation
+    f = np.clip(f, 0.5 * b.f_min, None).ravel()
+    c_idx = np.repeat(ucols, peaks.shape[1])
+    sub = _LiveSums(sums, live)
+    f = _refine(sub, c_idx, v, f, (b.df / 8, b.df / 32), exact=False)   # refine on the approximate gain
+    P = np.array([rounded(1.0 / x, period_digits(1.0 / x, b.span)) for x in f])
+    exact = _pair_gains(sub, c_idx, _phase(v, 1.0 / P), exact=True).reshape(len(ucols), -1)
+    P = P.reshape(len(ucols), -1)
+    best = np.argmax(exact, axis=1)
+    # The peaks of the REFINE_EXACT strongest parameters refined again on the exact gain (projected off the
+    # model's columns): at a few periods over the span the model absorbs part of a sinusoid and moves the
+    # approximate peak by up to a grid step (the exam: dy_y:yp84.3 named dy_y:yp82.8, 9x the noise left).
+    rows = np.argsort(-np.maximum(gains.max(axis=1), exact.max(axis=1)))[:REFINE_EXACT]
+    fr = f.reshape(len(ucols), -1)[rows].ravel()
+    cr = np.repeat(ucols[rows], P.shape[1])
+    fr = _refine(sub, cr, v, fr, (b.df / 2, b.df / 8, b.df / 32), exact=True)
+    Pr = np.array([rounded(1.0 / x, period_digits(1.0 / x, b.span)) for x in fr])
+    gr = _pair_gains(sub, cr, _phase(v, 1.0 / Pr), exact=True).reshape(len(rows), -1)
+    Pr = Pr.reshape(len(rows), -1)
+    better = gr > exact[rows]
+    P[rows] = np.where(better, Pr, P[rows])
+    exact[rows] = np.where(better, gr, exact[rows])
+    best = np.argmax(exact, axis=1)
+    for i, p in enumerate(cols):
+        u = back[i]
+        param = sums.params[p]
+        gain = float(exact[u, best[u]]) if cols[uniq[u]] == p else None
+        out.append(Found(fx.Periodic.make(param, b.token, float(P[u, best[u]])), gain, int(p)))
+    # Parameters sharing a column share the period; their exact gain differs only by the projection.
+    redo = [k for k, f_ in enumerate(out) if f_.gain is None]
+    if redo:
+        idx = np.array([out[k].param_index for k in redo])
+        per = np.array([out[k].effect.arg for k in redo])
+        g = _pair_gains(sub, idx, _phase(v, 1.0 / per), exact=True)
+        for k, gk in zip(redo, g):
+            out[k].gain = float(gk)
     return out
 
 
