@@ -153,6 +153,36 @@ def test_period_search_on_two_threads_gives_the_one_thread_answer(model, periodi
     assert len(runs[0]) > 10 and runs[0] == runs[1]
 
 
+def test_bands_on_threads_and_kept_transposes_give_the_band_by_band_answer(model, periodic_set, monkeypatch):
+    """Several bands searched at once (each on a thread) give, bit for bit, the finds of each band searched alone
+    on one thread, in band order; the exact pair gains from the sums with each parameter's transposed W3 kept
+    (`_LiveSums`) are those made afresh from plain sums."""
+    from types import SimpleNamespace
+    from fiveaxis import parallel
+    from fiveaxis.estimation.priors import PriorSpec
+    res = F.fit(model, periodic_set.meas, refine=False, robust=False, prior=PriorSpec(off=True))
+    prob = res.problem
+    Q, _ = basis_map(res.idf, res.design.block.A[:, prob.free] * prob.w[:, None])
+    params, P = param_columns(res.design.block, prob.w)
+    sums = es.row_sums(params, P, res.residual * prob.w, Q, prob.obs.row, prob.meas.n)
+    bands = [es.band(t, prob.ctx.raw(t), sums.live) for t in ("x", "y")]
+    pairs = {"x": [params.index("dx_x"), params.index("ey_x")], "y": [params.index("dy_y")]}
+    monkeypatch.setenv(parallel.THREADS_ENV, "2")
+    together = [(f.effect.id, f.gain, f.param_index) for f in es.periodic(sums, bands, pairs)]
+    monkeypatch.setenv(parallel.THREADS_ENV, "1")
+    alone = [(f.effect.id, f.gain, f.param_index) for b in bands for f in es.periodic(sums, [b], pairs)]
+    assert len(together) == 3 and together == alone
+    live = sums.live
+    kept = es._LiveSums(sums, live)
+    plain = SimpleNamespace(W1=sums.W1[live], W2=sums.W2[live], W3=sums.W3[live])     # no transposes kept
+    v = bands[0].values[live]
+    cols = np.repeat([params.index("dx_x"), params.index("ey_x")], 3)
+    E = es._phase(v, np.linspace(1 / 900, 1 / 700, len(cols)))
+    first = es._pair_gains(kept, cols, E, exact=True)
+    assert np.array_equal(first, es._pair_gains(plain, cols, E, exact=True))
+    assert np.array_equal(first, es._pair_gains(kept, cols, E, exact=True)) and len(kept.w3t) == 2
+
+
 def test_period_digits_keep_the_phase_over_the_span():
     assert es.period_digits(800, 5000) == 3
     assert es.period_digits(10.0037, 5000) == 5
