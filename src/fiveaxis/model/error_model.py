@@ -25,7 +25,7 @@ import numpy as np
 from . import provenance
 from ..exceptions import InputError
 from .machine import Machine, data_dir, load_machine, module_name
-from .numba_cache import ensure_writable, private_folder
+from .numba_cache import cold, ensure_writable, private_folder
 from .iso_names import canonical_keys
 
 
@@ -275,5 +275,8 @@ def load(machine="li2018", convention: str = "equations", derive: bool = True) -
            _expected_hash(machine, convention))
     if key not in _LOADED:
         mod = _generated_module(machine, convention) or _cached_module(machine, convention, derive)
+        if cold(mod):
+            print(f"fiveaxis: compiling the kernels of {machine.name} for this computer (their first use here; "
+                  f"numba keeps them for the next runs)", file=sys.stderr, flush=True)
         _LOADED[key] = Model(machine, convention or "equations", mod)
     return _LOADED[key]
