@@ -100,3 +100,17 @@ def test_model_add_writes_a_copy_and_diagnose_uses_it(capsys, data, tmp_path, mo
     assert abs(p["leadscrew.p1"]["value"] - 0.004) < 4 * p["leadscrew.p1"]["std"]
     assert abs(p["leadscrew.p2"]["value"] - 0.002) < 4 * p["leadscrew.p2"]["std"]
     assert list((tmp_path / "cache").glob("effect_leadscrew_*.py"))
+
+
+def test_a_diagnosis_in_row_blocks_says_each_step_as_it_starts():
+    """A diagnosis in row blocks runs for minutes at 10^6 poses: stderr names each step as it starts (the fit, the
+    screen, the decision over all readings), in that order; one in memory says nothing of them."""
+    from tests.conftest import run_cli
+    rc, _, err = run_cli("diagnose", "examples/li2018_measurements.csv", "--blocks", "on", "--top", "2")
+    steps = [line for line in err.splitlines() if line.startswith("fiveaxis: diagnose: ")]
+    assert rc == 0
+    words = ["least-squares fit of 1500 poses", "candidates built and searched", "decision:"]
+    at = [next(i for i, s in enumerate(steps) if w in s) for w in words]
+    assert at == sorted(at), steps
+    rc, _, err = run_cli("diagnose", "examples/li2018_measurements.csv", "--top", "2")
+    assert rc == 0 and "fiveaxis: diagnose: " not in err

@@ -87,3 +87,23 @@ def test_pose_groups_number_the_distinct_poses_as_numpy_unique():
     want = np.unique(X, axis=0, return_inverse=True)[1].reshape(-1)
     assert np.array_equal(ob.pose_groups(meas), want)
     assert len(np.unique(want)) < n
+
+
+def test_a_problem_fits_alike_its_copy_with_nothing_added():
+    """robust_fit returns the least-squares fit instead of fitting `with_effects(prob)` again when the richer model
+    flags nothing: valid only if that fit is the same computation. fits_alike says so for the copy (and the fit
+    of the copy gives the same parameters bit for bit), and not once the weights or the effects differ."""
+    import fiveaxis
+    from fiveaxis.estimation import fit as F
+    from fiveaxis.estimation.problem import fits_alike, with_effects
+    from fiveaxis.measurement.files import read
+    model = fiveaxis.load("li2018")
+    meas = read("examples/li2018_measurements.csv", model.machine)
+    res = F.fit(model, meas, robust=False)
+    again = with_effects(res.problem)
+    assert fits_alike(again, res.problem)
+    assert np.array_equal(F.fit(model, meas, again, robust=False).theta, res.theta)
+    heavier = with_effects(res.problem)
+    heavier.w = heavier.w * 2.0
+    assert not fits_alike(heavier, res.problem)
+    assert not fits_alike(with_effects(res.problem, ["ex_x:x1"]), res.problem)

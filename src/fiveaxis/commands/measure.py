@@ -16,6 +16,7 @@ from ..exceptions import InputError, one_line
 from ..compensation import plausible
 from ..diagnosis import preconditions
 from ..estimation import design_size
+from ..estimation.design import use_blocks
 from ..measurement import instruments as ins
 from ..model.columns import FRAMES, MAX_AXIS_DEVIATION, MAX_DEVIATION_MM, SETUP_KINDS
 
@@ -297,9 +298,13 @@ def run_fit(args) -> int:
 
 def _round_done(k: int, most: int, dg, added) -> None:
     """One line on stderr after each round of `diagnose --rounds N` (a loop runs for seconds to minutes)."""
-    then = f"adding {added}" if added else "the loop ends"
-    print(f"fiveaxis: diagnose round {k} of at most {most}: {dg.verdict} (residual RMS "
-          f"{1e3 * dg.rms_mm:.3g} um); {then}", file=sys.stderr, flush=True)
+    from ..diagnosis.rounds import round_line
+    print(f"fiveaxis: {round_line(k, most, dg, added)}", file=sys.stderr, flush=True)
+
+
+def _stage(text: str) -> None:
+    """One line on stderr as a diagnosis in row blocks starts each of its long steps (tens of seconds each)."""
+    print(f"fiveaxis: diagnose: {text}", file=sys.stderr, flush=True)
 
 
 def run_diagnose(args) -> int:
@@ -312,8 +317,10 @@ def run_diagnose(args) -> int:
     model, meas, effects, fixed, prior = _load(args)
     preconditions.check(meas)                        # enough distinct poses for the cross-validation
     with _where_blocks(args) as in_blocks:
+        long = use_blocks(meas.n, in_blocks)           # row blocks: each step takes seconds to minutes
         dgs = loop.rounds(model, meas, effects, args.rounds, top=args.top, fixed=fixed, in_blocks=in_blocks,
-                          prior=prior, progress=_round_done if args.rounds > 1 else None)
+                          prior=prior, progress=_round_done if args.rounds > 1 else None,
+                          stages=_stage if long else None)
     if args.plot is not None:
         from ..plots.residuals import plot_residuals
         path = plot_residuals(dgs[-1], args.plot)

@@ -61,6 +61,11 @@ def _beside(output: Path, given, suffix: str, option: str) -> Path | None:
     return path
 
 
+def _step(text: str) -> None:
+    """One line on stderr per step of the report (its rounds, figures, sensitivity: seconds each)."""
+    print(f"fiveaxis: report: {text}", file=sys.stderr, flush=True)
+
+
 def run_report(args) -> int:
     from ..iso230 import uncertainty as U
     from ..outputs import target, write_text
@@ -96,10 +101,12 @@ def run_report(args) -> int:
             sensitivity = False
     rep = record.build(args.file, args.machine, args.convention, args.add, args.compensation, args.rounds,
                        sensitivity=sensitivity, title=args.title, frame=args.frame, campaign=camp,
-                       uncertainty=statement, references=options.references_of(args.reference_temperature))
+                       uncertainty=statement, references=options.references_of(args.reference_temperature),
+                       progress=_step)
     if thermal is not None:
         rep.record["iso230_3"], figs = thermal
         rep.figures.update(figs)
+    _step("the page")
     page = html.render(rep)
     if xml is not None:
         from ..report import dcc

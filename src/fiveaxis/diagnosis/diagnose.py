@@ -38,8 +38,9 @@ from ..effects.temperature import RATE_QUANTITIES, rate_beyond
 from ..estimation import design as dsg
 from ..estimation import fit as F
 from ..estimation import solver as sv
-from ..estimation.problem import resolve_effects, with_effects
+from ..estimation.problem import fits_alike, resolve_effects, with_effects
 from ..estimation.result import FitResult, no_outliers, plausible, to_json as fit_json
+from ..guards import give_back_memory
 from ..measurement import observations as ob
 from ..model import iso_names as iso
 from . import candidates as cd
@@ -118,18 +119,22 @@ def residual_structure(prob, w, residual: np.ndarray, tests=None) -> dict:
 
 
 def diagnose(model, meas, added=(), top: int = 10, fixed=None, in_blocks: bool | None = None,
-             prior=None) -> "Diagnosis":
+             prior=None, stages=None) -> "Diagnosis":
     """Fit, then rank every candidate effect by how much of the residual it explains, decide, and give a verdict.
     fixed: {name: value} parameters held at known values (mm, rad); in_blocks: a set too large for memory, in row
     blocks (None: above `fiveaxis.estimation.design.IN_MEMORY_POSES` poses); prior: the fit's priors
-    (`fiveaxis.estimation.priors.PriorSpec`; None: the defaults)."""
+    (`fiveaxis.estimation.priors.PriorSpec`; None: the defaults); stages: None, or called with a line of text as
+    each step starts (fit, robust fit, screen, decision: a diagnosis in row blocks takes seconds to minutes)."""
+    stage = stages or (lambda text: None)
     with F.one_blas_thread():
+        stage(f"least-squares fit of {meas.n} poses")
         # the least-squares fit is not kept beside the robust one (10^6 poses: its problem's arrays are ~0.4 GB)
-        res = robust_fit(F.fit(model, meas, added, fixed=fixed, in_blocks=in_blocks, robust=False, prior=prior))
-        return diagnose_fit(res, top)
+        res = robust_fit(F.fit(model, meas, added, fixed=fixed, in_blocks=in_blocks, robust=False, prior=prior),
+                         stage)
+        return diagnose_fit(res, top, stage)
 
 
-def robust_fit(res: FitResult) -> FitResult:
+def robust_fit(res: FitResult, stage=None) -> FitResult:
     """The robust fit of a diagnosis from a least-squares fit: gross outliers flagged (`fiveaxis.estimation.fit`),
     then checked: readings flagged may be the largest deviations of a missing effect rather than gross errors (a
     roll error times a long lever arm has long tails), so the effects the decision's rule accepts on the other
@@ -137,13 +142,17 @@ def robust_fit(res: FitResult) -> FitResult:
     (a missing effect can be all a run shows: a backlash on a laser run of X flags the whole run against the scale
     of the other runs, and the other readings then show nothing of it) join the model, outliers are flagged again
     against it (a robust fit: an effect a gross outlier drew in does not hide it), and the model is fitted without
-    the readings flagged then."""
+    the readings flagged then (none flagged: that fit is the least-squares fit given, not made again). stage: as
+    `diagnose`'s stages."""
+    stage = stage or (lambda text: None)
     if not F.suspects(res):
         res.outliers = no_outliers(len(res.problem.d))
         return res
+    stage("robust fit (gross outliers flagged)")
     rob = F.robust(res)
     if not rob.outliers.count:
         return rob
+    stage(f"{rob.outliers.count} reading(s) flagged as outliers: which effects may explain them")
     both = [(rob,), (res,)]
     runner = parallel.Local() if len(res.problem.d) <= TWO_SCREENS_READINGS else parallel.Local(1)
     accepted = list(dict.fromkeys(e for got in runner.map(accepted_effects, both) for e in got))
@@ -151,11 +160,16 @@ def robust_fit(res: FitResult) -> FitResult:
         return rob
     prob, in_blocks = res.problem, res.design.in_blocks
     del rob                        # its problem without the outliers (10^6 poses: ~0.3 GB) is not needed again
+    stage(f"outliers flagged again against the model with {', '.join(accepted)}")
     richer = F.fit(prob.model, prob.meas, with_effects(prob, accepted), in_blocks=in_blocks)
     flags = np.zeros(len(prob.d), bool)
     flags[richer.outliers.index] = True
     del richer
-    return F.fit(prob.model, prob.meas, with_effects(prob), exclude=flags, in_blocks=in_blocks)
+    again = with_effects(prob)
+    if not flags.any() and fits_alike(again, prob):
+        return res            # the fit of every reading again: the least-squares fit made first (10^6 poses: ~10 s)
+    stage(f"least-squares fit without the {int(flags.sum())} outlier(s)")
+    return F.fit(prob.model, prob.meas, again, exclude=flags, in_blocks=in_blocks)
 
 
 @dataclass
@@ -345,14 +359,17 @@ def _compress_block(block, w, residual, fold, free, fixed_vals, ids, folds):
     return dc.compress_block(X, fold, block.prob.obs.group == ob.LENGTH, w, folds)
 
 
-def diagnose_fit(res: FitResult, top: int = 10) -> "Diagnosis":
-    """The diagnosis of a fit (with its outliers handled: `robust_fit`): screen, decision, verdict."""
+def diagnose_fit(res: FitResult, top: int = 10, stage=None) -> "Diagnosis":
+    """The diagnosis of a fit (with its outliers handled: `robust_fit`): screen, decision, verdict. stage: as
+    `diagnose`'s stages."""
+    stage = stage or (lambda text: None)
     prob, design = res.problem, res.design
     known = res.known_sigma
     free = prob.free
     present = {e.id for e in prob.effects}
     custom = cd.customs(prob.model, present)
     sc = screen(res)
+    stage(f"candidates built and searched (periods, time constants) on {sc.prob.meas.n} poses")
     fold = cd.folds_of_readings(prob, dc.K_FOLDS)        # before the pool (10^6 poses: its temporaries, 0.1 GB)
     fold_s = cd.folds_of_readings(sc.prob, dc.K_FOLDS)
     pool = cd.build_pool(sc.block, sc.w, sc.Q, sc.rw, present, custom,
@@ -367,7 +384,9 @@ def diagnose_fit(res: FitResult, top: int = 10) -> "Diagnosis":
                      given=[pool.G, pool.Gp, *pool.custom_cols, *pool.profile_cols])   # `_items`: they lead
         rows = dc.RawRows(X, fold, prob.obs.group == ob.LENGTH, prob.w, dc.K_FOLDS)
     else:
+        stage(f"decision: {len(lay.main())} candidates scored on all {len(prob.d)} readings, cross-validated")
         pool.drop_block_columns()               # not needed past the screen; the pass holds blocks of its own
+        give_back_memory()                      # the screen's freed arrays (10^6 poses: ~0.3 GB the heap kept)
         rows = dc.CompressedRows(lay.c, dc.K_FOLDS)
         ids = ([e if getattr(e, "at_targets", False) else e.id for e in effects]        # kT<n>: knots not in its id
                if isinstance(parallel.runner(), parallel.OnDask) else effects)

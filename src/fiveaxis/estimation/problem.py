@@ -188,6 +188,25 @@ def with_effects(prob: Problem, added=()) -> Problem:
                    prior=priors.build(prob.model, names, effects, prob.ctx, prob.prior_spec))
 
 
+def fits_alike(a: Problem, b: Problem) -> bool:
+    """Whether fits of a and of b are the same computation: the same readings, poses and setups (the same arrays),
+    the same effects, held values, weights and priors (a problem and `with_effects` of it with nothing added,
+    where its weights are still the initial ones)."""
+    shared = ("model", "meas", "obs", "ctx", "tool_dir", "tip", "d", "setups")
+    if any(getattr(a, k) is not getattr(b, k) for k in shared):
+        return False
+    if len(a.effects) != len(b.effects) or any(x is not y for x, y in zip(a.effects, b.effects)):
+        return False
+    if a.names != b.names or a.fixed != b.fixed or a.prior_spec is not b.prior_spec:
+        return False
+    if not (np.array_equal(a.w, b.w) and np.array_equal(a.known, b.known)):
+        return False
+    pa, pb = a.prior, b.prior
+    if pa is None or pb is None:
+        return pa is pb
+    return bool(np.array_equal(pa.mean, pb.mean) and np.array_equal(pa.cov, pb.cov) and pa.source == pb.source)
+
+
 def check_fixed(model, names, fixed: dict) -> dict:
     """Held parameters checked against the names of a problem: {name: value (mm, rad)}."""
     out = {}

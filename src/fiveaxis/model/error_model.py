@@ -25,7 +25,7 @@ import numpy as np
 from . import provenance
 from ..exceptions import InputError
 from .machine import Machine, data_dir, load_machine, module_name
-from .numba_cache import ensure_writable, private_folder
+from .numba_cache import cold, ensure_writable, private_folder
 from .iso_names import canonical_keys
 
 
@@ -54,7 +54,24 @@ def serial_kernels():
 def kernel(module: ModuleType, name: str):
     """The kernel `name` of a generated module, or its serial twin on a thread that asked for them
     (`set_serial_kernels`)."""
+    announce_compiling(module)
     return getattr(module, f"{name}_serial" if getattr(_THREAD, "serial", False) else name)
+
+
+_ANNOUNCED: set = set()
+
+
+def announce_compiling(module: ModuleType) -> None:
+    """Before a generated module's first kernel runs in this process: one line on stderr when numba keeps no
+    compiled code of it for this computer yet (its first calls compile it: a quarter of a minute per machine,
+    silent otherwise). A custom effect's module (one small kernel, no MACHINE) is not announced."""
+    if module.__name__ in _ANNOUNCED:
+        return
+    _ANNOUNCED.add(module.__name__)
+    name = getattr(module, "MACHINE", None)
+    if name is not None and cold(module):
+        print(f"fiveaxis: compiling the kernels of {name} for this computer (their first use here; "
+              f"numba keeps them for the next runs)", file=sys.stderr, flush=True)
 
 
 def cache_dir() -> Path:

@@ -92,3 +92,14 @@ def ensure_writable(module_dir: Path, cache_base: Path) -> Path | None:
             config.reload_config()
     _DONE[key] = chosen
     return chosen
+
+
+def cold(kernels) -> bool:
+    """Whether numba keeps no compiled code yet for a generated module's kernels (no index file where its cache
+    would be): their first call compiles them, a quarter of a minute per machine. False when that cannot be
+    told (numba's cache records are internal)."""
+    for obj in vars(kernels).values():
+        index = getattr(getattr(getattr(obj, "_cache", None), "_cache_file", None), "_index_path", None)
+        if isinstance(index, str):
+            return not os.path.exists(index)
+    return False

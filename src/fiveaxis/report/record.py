@@ -256,7 +256,7 @@ def _found(obj, effect_id: str, fit: dict) -> dict:
 def build(data, machine="li2018", convention: str = "equations", added=(), compensation=None,
           max_rounds: int = MAX_ROUNDS, sensitivity: bool = True, title: str | None = None,
           frame: str | None = None, campaign: dict | None = None, uncertainty: U.Statement | None = None,
-          today: _dt.date | None = None, references: dict | None = None) -> Report:
+          today: _dt.date | None = None, references: dict | None = None, progress=None) -> Report:
     """Run the analyses of a measurement file (or of several: one joint fit, `measurement.files.join`) and collect
     the report's record and figures.
 
@@ -266,7 +266,9 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
     file's, else workpiece). campaign: a checked campaign (`report.campaign.load`): the record becomes a
     calibration certificate (`record["certificate"]`); uncertainty: the ISO 230-9 statement of the ISO 230-2
     figures (default: the campaign's iso230_9 keys, else none); today: the issue date when the campaign gives
-    none; references: stated reference temperatures of the channels (`Measurements.with_references`)."""
+    none; references: stated reference temperatures of the channels (`Measurements.with_references`); progress:
+    None, or called with a line of text after each round and as each later step starts (a report takes seconds)."""
+    say = progress or (lambda text: None)
     if uncertainty is None:
         uncertainty = U.Statement(**{k: v for k, v in (campaign or {}).get("iso230_9", {}).items()})
     U.check(uncertainty)
@@ -280,7 +282,8 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
     effects = resolve_effects(model, machine_effects(model) + list(added), poses=meas.poses)
     design_size.check(model, meas, effects)
     preconditions.check(meas)
-    diags = loop.rounds(model, meas, effects, max_rounds, top=TOP, fixed=dict(model.machine.fixed) or None)
+    diags = loop.rounds(model, meas, effects, max_rounds, top=TOP, fixed=dict(model.machine.fixed) or None,
+                        progress=lambda *done: say(loop.round_line(*done)))
     rounds = [_round_record(model, k, dg.to_json()) for k, dg in enumerate(diags, 1)]
     final = diags[-1]
     j = fit_json(final.fit)
@@ -297,6 +300,7 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
                       "after": {"effects": rounds[-1]["added"], "rms_um": rounds[-1]["rms_um"]}},
         "sensitivity": None, "compensation": None}
     record["verdict"] = _verdict(model, rounds, fit, max_rounds)
+    say("figures")
     figs = {"rounds": figures.rounds(rounds)}
     figs["coverage"], record["data"]["coverage_caption"] = figures.coverage(model, meas)
     series = [series_of(diags[0].fit, f"{_model_label(rounds[0]['added'])} (RMS {rounds[0]['rms_um']:.3g} um)")]
@@ -312,6 +316,7 @@ def build(data, machine="li2018", convention: str = "equations", added=(), compe
     record["certificate"] = (certificate.block(campaign, meas, record["iso230"], fit["sigma"], today)
                              if campaign else None)
     if sensitivity:
+        say("sensitivity of the machine's errors (GSIL)")
         record["sensitivity"], top = _sensitivity(model)
         figs["sensitivity"] = figures.sensitivity(top)
     if comp is not None:

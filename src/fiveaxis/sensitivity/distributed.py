@@ -22,6 +22,7 @@ import numpy as np
 
 from .. import parallel
 from ..exceptions import InputError
+from ..model.error_model import announce_compiling
 from . import indices
 
 #: Poses per task: 2**20 poses are 40 MB of poses (li2018; ~130 MB while the grid builds them) and about
@@ -36,6 +37,7 @@ def warm(model) -> float:
     """
     t = time.perf_counter()
     k = model.kernels
+    announce_compiling(k)
     q = np.zeros((1, len(model.variables)))
     E = np.full(len(model.errors), 1e-4)
     for kernel in (k.gsil_range, k.gsil_sum):

@@ -31,7 +31,7 @@ import numpy as np
 
 from .. import parallel
 from ..exceptions import InputError
-from ..model.error_model import load
+from ..model.error_model import announce_compiling, load
 from ..model.columns import MAX_TOOL_LENGTH_MM     # beyond, no tool (and the integrals' products overflow)
 from .grid import Grid, GridAxis
 from ..progress import bar
@@ -80,6 +80,7 @@ def kernel_w(model, poses, E, L0, LE, order, rel_tiny=REL_TINY, normals=None, mo
     entered from several threads at once).
     """
     k = model.kernels
+    announce_compiling(k)
     poses = np.ascontiguousarray(poses, dtype=float)
     E = np.ascontiguousarray(E, dtype=float)
     if order == "exact":
