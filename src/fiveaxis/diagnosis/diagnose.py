@@ -56,10 +56,6 @@ VERDICTS = ("missing effect", "no missing effect", "unexplained structure")
 SCREEN_SINGLES = 24
 #: Periodic candidates of a row-block screen decided on all readings.
 SCREEN_BLOCKS = 8
-#: Most readings for which the robust fit's two screens (`robust_fit`) are built at once, on two threads (each
-#: holds its candidates' columns: ~0.4 MB per 100 readings); in memory only (a row-block screen samples the
-#: design, whose passes may run on a cluster).
-TWO_SCREENS_READINGS = 100_000
 #: Per-position profiles of a row-block screen decided on all readings (the best by extended BIC on the sample;
 #: each is a column per knot, and deciding all of them on 400,000 poses cost 4 minutes of QR).
 SCREEN_PROFILES = 4
@@ -154,9 +150,7 @@ def robust_fit(res: FitResult, stage=None) -> FitResult:
     if not rob.outliers.count:
         return rob
     stage(f"{rob.outliers.count} reading(s) flagged as outliers: which effects may explain them")
-    both = [(rob,), (res,)]
-    runner = parallel.Local(None if not res.design.in_blocks and len(res.problem.d) <= TWO_SCREENS_READINGS else 1)
-    accepted = list(dict.fromkeys(e for got in runner.map(accepted_effects, both) for e in got))
+    accepted = list(dict.fromkeys(accepted_effects(rob) + accepted_effects(res)))
     if not accepted:
         return rob
     prob, in_blocks = res.problem, res.design.in_blocks
