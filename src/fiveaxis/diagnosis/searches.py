@@ -46,6 +46,10 @@ TRIALS_PER_ELEMENT = 5
 PEAKS = 3
 #: Parameters per band whose best period is refined on the exact gain.
 REFINE_EXACT = 8
+#: Most poses for which `periodic` searches several bands at once, each on a thread (a band's refinement holds
+#: ~12 kB per pose on li2018: 75 pairs x 5 offsets, complex, and their squares; two bands at once ~120 MB at this
+#: bound); beyond it (a row-block screen's sample of 8,192 poses) the bands one after the other, as before.
+BANDS_ON_THREADS_POSES = 5000
 #: Fewest distinct values of a variable for a periodic search along it.
 MIN_DISTINCT = 12
 TAU_PER_DECADE = 12
@@ -267,15 +271,15 @@ def periodic(sums: RowSums, bands: list, pairs=None) -> list[Found]:
 
     pairs: {token: [parameter indices]} to search (default: every parameter with a non-zero column). Parameters
     with the same column (up to a factor: e.g. translations along x of several axes) are searched once. Several
-    bands: each on a thread of the runner (its grid in one thread); one band: its grid's chunks on the threads.
-    The same arithmetic either way."""
+    bands on at most BANDS_ON_THREADS_POSES poses: each on a thread of the runner (its grid in one thread); else
+    band after band, a band's grid's chunks on the threads. The same arithmetic either way."""
     T_all = sums.W2.sum(axis=0)
     todo = []
     for b in bands:
         cols = np.flatnonzero(T_all > 0) if pairs is None else np.asarray(pairs.get(b.token, []), int)
         if len(cols):
             todo.append(b)
-    if len(todo) > 1:
+    if len(todo) > 1 and int(np.count_nonzero(sums.live)) <= BANDS_ON_THREADS_POSES:
         tasks = ((sums, b, pairs, T_all, parallel.Local(1)) for b in todo)
         return [f for found in parallel.Local().map(_periodic_band, tasks) for f in found]
     return [f for b in todo for f in _periodic_band(sums, b, pairs, T_all, parallel.Local())]
