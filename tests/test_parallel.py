@@ -34,6 +34,29 @@ def test_results_in_task_order_and_bounded_in_flight():
     assert list(parallel.Local(1).map(task, ((i, 0.0) for i in range(5)))) == list(range(5))
 
 
+def test_a_job_beside_runs_while_the_caller_goes_on_and_gives_its_value_or_its_error(monkeypatch):
+    monkeypatch.setenv(parallel.THREADS_ENV, "2")
+    caller_went_on = threading.Event()
+
+    def job(x):
+        assert caller_went_on.wait(5), "the caller did not go on while the job ran"
+        return x * 2, threading.current_thread() is threading.main_thread()
+
+    got = parallel.beside(job, 21)
+    caller_went_on.set()
+    assert got.result() == (42, False)
+
+    def fails():
+        raise ValueError("in the job")
+
+    with pytest.raises(ValueError, match="in the job"):
+        parallel.beside(fails).result()
+    monkeypatch.setenv(parallel.THREADS_ENV, "1")            # one thread: made at once, in the calling thread
+    ran = []
+    got = parallel.beside(lambda: ran.append(threading.current_thread()) or 7)
+    assert ran == [threading.current_thread()] and got.result() == 7
+
+
 def test_threads_from_the_environment(monkeypatch):
     monkeypatch.setenv(parallel.THREADS_ENV, "3")
     assert parallel.threads() == 3
@@ -91,3 +114,15 @@ print(numba.threading_layer(), int(np.array_equal(fits[0].theta, fits[1].theta))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path)
     assert out.returncode == 0, out.stderr[-1500:]
     assert out.stdout.split() == ["workqueue", "1"]
+
+
+def test_a_diagnosis_in_memory_on_two_threads_gives_the_json_of_one(monkeypatch):
+    """The cross-validation's folds beside the set selection and the listing, the period searches' bands on
+    threads: the same record to the last bit as on one thread."""
+    model = fiveaxis.load("li2018")
+    meas = simulate(model, ["dz_x:x2"], n=300, noise=1e-3, seed=6).meas
+    out = {}
+    for threads in ("1", "2"):
+        monkeypatch.setenv(parallel.THREADS_ENV, threads)
+        out[threads] = diagnose(model, meas).to_json()
+    assert out["1"]["decision"]["cv_chosen"] and out["1"] == out["2"]

@@ -103,6 +103,37 @@ class Local:
         pass
 
 
+class Beside:
+    """fn(*args) on a thread of its own while the caller goes on (`beside`); `result()` waits for it and returns
+    its value or raises its exception."""
+
+    def __init__(self, fn, args, threads_: int):
+        self._value = self._error = None
+        self._pool = None
+        if threads_ <= 1:                  # one thread: made now, in the calling thread
+            self._value = fn(*args)
+            return
+        self._pool = ThreadPoolExecutor(1, initializer=_task_thread)
+        self._future = self._pool.submit(fn, *args)
+
+    def result(self):
+        if self._pool is not None:
+            try:
+                self._value = self._future.result()
+            finally:
+                self._pool.shutdown()
+                self._pool = None
+        return self._value
+
+
+def beside(fn, *args) -> Beside:
+    """fn(*args) started on a thread of its own (a pass's: serial kernels) while the calling thread does other
+    work; with one thread (`threads()`), made at once in the calling thread. For a job whose own passes leave a
+    core idle part of the time (the decision's cross-validation beside its set selection and listing): the same
+    arithmetic either way."""
+    return Beside(fn, args, threads())
+
+
 class OnDask:
     """Tasks on the workers of a dask client, at most in_flight at a time (default 4 per worker thread)."""
 

@@ -243,7 +243,7 @@ def decide(rows, lay: Layout, prior: cd.Prior, idf, known: bool, top: int, descr
     scorer = _Scorer(Z, lay, main, Q)
     gains = scorer.gains(rw)
     d = _deltas(rss, gains, main, N, pens, known)
-    sse0, sse1, chosen = cross_validate(rows, lay, prior, known, rank)
+    cv = parallel.beside(cross_validate, rows, lay, prior, known, rank)   # its folds beside the set and listing
     accepted, _ = select(Z, Q, rw, lay, main, pens, N, known, scorer)
     accepted = _ranked(Z, Q, rw, lay, [_head(Z, Q, lay, main, k, head_key) for k in accepted], pens, N, known)
     order = _best_first(main, d)
@@ -255,6 +255,16 @@ def decide(rows, lay: Layout, prior: cd.Prior, idf, known: bool, top: int, descr
         best = order[0] if order else None
         d_best = d[best] if best is not None else math.inf
         penalty = pens[best] if best is not None else cd.ebic_penalty(N, 1)
+    extra = [c for k in accepted for c in lay.cols[k]]
+    coefs, _ = fit_set(Z, Q, M, extra, lay.ir, lay.p)
+    set_cols = base + extra
+    forward = []
+    for i in range(len(accepted)):
+        extra_i = [c for k in accepted[:i + 1] for c in lay.cols[k]]
+        x, _ = fit_set(Z, Q, M, extra_i, lay.ir, lay.p)
+        forward.append({"id": lay.effects[accepted[i]].id, "rms_mm": rows.rms_mm(base + extra_i, x, lay.ir)})
+    listed = listing(Z, Q, M, rw, rss, lay, main, d, gains, accepted, rows, top, describe, head_key, scorer)
+    sse0, sse1, chosen = cv.result()
     decision = {"rule": "extended BIC (penalty k ln N + 2 ln(F M_f) for k coefficients from family f of F, M_f "
                         "trials; a searched period or time constant counts as a coefficient) and nested K-fold "
                         "cross-validation; the effects accepted as a set (stepwise: forward, backward and swap "
@@ -266,15 +276,6 @@ def decide(rows, lay: Layout, prior: cd.Prior, idf, known: bool, top: int, descr
                 "accepted": [lay.effects[k].id for k in accepted],
                 "delta_ebic_best": d_best, "ebic_pass": bool(d_best < 0), "cv_folds": rows.folds,
                 "cv_sse_without": sse0, "cv_sse_with": sse1, "cv_pass": bool(sse1 < sse0), "cv_chosen": chosen}
-    extra = [c for k in accepted for c in lay.cols[k]]
-    coefs, _ = fit_set(Z, Q, M, extra, lay.ir, lay.p)
-    set_cols = base + extra
-    forward = []
-    for i in range(len(accepted)):
-        extra_i = [c for k in accepted[:i + 1] for c in lay.cols[k]]
-        x, _ = fit_set(Z, Q, M, extra_i, lay.ir, lay.p)
-        forward.append({"id": lay.effects[accepted[i]].id, "rms_mm": rows.rms_mm(base + extra_i, x, lay.ir)})
-    listed = listing(Z, Q, M, rw, rss, lay, main, d, gains, accepted, rows, top, describe, head_key, scorer)
     out = Outcome(decision, forward, accepted, listed, coefs, set_cols, rss, scored=d)
     if not known:
         n_coef = sum(len(lay.cols[k]) for k in accepted)
