@@ -1,5 +1,9 @@
 """The runner of passes in this process (`fiveaxis.parallel.Local`): threads, results in task order, bounded in
 flight, and the same numbers as one thread."""
+import ctypes
+import os
+import subprocess
+import sys
 import threading
 import time
 
@@ -126,3 +130,44 @@ def test_a_diagnosis_in_memory_on_two_threads_gives_the_json_of_one(monkeypatch)
         monkeypatch.setenv(parallel.THREADS_ENV, threads)
         out[threads] = diagnose(model, meas).to_json()
     assert out["1"]["decision"]["cv_chosen"] and out["1"] == out["2"]
+
+
+def test_a_pass_gives_memory_back_unless_the_process_keeps_it_for_its_next_arrays(monkeypatch):
+    calls = []
+    monkeypatch.setattr(parallel, "give_back_memory", lambda: calls.append(1))
+    for threads in (1, 2):
+        for policy, give_back, trims in ((False, None, 1), (True, None, 0), (True, True, 1), (False, False, 0)):
+            monkeypatch.setattr(parallel, "heap_policy_on", lambda: policy)
+            calls.clear()
+            assert list(parallel.Local(threads).map(lambda i: i, ((i,) for i in range(3)), give_back=give_back)) \
+                == [0, 1, 2]
+            assert len(calls) == trims, (threads, policy, give_back)
+
+
+_POLICY = """
+import sys, fiveaxis
+from fiveaxis import guards
+from fiveaxis.estimation import fit as F
+from fiveaxis.measurement.simulate import simulate
+model = fiveaxis.load("li2018")
+meas = simulate(model, [], n=60, noise=1e-3, seed=1).meas
+F.fit(model, meas, in_blocks=True)
+print(guards.heap_policy_on(), end=" ")
+F.fit(model, meas)
+print(guards.heap_policy_on(), guards.free_heap_bytes() is not None)
+"""
+
+
+def test_a_set_in_memory_sets_the_heap_policy_a_row_block_set_does_not_and_the_users_setting_wins():
+    """glibc's options (mallopt) set by the first set in memory, not by a set in row blocks (its peak is watched);
+    a user's MALLOC_* or GLIBC_TUNABLES is left alone."""
+    try:
+        ctypes.CDLL("libc.so.6").mallinfo2
+    except (OSError, AttributeError):
+        pytest.skip("not glibc 2.33 or later: no heap policy")
+    env = {k: v for k, v in os.environ.items() if not k.startswith("MALLOC_") and k != "GLIBC_TUNABLES"}
+    out = subprocess.run([sys.executable, "-c", _POLICY], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "True", "True"]
+    out = subprocess.run([sys.executable, "-c", _POLICY], env=dict(env, MALLOC_TRIM_THRESHOLD_="131072"),
+                         capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "False", "True"]

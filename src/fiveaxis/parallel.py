@@ -31,7 +31,7 @@ from contextlib import contextmanager
 import numba
 
 from .exceptions import InputError
-from .guards import give_back_memory
+from .guards import give_back_memory, heap_policy_on
 from .model.error_model import set_serial_kernels
 
 #: Schemes of scheduler addresses: plain TCP, or TLS (its certificates come from the dask configuration).
@@ -76,13 +76,20 @@ class Local:
     def __init__(self, threads: int | None = None):
         self.threads = threads
 
-    def map(self, fn, tasks, near=None):
-        """Yield fn(*task) for every task (an iterable of argument tuples), in order; near is ignored here."""
+    def map(self, fn, tasks, near=None, give_back: bool | None = True):
+        """Yield fn(*task) for every task (an iterable of argument tuples), in order; near is ignored here.
+        give_back: the memory the tasks freed given back to the system at the end (`guards.give_back_memory`: the
+        passes over row blocks); None: unless the process keeps freed memory for its next arrays
+        (`fiveaxis.guards.heap_policy`, set by a set in memory: its pages would only fault in again), for the
+        passes over a screen (in memory, or a row-block set's sample, where the peak is watched)."""
+        if give_back is None:
+            give_back = not heap_policy_on()
         n = self.threads or threads()
         if n <= 1:
             for task in tasks:
                 yield fn(*task)
-            give_back_memory()
+            if give_back:
+                give_back_memory()
             return
         with ThreadPoolExecutor(n, initializer=_task_thread) as pool:
             pending = deque()
@@ -92,7 +99,8 @@ class Local:
                     yield pending.popleft().result()
             while pending:
                 yield pending.popleft().result()
-        give_back_memory()   # the tasks' temporaries, freed in the threads' heaps (glibc keeps them otherwise)
+        if give_back:
+            give_back_memory()   # the tasks' temporaries, freed in the threads' heaps (glibc keeps them otherwise)
 
     def keep(self, key, make) -> Kept:
         """The objects make() returns, for the tasks of passes; in this process they are made again for each

@@ -554,7 +554,8 @@ def cross_validate(rows, lay: Layout, prior: cd.Prior, known: bool, rank: int):
     folds = [f for f in range(rows.folds) if rows.count(f)]
     sse0 = sse1 = 0.0
     chosen = []
-    for s0, s1, best in parallel.Local().map(_fold, ((rows, lay, prior, known, rank, f) for f in folds)):
+    tasks = ((rows, lay, prior, known, rank, f) for f in folds)
+    for s0, s1, best in parallel.Local().map(_fold, tasks, give_back=None):     # kept: `Local.map`
         sse0 += s0
         sse1 += s1
         chosen.append(best)

@@ -281,7 +281,7 @@ def periodic(sums: RowSums, bands: list, pairs=None) -> list[Found]:
             todo.append(b)
     if len(todo) > 1 and int(np.count_nonzero(sums.live)) <= BANDS_ON_THREADS_POSES:
         tasks = ((sums, b, pairs, T_all, parallel.Local(1)) for b in todo)
-        return [f for found in parallel.Local().map(_periodic_band, tasks) for f in found]
+        return [f for found in parallel.Local().map(_periodic_band, tasks, give_back=None) for f in found]
     return [f for b in todo for f in _periodic_band(sums, b, pairs, T_all, parallel.Local())]
 
 
@@ -298,7 +298,7 @@ def _periodic_band(sums: RowSums, b: Band, pairs, T_all, runner) -> list[Found]:
     gains = np.empty((len(ucols), b.K))
     # The grid's chunks on the runner's threads (each chunk's arithmetic as in one thread: same gains).
     chunks = ((v, b.f_min, b.df, b.K, a0, W1, W2, T) for a0 in _grid_starts(b.K))
-    for k0, g in runner.map(_chunk_gains, chunks):
+    for k0, g in runner.map(_chunk_gains, chunks, give_back=None):     # kept: `Local.map`
         gains[:, k0:k0 + g.shape[1]] = g
     peaks = _top_peaks(gains, PEAKS)                                  # (len(ucols), PEAKS) grid indices
     f = b.f_min + (peaks + _vertex(gains, peaks)) * b.df                 # parabolic interpolation
