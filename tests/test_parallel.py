@@ -154,7 +154,7 @@ meas = simulate(model, [], n=60, noise=1e-3, seed=1).meas
 F.fit(model, meas, in_blocks=True)
 print(guards.heap_policy_on(), end=" ")
 F.fit(model, meas)
-print(guards.heap_policy_on(), guards.free_heap_bytes() is not None)
+print(guards.heap_policy_on())
 """
 
 
@@ -162,12 +162,12 @@ def test_a_set_in_memory_sets_the_heap_policy_a_row_block_set_does_not_and_the_u
     """glibc's options (mallopt) set by the first set in memory, not by a set in row blocks (its peak is watched);
     a user's MALLOC_* or GLIBC_TUNABLES is left alone."""
     try:
-        ctypes.CDLL("libc.so.6").mallinfo2
+        ctypes.CDLL("libc.so.6").mallopt
     except (OSError, AttributeError):
-        pytest.skip("not glibc 2.33 or later: no heap policy")
+        pytest.skip("not glibc: no heap policy")
     env = {k: v for k, v in os.environ.items() if not k.startswith("MALLOC_") and k != "GLIBC_TUNABLES"}
     out = subprocess.run([sys.executable, "-c", _POLICY], env=env, capture_output=True, text=True, check=True)
-    assert out.stdout.split() == ["False", "True", "True"]
+    assert out.stdout.split() == ["False", "True"]
     out = subprocess.run([sys.executable, "-c", _POLICY], env=dict(env, MALLOC_TRIM_THRESHOLD_="131072"),
                          capture_output=True, text=True, check=True)
-    assert out.stdout.split() == ["False", "False", "True"]
+    assert out.stdout.split() == ["False", "False"]

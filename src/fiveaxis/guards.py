@@ -96,12 +96,6 @@ def _bytes(n) -> str:
     return f"{n / 1e9:.3g} GB" if n >= 1e8 else f"{n / 1e6:.3g} MB"
 
 
-class _Mallinfo2(ctypes.Structure):
-    """glibc's struct mallinfo2 (bytes)."""
-    _fields_ = [(name, ctypes.c_size_t) for name in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks",
-                                                      "fsmblks", "uordblks", "fordblks", "keepcost")]
-
-
 _GLIBC = {}
 
 #: glibc's options (mallopt) of a process that runs passes (`heap_policy`): blocks up to MMAP_THRESHOLD bytes from
@@ -115,17 +109,14 @@ _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
 
 
 def _glibc():
-    """{"trim", "info", "opt"}: glibc's malloc_trim, mallinfo2 and mallopt (None where absent: not glibc, or
-    glibc before 2.33)."""
+    """{"trim", "opt"}: glibc's malloc_trim and mallopt (None where absent: not glibc)."""
     if not _GLIBC:
         try:
             libc = ctypes.CDLL("libc.so.6")
         except OSError:                           # not glibc
             libc = None
-        for key, name in (("trim", "malloc_trim"), ("info", "mallinfo2"), ("opt", "mallopt")):
+        for key, name in (("trim", "malloc_trim"), ("opt", "mallopt")):
             _GLIBC[key] = getattr(libc, name, None) if libc is not None else None
-        if _GLIBC["info"] is not None:
-            _GLIBC["info"].restype = _Mallinfo2
     return _GLIBC
 
 
@@ -135,7 +126,7 @@ def heap_policy() -> bool:
     libc = _glibc()
     if libc.get("policy") is None:
         user = any(k in os.environ for k in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "GLIBC_TUNABLES"))
-        ok = libc["opt"] is not None and libc["info"] is not None and not user
+        ok = libc["opt"] is not None and not user
         if ok:
             ok = bool(libc["opt"](_M_MMAP_THRESHOLD, MMAP_THRESHOLD)) and bool(libc["opt"](_M_TRIM_THRESHOLD,
                                                                                          TRIM_THRESHOLD))
@@ -148,17 +139,11 @@ def heap_policy_on() -> bool:
     return bool(_GLIBC.get("policy"))
 
 
-def free_heap_bytes() -> int | None:
-    """Bytes freed inside glibc's heaps (every arena) and not given back; None without glibc's mallinfo2."""
-    info = _glibc()["info"]
-    return int(info().fordblks) if info is not None else None
-
-
 def give_back_memory() -> None:
     """Return memory freed inside this process to the system: Arrow's pool (the Parquet reader's buffers) and the C
-    heaps of glibc (malloc_trim, every thread's arena); nothing where neither is present. Called after a Parquet file is read and
-    after each pass over row blocks: at 10^6 poses the reader left ~0.25 GB behind and the passes' threads' heaps
-    grew with their freed blocks."""
+    heaps of glibc (malloc_trim, every thread's arena); nothing where neither is present. Called after a Parquet
+    file is read and after each pass over row blocks: at 10^6 poses the reader left ~0.25 GB behind and the passes'
+    threads' heaps grew with their freed blocks."""
     arrow = sys.modules.get("pyarrow")
     if arrow is not None:
         arrow.default_memory_pool().release_unused()

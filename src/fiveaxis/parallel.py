@@ -116,8 +116,7 @@ class Beside:
     its value or raises its exception."""
 
     def __init__(self, fn, args, threads_: int):
-        self._value = self._error = None
-        self._pool = None
+        self._value = self._pool = None
         if threads_ <= 1:                  # one thread: made now, in the calling thread
             self._value = fn(*args)
             return
