@@ -98,7 +98,8 @@ def _bytes(n) -> str:
 
 _GLIBC = {}
 
-#: glibc's options (mallopt) of a process that runs passes (`heap_policy`): blocks up to MMAP_THRESHOLD bytes from
+#: glibc's options (mallopt) of a process that fits or diagnoses a set in memory (`heap_policy`, set by
+#: `fiveaxis.estimation.design.backend`): blocks up to MMAP_THRESHOLD bytes from
 #: the heaps (the most glibc allows: not its threshold that moves with the sizes freed) and no trim at each free
 #: (TRIM_THRESHOLD): memory freed stays in the heaps for the next arrays. A page given back faults again when it
 #: is used next (~7 us each on a virtual machine): a 1,500-pose diagnosis touched 55,000 fresh pages (0.5 s of
